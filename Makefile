@@ -1,0 +1,52 @@
+# gridmap: the targets a newcomer guesses. Everything runs inside .venv, created on demand.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+DEMO_OUT := out/demo
+
+.PHONY: install dev demo test lint format bench samples experiment clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+# runtime install; the stamp is redone when pyproject.toml changes
+$(VENV)/.installed: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e .
+	touch $@
+
+# runtime + development tools (pytest, hypothesis, ruff, mypy)
+$(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $@ $(VENV)/.installed
+
+install: $(VENV)/.installed
+
+dev: $(VENV)/.installed-dev
+
+demo: install
+	@mkdir -p $(DEMO_OUT)
+	$(BIN)/gridmap build samples/corridor_loop.csv -o $(DEMO_OUT)/corridor_loop.png --force
+	@echo "demo map written to $(DEMO_OUT)/corridor_loop.png and $(DEMO_OUT)/corridor_loop.yaml"
+
+test: dev
+	$(BIN)/python -m pytest
+
+lint: dev
+	$(BIN)/ruff check gridmap_cli tests bench
+	$(BIN)/ruff format --check gridmap_cli tests bench
+	$(BIN)/mypy
+
+format: dev
+	$(BIN)/ruff format gridmap_cli tests bench
+	$(BIN)/ruff check --fix gridmap_cli tests bench
+
+bench: install
+	$(BIN)/python bench/bench_build.py
+
+# regenerate the bundled worlds, paths and simulated logs in samples/
+samples: install
+	$(BIN)/python samples/make_samples.py
+
+clean:
+	rm -rf $(VENV) out build *.egg-info .pytest_cache .ruff_cache .mypy_cache bench/.cache

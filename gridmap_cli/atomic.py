@@ -1,0 +1,157 @@
+"""Write outputs so that a reader never sees a half-written file.
+
+Each output is written to a hidden temporary file beside its target (same directory, so the final
+``os.replace`` is a rename within one file system, which POSIX makes atomic) and renamed over the
+target only when the writing code finished without an exception. On any exception the temporary
+files are deleted and the exception propagates; the targets are left as they were.
+
+:func:`atomic_outputs` does the same for several files that only make sense together (a map image
+and its YAML): none of them is renamed unless the whole block succeeded, and if one of the final
+renames fails, the renames already done are undone.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+import shutil
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+
+#: How many random names to try before giving up on creating a temporary file; a clash of 32
+#: random bits with a leftover file is already unlikely, several in a row mean something else.
+_NAME_ATTEMPTS = 16
+
+
+def _temp_path_for(target: Path, tag: str) -> Path:
+    """Create (empty, exclusively) and return a hidden file beside ``target``.
+
+    The name is ``.<name>.<tag>-XXXXXXXX<suffix>``: hidden so directory listings and globs such
+    as ``*.pgm`` skip it, and ending in the target's suffix so that libraries that choose a format
+    from the file name (Pillow) write the same format as they would to the target.
+    """
+    for _ in range(_NAME_ATTEMPTS):
+        candidate = target.with_name(f".{target.name}.{tag}-{secrets.token_hex(4)}{target.suffix}")
+        try:
+            # 0o666 filtered by the umask, so the final file gets the permissions a plain
+            # open() would have given it (tempfile.mkstemp would force 0o600).
+            fd = os.open(candidate, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+        except FileExistsError:
+            continue
+        os.close(fd)
+        return candidate
+    raise FileExistsError(f"could not create a temporary file beside {target}")
+
+
+def _fsync_file(path: Path) -> None:
+    # Without this a crash shortly after the rename can leave the target empty on file systems
+    # that reorder metadata and data writes.
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _fsync_directory(folder: Path) -> None:
+    # Makes the rename itself durable; not every platform lets a directory be opened, and losing
+    # only durability (not atomicity) there is acceptable.
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _discard(paths: Sequence[Path]) -> None:
+    for path in paths:
+        with contextlib.suppress(OSError):
+            path.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def atomic_output(path: Path) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; rename it over ``path`` if the block succeeds.
+
+    The temporary file exists (empty) when the block starts; the block writes it by name (for
+    example ``image.save(tmp)`` or ``open(tmp, "w")``). On any exception, including
+    ``KeyboardInterrupt``, the temporary file is deleted, ``path`` is untouched and the
+    exception propagates.
+    """
+    with atomic_outputs([path]) as (tmp,):
+        yield tmp
+
+
+def _backup(target: Path) -> Path | None:
+    """A hidden second name (or copy) for an existing regular file, so it can be restored."""
+    if not target.is_file():
+        return None
+    backup = _temp_path_for(target, "bak")
+    try:
+        backup.unlink()
+        try:
+            # a hard link costs no copying and leaves the target itself in place
+            os.link(target, backup)
+        except OSError:
+            shutil.copy2(target, backup)
+    except BaseException:
+        _discard([backup])
+        raise
+    return backup
+
+
+@contextlib.contextmanager
+def atomic_outputs(paths: Sequence[Path]) -> Iterator[list[Path]]:
+    """Yield temporary paths for several outputs; rename them all only if the block succeeds.
+
+    ``paths`` are the targets (distinct); the yielded list holds one temporary path per target,
+    in the same order, each in its target's directory. After the block, targets are replaced one
+    by one in order; if a replace fails (say a target turned out to be a directory), the targets
+    already replaced are restored to their previous content (or removed if they did not exist)
+    before the error propagates, so the set of outputs is either all new or all as it was.
+    """
+    targets = [Path(p) for p in paths]
+    if len({t.resolve() for t in targets}) != len(targets):
+        raise ValueError(f"the same output appears twice in {[str(t) for t in targets]}")
+    temps: list[Path] = []
+    try:
+        for target in targets:
+            temps.append(_temp_path_for(target, "tmp"))
+        yield list(temps)
+        for tmp in temps:
+            _fsync_file(tmp)
+    except BaseException:
+        _discard(temps)
+        raise
+    _commit(temps, targets)
+
+
+def _commit(temps: Sequence[Path], targets: Sequence[Path]) -> None:
+    """Replace each target by its temporary file; undo every replace if any one fails."""
+    done: list[tuple[Path, Path | None]] = []
+    backups: list[Path] = []
+    try:
+        for tmp, target in zip(temps, targets, strict=True):
+            backup = _backup(target)
+            if backup is not None:
+                backups.append(backup)
+            os.replace(tmp, target)
+            done.append((target, backup))
+    except BaseException:
+        for target, backup in reversed(done):
+            with contextlib.suppress(OSError):
+                if backup is not None:
+                    os.replace(backup, target)
+                else:
+                    target.unlink(missing_ok=True)
+        _discard(list(temps) + backups)
+        raise
+    _discard(backups)
+    for folder in {t.parent for t in targets}:
+        _fsync_directory(folder)

@@ -1,0 +1,341 @@
+"""The command line: the only module that imports click, prints, shows progress or exits.
+
+Each command checks every precondition (inputs exist, outputs absent unless --force, options
+consistent) before reading a byte, then calls a plain library function and reports. Library
+errors become one ``Error: ...`` line: exit 1 for bad data or runtime failures, 2 for usage.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, ParamSpec, TypeVar
+
+import click
+import numpy as np
+from tqdm import tqdm
+
+from gridmap_cli import __version__
+from gridmap_cli.errors import GridmapError, InputFileError, OutputExistsError, UsageError
+from gridmap_cli.models.standard import StandardSonarParams
+from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
+from gridmap_cli.readers import format_names, resolve_format
+from gridmap_cli.robot import RobotDescription, load_robot
+from gridmap_cli.writers.csv_log import save_csv_log
+from gridmap_cli.writers.map_image import MAP_MODES, check_map_outputs, write_map
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+class _UsageFailure(click.ClickException):
+    """A usage error reported on one line (click's UsageError would print the usage block)."""
+
+    exit_code = 2
+
+
+def _handle_errors(func: Callable[P, R]) -> Callable[P, R]:
+    """Turn library errors into one-line ``Error:`` messages; tracebacks only with --debug."""
+
+    @functools.wraps(func)
+    def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
+        try:
+            return func(*args, **kwargs)
+        except GridmapError as exc:
+            if _debug_enabled():
+                raise
+            if isinstance(exc, UsageError):
+                raise _UsageFailure(str(exc)) from exc
+            raise click.ClickException(str(exc)) from exc
+
+    return wrapper
+
+
+def _debug_enabled() -> bool:
+    ctx = click.get_current_context(silent=True)
+    root = ctx.find_root() if ctx is not None else None
+    return bool(root is not None and root.obj and root.obj.get("debug"))
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="gridmap")
+@click.option("--debug", is_flag=True, help="Show tracebacks instead of one-line errors.")
+@click.pass_context
+def cli(ctx: click.Context, debug: bool) -> None:
+    """Occupancy-grid maps from robot logs of range readings and wheel odometry."""
+    ctx.obj = {"debug": debug}
+
+
+def _progress_bar(total: int, quiet: bool, desc: str) -> tqdm[Any]:
+    # hidden when stderr is not a terminal (pipelines, cron) or with --quiet
+    return tqdm(
+        total=total,
+        desc=desc,
+        unit=" readings",
+        unit_scale=True,
+        file=sys.stderr,
+        disable=quiet or not sys.stderr.isatty(),
+        leave=False,
+    )
+
+
+def _check_output_folder(output: Path) -> None:
+    folder = output.parent
+    if not folder.is_dir():
+        raise GridmapError(f"{output}: directory {folder} does not exist")
+
+
+def _resolve_robot(spec: str | None, metadata: dict[str, str]) -> RobotDescription | None:
+    name = spec or metadata.get("robot")
+    return load_robot(name) if name else None
+
+
+@cli.command()
+@click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Map image to write (.png or .pgm); the YAML is written beside it.",
+)
+@click.option(
+    "--robot",
+    help="Robot preset (p3at, p3dx) or robot YAML file; default: the log's own '# robot:' line.",
+)
+@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@click.option(
+    "--resolution", type=float, default=0.05, show_default=True, help="Cell size in metres."
+)
+@click.option(
+    "--mode",
+    type=click.Choice(MAPPING_MODES),
+    default="standard",
+    show_default=True,
+    help="Mapping algorithm.",
+)
+@click.option(
+    "--map-mode",
+    type=click.Choice(MAP_MODES),
+    default="trinary",
+    show_default=True,
+    help="How occupancy is stored in the image (map_server modes).",
+)
+@click.option(
+    "--occupied",
+    type=float,
+    default=0.65,
+    show_default=True,
+    help="Probability at or above which a cell is occupied.",
+)
+@click.option(
+    "--free",
+    type=float,
+    default=0.25,
+    show_default=True,
+    help="Probability at or below which a cell is free.",
+)
+@click.option(
+    "--no-echo-free",
+    type=float,
+    default=StandardSonarParams.no_echo_free_m,
+    show_default=True,
+    help="Metres of free space a max-range (no echo) reading clears; 0 ignores them.",
+)
+@click.option("--force", is_flag=True, help="Overwrite existing outputs.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
+@_handle_errors
+def build(
+    log: Path,
+    output: Path,
+    robot: str | None,
+    log_format: str | None,
+    resolution: float,
+    mode: str,
+    map_mode: str,
+    occupied: float,
+    free: float,
+    no_echo_free: float,
+    force: bool,
+    quiet: bool,
+    as_json: bool,
+) -> None:
+    """Build an occupancy-grid map from LOG and write it as a map_server image + YAML."""
+    started = time.perf_counter()
+    if not (0.0 <= free < occupied <= 1.0):
+        raise UsageError(f"need 0 <= --free < --occupied <= 1, got {free} and {occupied}")
+    if not resolution > 0.0:
+        raise UsageError(f"--resolution must be positive, got {resolution}")
+    try:
+        sonar = StandardSonarParams(no_echo_free_m=no_echo_free)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from exc
+    check_map_outputs(output, map_mode, force)
+    _check_output_folder(output)
+    if not log.is_file():
+        raise InputFileError(log, "no such file" if not log.exists() else "not a regular file")
+    fmt = resolve_format(log, log_format)
+    robot_desc = load_robot(robot) if robot else None
+
+    data = fmt.read(log)
+    if robot_desc is None:
+        robot_desc = _resolve_robot(None, data.metadata)
+    options = BuildOptions(resolution_m=resolution, mode=mode, sonar=sonar)
+    with _progress_bar(len(data.readings), quiet, "mapping") as bar:
+        result = build_map(data, robot_desc, options, progress=bar.update)
+    image_path, yaml_path = write_map(
+        output, result.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free, force=force
+    )
+    elapsed = time.perf_counter() - started
+    summary = _summary(result, image_path, yaml_path, elapsed, occupied, free)
+    if as_json:
+        click.echo(json.dumps(summary, indent=2))
+    if not quiet:
+        click.echo(_summary_line(summary), err=True)
+
+
+def _summary(
+    result: BuildResult,
+    image: Path,
+    yaml_path: Path,
+    seconds: float,
+    occupied: float,
+    free: float,
+) -> dict[str, Any]:
+    spec = result.map.spec
+    prob = result.map.prob
+    known = ~(prob != prob)  # NaN-safe "observed"
+    return {
+        "image": str(image),
+        "yaml": str(yaml_path),
+        "readings": {
+            "total": result.sync.total,
+            "used": result.sync.used,
+            "skipped": result.sync.total - result.sync.used,
+            "outside_odometry": result.sync.outside_odometry,
+            "below_min_range": result.sync.below_min_range,
+        },
+        "map": {
+            "width": spec.width,
+            "height": spec.height,
+            "resolution": spec.resolution_m,
+            "origin": [spec.origin_x_m, spec.origin_y_m, 0.0],
+        },
+        "cells": {
+            "observed": int(known.sum()),
+            "occupied": int((prob[known] >= occupied).sum()),
+            "free": int((prob[known] <= free).sum()),
+        },
+        "cell_updates": result.cell_updates,
+        "seconds": round(seconds, 3),
+    }
+
+
+def _summary_line(s: dict[str, Any]) -> str:
+    r, m = s["readings"], s["map"]
+    skipped = ""
+    if r["skipped"]:
+        skipped = (
+            f" ({r['skipped']:,} skipped: {r['outside_odometry']:,} outside the odometry's time "
+            f"span, {r['below_min_range']:,} below minimum range)"
+        )
+    return (
+        f"gridmap: {r['used']:,} of {r['total']:,} readings mapped{skipped}; "
+        f"{m['width']} x {m['height']} cells at {m['resolution']} m "
+        f"({m['width'] * m['resolution']:.1f} x {m['height'] * m['resolution']:.1f} m) "
+        f"in {s['seconds']:.1f} s -> {s['image']}, {s['yaml']}"
+    )
+
+
+@cli.command()
+@click.argument("world", type=click.Path(path_type=Path, dir_okay=False))
+@click.argument("path_file", metavar="PATH", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="CSV log to write.",
+)
+@click.option("--robot", default="p3at", show_default=True, help="Robot preset or YAML file.")
+@click.option("--rate", type=float, default=10.0, show_default=True, help="Sensor rate, Hz.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
+@click.option(
+    "--drift",
+    type=float,
+    default=1.0,
+    show_default=True,
+    help="Odometry error level: 0 perfect, 1 typical, 2 poor (scales every error term).",
+)
+@click.option("--duration", type=float, help="Repeat laps until this many seconds have passed.")
+@click.option("--force", is_flag=True, help="Overwrite an existing output.")
+@click.option("-q", "--quiet", is_flag=True, help="No summary on stderr.")
+@_handle_errors
+def simulate(
+    world: Path,
+    path_file: Path,
+    output: Path,
+    robot: str,
+    rate: float,
+    seed: int,
+    drift: float,
+    duration: float | None,
+    force: bool,
+    quiet: bool,
+) -> None:
+    """Drive a simulated robot along PATH in WORLD and write a CSV log with ground truth.
+
+    WORLD is a map_server map (YAML + image); PATH a waypoint file (see docs/simulator.md).
+    """
+    from gridmap_cli.mapfile import load_map
+    from gridmap_cli.sim.path import load_path
+    from gridmap_cli.sim.simulate import simulate as run_simulation
+    from gridmap_cli.sim.world import World
+
+    if rate <= 0.0:
+        raise UsageError(f"--rate must be positive, got {rate}")
+    if drift < 0.0:
+        raise UsageError(f"--drift must be >= 0, got {drift}")
+    if duration is not None and duration <= 0.0:
+        raise UsageError(f"--duration must be positive, got {duration}")
+    if output.suffix.lower() != ".csv":
+        raise UsageError(f"{output}: simulate writes CSV logs (.csv)")
+    if output.exists() and not force:
+        raise OutputExistsError(output)
+    _check_output_folder(output)
+    for given in (world, path_file):
+        if not given.is_file():
+            raise InputFileError(given, "no such file")
+    robot_desc = load_robot(robot)
+    loaded = load_map(world)
+    waypoints = load_path(path_file)
+    log = run_simulation(
+        World(loaded.occupied_mask(), loaded.spec),
+        waypoints,
+        robot_desc,
+        rate_hz=rate,
+        seed=seed,
+        drift=drift,
+        duration_s=duration,
+    )
+    log.metadata.update({"robot": robot, "world": str(world), "path": str(path_file)})
+    save_csv_log(log, output)
+    if not quiet:
+        zmax = np.asarray([s.max_range_m for s in robot_desc.sensors])
+        no_echo = int(np.count_nonzero(log.readings.range_m >= zmax[log.readings.sensor]))
+        span = (log.poses.stamp_ns[-1] - log.poses.stamp_ns[0]) / 1e9
+        click.echo(
+            f"gridmap: simulated {span:.1f} s: {len(log.poses):,} poses, "
+            f"{len(log.readings):,} readings ({no_echo:,} no echo) -> {output}",
+            err=True,
+        )
+
+
+def main() -> None:
+    """Console-script entry point."""
+    cli(prog_name="gridmap")

@@ -1,0 +1,78 @@
+"""One exception tree for everything gridmap can refuse or fail at.
+
+Each exception formats its own message from fields, so the CLI only prints ``str(err)`` and
+chooses the exit code: :class:`UsageError` subclasses are the user's command line (exit 2),
+everything else is bad data or a runtime failure (exit 1).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class GridmapError(Exception):
+    """Root of every error gridmap raises on purpose."""
+
+
+class UsageError(GridmapError):
+    """The command line asks for something that cannot be done (exit code 2)."""
+
+
+class InputFileError(GridmapError):
+    """A file is broken: the message names the file and, where known, the line and column.
+
+    Formats as ``path:line: detail`` (``path: detail`` without a line).
+    """
+
+    def __init__(
+        self, path: str | Path, detail: str, line: int | None = None, column: str | None = None
+    ) -> None:
+        self.path = str(path)
+        self.detail = detail
+        self.line = line
+        self.column = column
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        where = self.path if self.line is None else f"{self.path}:{self.line}"
+        what = self.detail if self.column is None else f"column '{self.column}': {self.detail}"
+        return f"{where}: {what}"
+
+
+class UnknownFormatError(UsageError):
+    """No reader claims the file: not the same thing as a file that is broken."""
+
+    def __init__(self, path: str | Path, known: str) -> None:
+        self.path = str(path)
+        self.known = known
+        super().__init__(f"{self.path}: not a log format gridmap reads (known: {known})")
+
+
+class RobotDescriptionError(InputFileError):
+    """A robot description (YAML or ARIA .p) is malformed or inconsistent."""
+
+
+class UnknownRobotError(UsageError):
+    """``--robot`` names neither a preset nor an existing file."""
+
+    def __init__(self, name: str, presets: list[str]) -> None:
+        self.name = name
+        super().__init__(
+            f"unknown robot '{name}': not a preset ({', '.join(presets)}) and no such file"
+        )
+
+
+class OutputExistsError(GridmapError):
+    """The output exists and ``--force`` was not given."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = str(path)
+        super().__init__(f"{self.path} exists (use --force to overwrite)")
+
+
+class MapSizeError(GridmapError):
+    """The data spans more cells than a map can sensibly hold (usually absurd coordinates)."""
+
+
+class NoDataError(GridmapError):
+    """The log holds nothing that can be mapped."""

@@ -1,0 +1,45 @@
+"""SE(2) helpers on numpy arrays. Angles in radians, positions in metres."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def wrap_angle(theta_rad: FloatArray | float) -> FloatArray:
+    """Wrap angles to [-pi, pi). Accepts scalars or arrays of any shape."""
+    return np.asarray((np.asarray(theta_rad) + np.pi) % (2.0 * np.pi) - np.pi, dtype=np.float64)
+
+
+def compose(
+    x_m: FloatArray,
+    y_m: FloatArray,
+    theta_rad: FloatArray,
+    dx_m: FloatArray | float,
+    dy_m: FloatArray | float,
+    dtheta_rad: FloatArray | float,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Compose poses a (x, y, theta) with relative poses b expressed in a's frame: a (+) b.
+
+    All inputs broadcast together; the result has the broadcast shape, theta wrapped.
+    """
+    c = np.cos(theta_rad)
+    s = np.sin(theta_rad)
+    x = x_m + c * dx_m - s * dy_m
+    y = y_m + s * dx_m + c * dy_m
+    return np.asarray(x), np.asarray(y), wrap_angle(theta_rad + dtheta_rad)
+
+
+def inverse(
+    x_m: FloatArray, y_m: FloatArray, theta_rad: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The inverse pose: compose(p, inverse(p)) is the identity."""
+    c = np.cos(theta_rad)
+    s = np.sin(theta_rad)
+    return (
+        np.asarray(-c * x_m - s * y_m),
+        np.asarray(s * x_m - c * y_m),
+        wrap_angle(-np.asarray(theta_rad)),
+    )

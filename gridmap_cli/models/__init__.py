@@ -1,0 +1,1 @@
+"""Sensor models: turn readings with sensor poses into log-odds evidence on the grid."""

@@ -1,0 +1,108 @@
+"""Wires the stages: canonical log -> sync -> sensor model -> grid -> finished map.
+
+Plain functions returning plain results: no printing, no progress bars (the CLI passes a
+callback), no file output (writers do that).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gridmap_cli.errors import GridmapError, NoDataError
+from gridmap_cli.grid import DEFAULT_MAX_CELLS, GridSpec, LogOddsAccumulator, OccupancyMap
+from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
+from gridmap_cli.records import RangeLog
+from gridmap_cli.robot import RobotDescription
+from gridmap_cli.sync import SensorReadings, SyncStats, synchronise
+
+MAPPING_MODES = ("standard",)
+
+
+@dataclass(frozen=True)
+class BuildOptions:
+    """How to build a map. Units: metres; see docs/sensor-model.md for the model's defaults."""
+
+    resolution_m: float = 0.05
+    mode: str = "standard"
+    sonar: StandardSonarParams = field(default_factory=StandardSonarParams)
+    margin_m: float = 0.2
+    max_cells: int = DEFAULT_MAX_CELLS
+    batch_size: int = 20_000
+
+
+@dataclass(frozen=True)
+class BuildResult:
+    """The map and what went into it."""
+
+    map: OccupancyMap
+    sync: SyncStats
+    cell_updates: int
+
+    @property
+    def observed_cells(self) -> int:
+        return int(np.count_nonzero(~np.isnan(self.map.prob)))
+
+
+def _select(readings: SensorReadings, sl: slice) -> SensorReadings:
+    return SensorReadings(
+        stamp_ns=readings.stamp_ns[sl],
+        sensor=readings.sensor[sl],
+        range_m=readings.range_m[sl],
+        x_m=readings.x_m[sl],
+        y_m=readings.y_m[sl],
+        theta_rad=readings.theta_rad[sl],
+        sensors=readings.sensors,
+    )
+
+
+def build_map(
+    log: RangeLog,
+    robot: RobotDescription | None,
+    options: BuildOptions,
+    progress: Callable[[int], object] | None = None,
+) -> BuildResult:
+    """Build an occupancy map from a canonical log.
+
+    ``progress`` is called with the number of readings just processed (one call per batch).
+    Raises :class:`NoDataError` when no reading can be mapped and :class:`MapSizeError` when the
+    data spans an absurd area.
+    """
+    if options.mode not in MAPPING_MODES:
+        raise GridmapError(f"unknown mapping mode '{options.mode}' (known: {MAPPING_MODES})")
+    readings, stats = synchronise(log, robot)
+    if len(readings) == 0:
+        raise NoDataError(_why_empty(log, stats))
+    narrow = sorted({s.name for s in readings.sensors if s.beam_width_rad <= 0.0})
+    if narrow:
+        raise GridmapError(f"sensors {narrow} have beam width 0; the sonar model needs a beam cone")
+    model = StandardSonarModel(options.sonar, options.resolution_m)
+    xmin, ymin, xmax, ymax = model.bounds(readings)
+    spec = GridSpec.covering(
+        xmin, ymin, xmax, ymax, options.resolution_m, options.margin_m, options.max_cells
+    )
+    grid = LogOddsAccumulator(spec)
+    updates = 0
+    for start in range(0, len(readings), options.batch_size):
+        batch = _select(readings, slice(start, start + options.batch_size))
+        updates += model.accumulate(grid, batch)
+        if progress is not None:
+            progress(len(batch))
+    return BuildResult(
+        map=grid.occupancy_map(options.sonar.clamp_logodds), sync=stats, cell_updates=updates
+    )
+
+
+def _why_empty(log: RangeLog, stats: SyncStats) -> str:
+    if stats.total == 0:
+        return f"{log.source}: the log holds no range readings"
+    parts = []
+    if stats.outside_odometry:
+        parts.append(f"{stats.outside_odometry} outside the odometry's time span")
+    if stats.below_min_range:
+        parts.append(f"{stats.below_min_range} below their sensor's minimum range")
+    return (
+        f"{log.source}: none of the {stats.total} range readings can be mapped ({'; '.join(parts)})"
+    )

@@ -1,0 +1,232 @@
+"""Reader for gridmap's CSV log layout (``schemas/csv-log.md``).
+
+Optional leading ``# key: value`` comment lines, then a header row, then one row per odometry
+stamp: ``time`` (s), ``x``, ``y`` (m), ``theta`` (rad), one column per range sensor (metres; empty
+or ``nan`` = no reading) and optionally ``true_x``, ``true_y``, ``true_theta`` (ground truth).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+from typing import TextIO
+
+import numpy as np
+
+from gridmap_cli.errors import InputFileError
+from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
+
+POSE_COLUMNS = ("time", "x", "y", "theta")
+TRUTH_COLUMNS = ("true_x", "true_y", "true_theta")
+_NO_READING = ("", "nan", "NaN", "NAN")
+
+
+def sniff(head: bytes) -> bool:
+    """True if the first bytes look like a gridmap CSV log (comment block or header with time)."""
+    text = head.decode("utf-8-sig", errors="replace")
+    for raw in text.splitlines():
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        return [c.strip() for c in line.split(",")][:1] == ["time"]
+    return False
+
+
+def seconds_to_ns(text: str) -> int:
+    """Parse a decimal number of seconds into integer nanoseconds, exactly where it can.
+
+    Plain decimals (``12.3``, ``-0.5``, ``1700000000.123456789``) are converted digit by digit, so
+    epoch stamps keep their nanoseconds; other float spellings (``1e3``) go through float.
+    Raises ValueError for text that is not a finite number.
+    """
+    s = text.strip()
+    neg = s.startswith("-")
+    body = s[1:] if s[:1] in "+-" else s
+    whole, _, frac = body.partition(".")
+    plain = (whole or frac) and all(part.isdigit() or not part for part in (whole, frac))
+    if plain and body.isascii():
+        if len(frac) > 9 and frac[9:].strip("0"):
+            value = round(float(s) * 1e9)
+        else:
+            value = int(whole or "0") * 1_000_000_000 + int((frac + "000000000")[:9])
+        return -value if neg else value
+    f = float(s)
+    if not math.isfinite(f):
+        raise ValueError(f"not a finite time: {text!r}")
+    return round(f * 1e9)
+
+
+def read_csv_log(source: str | Path | TextIO, name: str | None = None) -> RangeLog:
+    """Read a CSV log from a path or an open text handle; ``name`` names a handle in errors.
+
+    Raises :class:`InputFileError` with ``path:line`` for anything malformed: missing columns,
+    non-numeric or NaN poses, time not increasing, wrong field counts, negative ranges.
+    """
+    if isinstance(source, str | Path):
+        path = str(source)
+        try:
+            with open(source, encoding="utf-8-sig", newline="") as handle:
+                return _read(handle, path)
+        except UnicodeDecodeError as exc:
+            raise InputFileError(path, f"not UTF-8 text ({exc.reason})") from exc
+        except OSError as exc:
+            raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
+    return _read(source, name or str(getattr(source, "name", "<stream>")))
+
+
+def _read(handle: TextIO, path: str) -> RangeLog:
+    metadata: dict[str, str] = {}
+    lines = enumerate(handle, start=1)
+    header: list[str] | None = None
+    header_line = 0
+    for number, line in lines:
+        # a BOM survives when the caller opened the file without utf-8-sig
+        stripped = line.lstrip("\ufeff").strip()
+        if not stripped:
+            continue
+        if stripped.startswith("#"):
+            key, sep, value = stripped[1:].partition(":")
+            if sep and key.strip():
+                metadata[key.strip()] = value.strip()
+            continue
+        header = next(csv.reader(io.StringIO(stripped)))
+        header = [h.strip() for h in header]
+        header_line = number
+        break
+    if header is None:
+        raise InputFileError(path, "no header row (expected columns time,x,y,theta,...)")
+    columns = _check_header(path, header_line, header)
+    n_fields = len(header)
+    sensor_cols = [i for i, h in enumerate(header) if h not in POSE_COLUMNS + TRUTH_COLUMNS]
+    pose_idx = [header.index(c) for c in POSE_COLUMNS]
+    truth_idx = [header.index(c) for c in TRUTH_COLUMNS] if columns["truth"] else []
+
+    stamps: list[int] = []
+    pose_rows: list[tuple[float, float, float]] = []
+    truth_rows: list[tuple[float, float, float]] = []
+    sensor_rows: list[list[float]] = []
+    # csv.reader counts the physical lines it consumed; offset by the lines before the data
+    rows = csv.reader(line for _, line in lines)
+    line_no = header_line
+    for fields in rows:
+        line_no = rows.line_num + header_line
+        if not fields or (len(fields) == 1 and not fields[0].strip()):
+            continue
+        if len(fields) != n_fields:
+            hint = " (truncated file?)" if len(fields) < n_fields else ""
+            raise InputFileError(
+                path, f"expected {n_fields} fields, found {len(fields)}{hint}", line_no
+            )
+        try:
+            stamp = seconds_to_ns(fields[pose_idx[0]])
+        except ValueError:
+            raise InputFileError(
+                path, f"not a number: {fields[pose_idx[0]]!r}", line_no, "time"
+            ) from None
+        if stamps and stamp <= stamps[-1]:
+            what = "repeats" if stamp == stamps[-1] else "goes backwards"
+            raise InputFileError(
+                path,
+                f"time {what}: {fields[pose_idx[0]].strip()} s after "
+                f"{stamps[-1] / 1e9:.9g} s (rows must be in increasing time)",
+                line_no,
+                "time",
+            )
+        stamps.append(stamp)
+        pose_rows.append(_pose(path, line_no, fields, pose_idx[1:], POSE_COLUMNS[1:]))
+        if truth_idx:
+            truth_rows.append(_pose(path, line_no, fields, truth_idx, TRUTH_COLUMNS))
+        sensor_rows.append([_range(path, line_no, fields[i], header[i]) for i in sensor_cols])
+    if not stamps:
+        raise InputFileError(path, "no data rows after the header", line_no)
+
+    stamp_arr = np.asarray(stamps, dtype=np.int64)
+    poses = _track(stamp_arr, pose_rows)
+    truth = _track(stamp_arr, truth_rows) if truth_idx else None
+    if sensor_cols:
+        matrix = np.asarray(sensor_rows, dtype=np.float64).reshape(len(stamps), len(sensor_cols))
+    else:
+        matrix = np.empty((len(stamps), 0), dtype=np.float64)
+    present = ~np.isnan(matrix)
+    row_idx, sensor_idx = np.nonzero(present)  # row-major: by stamp, then sensor order
+    readings = RangeReadings(
+        stamp_ns=stamp_arr[row_idx],
+        sensor=sensor_idx.astype(np.int32),
+        range_m=matrix[row_idx, sensor_idx],
+    )
+    return RangeLog(
+        source=path,
+        poses=poses,
+        readings=readings,
+        sensor_names=tuple(header[i] for i in sensor_cols),
+        truth=truth,
+        metadata=metadata,
+    )
+
+
+def _check_header(path: str, line: int, header: list[str]) -> dict[str, bool]:
+    missing = [c for c in POSE_COLUMNS if c not in header]
+    if missing:
+        raise InputFileError(
+            path,
+            f"missing required column{'s' if len(missing) > 1 else ''} "
+            f"{', '.join(repr(m) for m in missing)} (header has: {', '.join(header)})",
+            line,
+        )
+    seen: set[str] = set()
+    for h in header:
+        if not h:
+            raise InputFileError(path, "empty column name in the header", line)
+        if h in seen:
+            raise InputFileError(path, f"column {h!r} appears twice in the header", line)
+        seen.add(h)
+    truth = [c for c in TRUTH_COLUMNS if c in header]
+    if truth and len(truth) != len(TRUTH_COLUMNS):
+        absent = [c for c in TRUTH_COLUMNS if c not in header]
+        raise InputFileError(
+            path, f"ground truth needs all of true_x, true_y, true_theta; missing {absent}", line
+        )
+    return {"truth": bool(truth)}
+
+
+def _pose(
+    path: str, line: int, fields: list[str], idx: list[int], names: tuple[str, ...]
+) -> tuple[float, float, float]:
+    out = []
+    for i, name in zip(idx, names, strict=True):
+        text = fields[i].strip()
+        try:
+            value = float(text)
+        except ValueError:
+            raise InputFileError(path, f"not a number: {fields[i]!r}", line, name) from None
+        if not math.isfinite(value):
+            raise InputFileError(path, f"pose must be finite, got {text!r}", line, name)
+        out.append(value)
+    return out[0], out[1], out[2]
+
+
+def _range(path: str, line: int, field: str, name: str) -> float:
+    text = field.strip()
+    if text in _NO_READING:
+        return math.nan
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputFileError(path, f"not a number: {field!r}", line, name) from None
+    if math.isnan(value):
+        return math.nan
+    if value < 0.0:
+        raise InputFileError(path, f"negative range {text} m", line, name)
+    return value
+
+
+def _track(stamps: np.ndarray, rows: list[tuple[float, float, float]]) -> PoseTrack:
+    arr = np.asarray(rows, dtype=np.float64).reshape(len(rows), 3)
+    return PoseTrack(
+        stamp_ns=stamps,
+        x_m=np.ascontiguousarray(arr[:, 0]),
+        y_m=np.ascontiguousarray(arr[:, 1]),
+        theta_rad=np.ascontiguousarray(arr[:, 2]),
+    )

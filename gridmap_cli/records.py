@@ -1,0 +1,68 @@
+"""The canonical record stream every reader produces and every later stage consumes.
+
+Columnar (numpy arrays, one entry per record) because a one-hour log holds hundreds of thousands
+of readings and every later stage works on them in vectorised batches. Stamps are integer
+nanoseconds; everything else is SI (metres, radians). Arrays are time-ordered.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from gridmap_cli.robot import RangeSensor
+
+
+@dataclass(frozen=True)
+class PoseTrack:
+    """A time series of planar poses, shape (N,) each.
+
+    ``stamp_ns`` is strictly increasing; ``x_m``, ``y_m`` in metres and ``theta_rad`` in radians
+    give the pose of the robot base in the track's frame (odometry frame for odometry, world frame
+    for ground truth).
+    """
+
+    stamp_ns: npt.NDArray[np.int64]
+    x_m: npt.NDArray[np.float64]
+    y_m: npt.NDArray[np.float64]
+    theta_rad: npt.NDArray[np.float64]
+
+    def __len__(self) -> int:
+        return int(self.stamp_ns.shape[0])
+
+
+@dataclass(frozen=True)
+class RangeReadings:
+    """Range readings, shape (M,) each, ordered by stamp (ties in sensor order).
+
+    ``sensor`` indexes :attr:`RangeLog.sensor_names`. ``range_m`` is finite and positive; a range at
+    or beyond the sensor's maximum means "no echo". Absent readings (empty or NaN in a log) are not
+    records at all.
+    """
+
+    stamp_ns: npt.NDArray[np.int64]
+    sensor: npt.NDArray[np.int32]
+    range_m: npt.NDArray[np.float64]
+
+    def __len__(self) -> int:
+        return int(self.stamp_ns.shape[0])
+
+
+@dataclass(frozen=True)
+class RangeLog:
+    """Everything a reader learned from one log file.
+
+    ``sensors`` holds mounting geometry only when the log itself carries it (otherwise the robot
+    description supplies it, matched by name). ``truth`` is a ground-truth track in the world frame,
+    when the log has one; ``build`` ignores it. ``metadata`` holds the log's own key/value header.
+    """
+
+    source: str
+    poses: PoseTrack
+    readings: RangeReadings
+    sensor_names: tuple[str, ...]
+    sensors: tuple[RangeSensor, ...] | None = None
+    truth: PoseTrack | None = None
+    metadata: dict[str, str] = field(default_factory=dict)

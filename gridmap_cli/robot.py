@@ -1,0 +1,193 @@
+"""Robot descriptions: which range sensors a robot has and where they are mounted.
+
+A robot is described in YAML (format documented in ``docs/robot-format.md``, JSON Schema in
+``schemas/robot.schema.json``). The presets ``p3at`` and ``p3dx`` ship as package data, with the
+sonar ring exactly as ARIA's ``params/p3at.p`` and ``params/p3dx.p`` give it, converted to SI.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from gridmap_cli.errors import RobotDescriptionError, UnknownRobotError
+
+SENSOR_KINDS = ("sonar", "laser")
+
+
+@dataclass(frozen=True)
+class RangeSensor:
+    """One range sensor: its name, mounting pose in the base frame and beam.
+
+    ``x_m``, ``y_m``: position in the robot base frame (x forward, y left), metres.
+    ``yaw_rad``: direction of the beam axis in the base frame, radians, counter-clockwise.
+    ``beam_width_rad``: full opening angle of the beam (0 for a ray-like sensor).
+    ``min_range_m``, ``max_range_m``: readings below the minimum are discarded; readings at or
+    beyond the maximum mean "no echo".
+    """
+
+    name: str
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    beam_width_rad: float
+    min_range_m: float
+    max_range_m: float
+    kind: str = "sonar"
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """A named robot and its range sensors, in a fixed order."""
+
+    name: str
+    sensors: tuple[RangeSensor, ...]
+
+    def names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.sensors)
+
+    def by_name(self) -> dict[str, RangeSensor]:
+        return {s.name: s for s in self.sensors}
+
+
+def preset_names() -> list[str]:
+    """Names of the robot presets shipped with gridmap."""
+    folder = resources.files("gridmap_cli") / "presets"
+    return sorted(
+        p.name.removesuffix(".yaml") for p in folder.iterdir() if p.name.endswith(".yaml")
+    )
+
+
+def load_robot(spec: str) -> RobotDescription:
+    """Resolve ``--robot``: a preset name, or a path to a robot YAML file."""
+    if spec in preset_names():
+        res = resources.files("gridmap_cli") / "presets" / f"{spec}.yaml"
+        return parse_robot_yaml(res.read_text(encoding="utf-8"), f"preset:{spec}")
+    path = Path(spec)
+    if path.is_file():
+        if path.suffix.lower() == ".p":
+            raise RobotDescriptionError(
+                path, "ARIA .p robot parameter files are not supported yet; use a robot YAML file"
+            )
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise RobotDescriptionError(path, f"cannot read: {exc}") from exc
+        return parse_robot_yaml(text, str(path))
+    raise UnknownRobotError(spec, preset_names())
+
+
+_SENSOR_KEYS = {
+    "name",
+    "kind",
+    "x_m",
+    "y_m",
+    "yaw_deg",
+    "beam_width_deg",
+    "min_range_m",
+    "max_range_m",
+}
+
+
+def _number(source: str, where: str, value: Any, line: int | None) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise RobotDescriptionError(source, f"{where} must be a number, got {value!r}", line)
+    out = float(value)
+    if not math.isfinite(out):
+        raise RobotDescriptionError(source, f"{where} must be finite, got {value!r}", line)
+    return out
+
+
+def parse_robot_yaml(text: str, source: str) -> RobotDescription:
+    """Parse a robot description from YAML text; ``source`` names it in error messages."""
+    try:
+        # compose first so that errors can point at the line of the offending sensor
+        node = yaml.compose(text)
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = mark.line + 1 if mark is not None else None
+        raise RobotDescriptionError(source, f"not valid YAML: {exc}", line) from exc
+    if not isinstance(doc, dict):
+        raise RobotDescriptionError(source, "expected a mapping with 'name' and 'sensors'")
+    if doc.get("gridmap-robot") != 1:
+        raise RobotDescriptionError(source, "missing 'gridmap-robot: 1' (format version)")
+    name = doc.get("name")
+    if not isinstance(name, str) or not name:
+        raise RobotDescriptionError(source, "'name' must be a non-empty string")
+    defaults = doc.get("defaults") or {}
+    if not isinstance(defaults, dict):
+        raise RobotDescriptionError(source, "'defaults' must be a mapping")
+    raw = doc.get("sensors")
+    if not isinstance(raw, list) or not raw:
+        raise RobotDescriptionError(source, "'sensors' must be a non-empty list")
+    lines = _sensor_lines(node)
+    sensors: list[RangeSensor] = []
+    for i, entry in enumerate(raw):
+        line = lines[i] if i < len(lines) else None
+        if not isinstance(entry, dict):
+            raise RobotDescriptionError(source, f"sensor {i} must be a mapping", line)
+        merged = {**defaults, **entry}
+        unknown = sorted(set(merged) - _SENSOR_KEYS)
+        if unknown:
+            raise RobotDescriptionError(source, f"sensor {i}: unknown keys {unknown}", line)
+        missing = sorted(
+            {"name", "x_m", "y_m", "yaw_deg", "beam_width_deg", "max_range_m"} - set(merged)
+        )
+        if missing:
+            raise RobotDescriptionError(source, f"sensor {i}: missing keys {missing}", line)
+        sname = merged["name"]
+        if not isinstance(sname, str) or not sname:
+            raise RobotDescriptionError(source, f"sensor {i}: 'name' must be a string", line)
+        kind = merged.get("kind", "sonar")
+        if kind not in SENSOR_KINDS:
+            raise RobotDescriptionError(
+                source, f"sensor '{sname}': kind must be one of {SENSOR_KINDS}", line
+            )
+        width = _number(source, f"sensor '{sname}' beam_width_deg", merged["beam_width_deg"], line)
+        rmin = _number(
+            source, f"sensor '{sname}' min_range_m", merged.get("min_range_m", 0.0), line
+        )
+        rmax = _number(source, f"sensor '{sname}' max_range_m", merged["max_range_m"], line)
+        if not 0.0 <= width < 180.0:
+            raise RobotDescriptionError(
+                source, f"sensor '{sname}': beam_width_deg must be in [0, 180)", line
+            )
+        if not 0.0 <= rmin < rmax:
+            raise RobotDescriptionError(
+                source, f"sensor '{sname}': need 0 <= min_range_m < max_range_m", line
+            )
+        sensors.append(
+            RangeSensor(
+                name=sname,
+                x_m=_number(source, f"sensor '{sname}' x_m", merged["x_m"], line),
+                y_m=_number(source, f"sensor '{sname}' y_m", merged["y_m"], line),
+                yaw_rad=math.radians(
+                    _number(source, f"sensor '{sname}' yaw_deg", merged["yaw_deg"], line)
+                ),
+                beam_width_rad=math.radians(width),
+                min_range_m=rmin,
+                max_range_m=rmax,
+                kind=kind,
+            )
+        )
+    names = [s.name for s in sensors]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise RobotDescriptionError(source, f"duplicate sensor names {dup}")
+    return RobotDescription(name=name, sensors=tuple(sensors))
+
+
+def _sensor_lines(node: yaml.Node | None) -> list[int]:
+    """1-based line numbers of the entries of the top-level 'sensors' list, for error messages."""
+    if not isinstance(node, yaml.MappingNode):
+        return []
+    for key, value in node.value:
+        if getattr(key, "value", None) == "sensors" and isinstance(value, yaml.SequenceNode):
+            return [item.start_mark.line + 1 for item in value.value]
+    return []

@@ -1,0 +1,267 @@
+"""Writer for map_server maps: an image (PGM or PNG) plus the YAML that describes it.
+
+The files follow ``docs/map-format.md`` so that ROS 1 ``map_server``, Nav2's ``nav2_map_server``
+(Humble and Jazzy) and MRPT load them alike:
+
+- ``trinary``: grey 0 occupied, 254 free, 205 unknown, classified from probabilities with the
+  given thresholds (as ``map_saver --occ 65 --free 25`` does); the YAML always says
+  ``occupied_thresh: 0.65`` / ``free_thresh: 0.196``, which separate those three grey values on
+  every loader whatever thresholds classified the cells.
+- ``scale``: grey = 255 (1 - p) with an alpha channel (PNG only); unknown cells transparent.
+- ``raw``: grey = 100 p (the occupancy percentage itself), unknown 255.
+
+The image is written top row first (image row 0 is map row height-1); both files are written
+together through :func:`~gridmap_cli.atomic.atomic_outputs`, so a failure leaves neither behind.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import yaml
+from PIL import Image
+
+from gridmap_cli.atomic import atomic_outputs
+from gridmap_cli.errors import GridmapError, OutputExistsError, UsageError
+from gridmap_cli.grid import GridSpec, OccupancyMap
+
+MAP_MODES = ("trinary", "scale", "raw")
+IMAGE_SUFFIXES = (".pgm", ".png")
+
+#: Grey values of the map_server savers in trinary mode.
+OCCUPIED_GREY = 0
+FREE_GREY = 254
+UNKNOWN_GREY = 205
+#: Raw mode's grey for a cell never observed: outside 0..100, so every loader reads it as unknown.
+RAW_UNKNOWN_GREY = 255
+
+#: Loading thresholds written in the YAML of every trinary map (see the module docstring): 205 has
+#: p = 50/255 = 0.19608 > 0.196, so it stays unknown, while 254 (p = 0.0039) is free and 0
+#: (p = 1) occupied, with strict or inclusive comparisons alike.
+TRINARY_YAML_OCCUPIED_THRESH = 0.65
+TRINARY_YAML_FREE_THRESH = 0.196
+
+# An image name that YAML reads back as the same plain string without any quoting.
+_PLAIN_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]*")
+
+
+def map_output_paths(image_path: Path) -> tuple[Path, Path]:
+    """The image path and the YAML beside it (same folder, same stem, ``.yaml``).
+
+    Raises :class:`UsageError` when the suffix is not one of :data:`IMAGE_SUFFIXES` (compared
+    without regard to case) or when the file name cannot be written as a YAML string.
+    """
+    image_path = Path(image_path)
+    if image_path.suffix.lower() not in IMAGE_SUFFIXES:
+        raise UsageError(
+            f"{image_path}: a map image must end in {' or '.join(IMAGE_SUFFIXES)}, "
+            f"not '{image_path.suffix}'"
+        )
+    _yaml_string(image_path.name)  # refuse names the YAML could not hold before any work
+    return image_path, image_path.with_suffix(".yaml")
+
+
+def check_map_outputs(image_path: Path, mode: str, force: bool) -> None:
+    """Check that a map can be written to ``image_path`` in ``mode``; call before any work.
+
+    Raises :class:`UsageError` for an unknown mode, ``scale`` with a PGM (which has no alpha
+    channel to mark unknown cells), an unsupported suffix or an output that is a directory, and
+    :class:`OutputExistsError` when the image or its YAML exists and ``force`` is false.
+    """
+    if mode not in MAP_MODES:
+        raise UsageError(f"unknown map mode '{mode}' (known: {', '.join(MAP_MODES)})")
+    image, yaml_path = map_output_paths(image_path)
+    if mode == "scale" and image.suffix.lower() != ".png":
+        raise UsageError(
+            f"{image}: scale maps need a PNG (unknown cells are transparent, and PGM has no alpha)"
+        )
+    for path in (image, yaml_path):
+        if path.is_dir():
+            raise UsageError(f"{path} is a directory")
+        if path.exists() and not force:
+            raise OutputExistsError(path)
+
+
+def _check_thresholds(occupied_thresh: float, free_thresh: float) -> None:
+    if not (0.0 <= free_thresh < occupied_thresh <= 1.0):  # also False for NaN
+        raise UsageError(
+            "need 0 <= free threshold < occupied threshold <= 1, "
+            f"got free {free_thresh} and occupied {occupied_thresh}"
+        )
+
+
+def transparent_grey(occupied_thresh: float, free_thresh: float) -> int:
+    """Grey value stored under the transparent (unknown) pixels of a scale map.
+
+    Nav2 ignores the grey of a transparent pixel, but ROS 1 ``map_server`` consults alpha only for
+    pixels whose grey lies between the thresholds: a transparent pixel of grey 205 (p = 0.196)
+    would load as *free* with ``free_thresh: 0.25``. So the grey is the one whose p = (255 - g)/255
+    is nearest the middle of the two thresholds, strictly between them whenever any grey is.
+    """
+    middle = 0.5 * (occupied_thresh + free_thresh)
+    greys = np.arange(256)
+    p = (255 - greys) / 255
+    inside = (p > free_thresh) & (p < occupied_thresh)
+    candidates = greys[inside] if inside.any() else greys
+    return int(candidates[np.argmin(np.abs((255 - candidates) / 255 - middle))])
+
+
+def map_pixels(
+    prob: npt.NDArray[np.float64], mode: str, occupied_thresh: float, free_thresh: float
+) -> npt.NDArray[np.uint8]:
+    """The image of a probability map, top image row first.
+
+    ``prob``: shape (height, width), row 0 the bottom of the map, values in [0, 1], NaN unknown.
+    Returns uint8 of shape (height, width) for ``trinary`` and ``raw``, (height, width, 2) (grey,
+    alpha) for ``scale``:
+
+    - trinary: p >= occupied_thresh -> 0, p <= free_thresh -> 254, otherwise and NaN -> 205;
+    - scale: grey round(255 (1 - p)) with alpha 255; NaN -> alpha 0 (grey :func:`transparent_grey`);
+    - raw: grey round(100 p); NaN -> 255.
+
+    Rounding is half to even. Raises :class:`UsageError` unless 0 <= free < occupied <= 1, and
+    ``ValueError`` for an array that is not 2-D or holds values outside [0, 1].
+    """
+    if mode not in MAP_MODES:
+        raise UsageError(f"unknown map mode '{mode}' (known: {', '.join(MAP_MODES)})")
+    _check_thresholds(occupied_thresh, free_thresh)
+    prob = np.asarray(prob, dtype=np.float64)
+    if prob.ndim != 2:
+        raise ValueError(f"a probability map must be 2-D, got shape {prob.shape}")
+    unknown = np.isnan(prob)
+    known = prob[~unknown]
+    if known.size and not (known.min() >= 0.0 and known.max() <= 1.0):
+        raise ValueError("probabilities must lie in [0, 1] (NaN for unknown)")
+    # NaN-free copy so the arithmetic below raises no warnings; unknown cells are overwritten
+    p = np.where(unknown, 0.0, prob)
+
+    if mode == "trinary":
+        grey = np.full(p.shape, UNKNOWN_GREY, dtype=np.uint8)
+        grey[p <= free_thresh] = FREE_GREY
+        grey[p >= occupied_thresh] = OCCUPIED_GREY
+        grey[unknown] = UNKNOWN_GREY
+        image: npt.NDArray[np.uint8] = grey
+    elif mode == "raw":
+        image = np.rint(100.0 * p).astype(np.uint8)
+        image[unknown] = RAW_UNKNOWN_GREY
+    else:
+        grey = np.rint(255.0 * (1.0 - p)).astype(np.uint8)
+        grey[unknown] = transparent_grey(occupied_thresh, free_thresh)
+        alpha = np.where(unknown, 0, 255).astype(np.uint8)
+        image = np.stack([grey, alpha], axis=-1)
+    # map row 0 is the bottom of the map, image row 0 the top
+    return np.ascontiguousarray(image[::-1])
+
+
+def _yaml_float(value: float) -> str:
+    """Shortest text that reads back as exactly ``value`` in yaml-cpp and in PyYAML.
+
+    ``repr`` round-trips, but PyYAML's YAML 1.1 resolver wants a '.' in a float ('1e-05' would
+    load as a string), so an exponent form without one gets '.0' before the 'e'.
+    """
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"a map YAML cannot hold the non-finite number {value}")
+    text = repr(value)
+    mantissa, e, exponent = text.partition("e")
+    if e and "." not in mantissa:
+        text = f"{mantissa}.0e{exponent}"
+    return text
+
+
+def _yaml_string(name: str) -> str:
+    """``name`` as a YAML scalar: plain when that is unambiguous, else single-quoted."""
+    text = name if _PLAIN_NAME.fullmatch(name) else "'" + name.replace("'", "''") + "'"
+    try:
+        same = yaml.safe_load(f"k: {text}") == {"k": name}
+    except yaml.YAMLError:
+        same = False
+    if not same:
+        raise UsageError(f"the file name {name!r} cannot be written in a map YAML")
+    return text
+
+
+def map_yaml_text(
+    image_name: str, mode: str, spec: GridSpec, occupied_thresh: float, free_thresh: float
+) -> str:
+    """The YAML describing a map image, in the key order of Nav2's saver.
+
+    ``image_name`` is written as given (callers pass the basename: loaders resolve it against the
+    YAML's folder); ``origin`` is the world pose (metres, radians) of the lower-left corner of
+    cell (0, 0), with yaw always 0.0. Numbers are written in full precision.
+    """
+    if not (spec.resolution_m > 0.0 and math.isfinite(spec.resolution_m)):
+        raise ValueError(f"resolution must be a positive number of metres, got {spec.resolution_m}")
+    origin = ", ".join(_yaml_float(v) for v in (spec.origin_x_m, spec.origin_y_m, 0.0))
+    return (
+        f"image: {_yaml_string(image_name)}\n"
+        f"mode: {mode}\n"
+        f"resolution: {_yaml_float(spec.resolution_m)}\n"
+        f"origin: [{origin}]\n"
+        "negate: 0\n"
+        f"occupied_thresh: {_yaml_float(occupied_thresh)}\n"
+        f"free_thresh: {_yaml_float(free_thresh)}\n"
+    )
+
+
+def write_map(
+    image_path: Path,
+    omap: OccupancyMap,
+    *,
+    mode: str = "trinary",
+    occupied_thresh: float = 0.65,
+    free_thresh: float = 0.25,
+    force: bool = False,
+) -> tuple[Path, Path]:
+    """Write ``omap`` as ``image_path`` plus the YAML beside it; return (image, yaml) paths.
+
+    ``occupied_thresh`` / ``free_thresh`` are probabilities in [0, 1]: in ``trinary`` mode they
+    classify cells and the YAML gets 0.65 / 0.196 regardless; in ``scale`` and ``raw`` modes they
+    are written to the YAML as given. PGM output is binary P5 with maxval 255 and no comment
+    (a 3 x 3 map is 20 bytes); PNG output is 8-bit grey, with alpha in scale mode.
+
+    Raises :class:`UsageError` / :class:`OutputExistsError` as :func:`check_map_outputs` does and
+    :class:`GridmapError` when a file cannot be written (then neither file is left behind).
+    """
+    check_map_outputs(image_path, mode, force)
+    image_out, yaml_out = map_output_paths(image_path)
+    if omap.prob.shape != omap.spec.shape:
+        raise ValueError(
+            f"probability array of shape {omap.prob.shape} for a grid of shape {omap.spec.shape}"
+        )
+    pixels = map_pixels(omap.prob, mode, occupied_thresh, free_thresh)
+    if mode == "trinary":
+        yaml_occupied, yaml_free = TRINARY_YAML_OCCUPIED_THRESH, TRINARY_YAML_FREE_THRESH
+    else:
+        yaml_occupied, yaml_free = occupied_thresh, free_thresh
+    text = map_yaml_text(image_out.name, mode, omap.spec, yaml_occupied, yaml_free)
+
+    temps: list[Path] = []
+    try:
+        with atomic_outputs([image_out, yaml_out]) as temps:
+            tmp_image, tmp_yaml = temps
+            # the temporary name keeps the target's suffix, so Pillow picks PPM (P5) or PNG;
+            # uint8 (H, W) becomes mode L and (H, W, 2) mode LA
+            Image.fromarray(pixels).save(tmp_image)
+            tmp_yaml.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        failed = _output_named_by(exc, list(zip(temps, (image_out, yaml_out), strict=False)))
+        raise GridmapError(
+            f"{failed or image_out}: cannot write the map: {exc.strerror or exc}"
+        ) from exc
+    return image_out, yaml_out
+
+
+def _output_named_by(exc: OSError, pairs: list[tuple[Path, Path]]) -> Path | None:
+    """The output an OSError is about, naming the target rather than its temporary file."""
+    for name in (exc.filename2, exc.filename):
+        if name is None:
+            continue
+        for tmp, target in pairs:
+            if str(name) in (str(tmp), str(target)):
+                return target
+    return None

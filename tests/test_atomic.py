@@ -1,0 +1,144 @@
+"""Atomic outputs: a target is replaced whole or not at all, and nothing is left lying around."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from gridmap_cli.atomic import atomic_output, atomic_outputs
+
+
+class Boom(Exception):
+    pass
+
+
+def names(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir())
+
+
+def test_success_replaces_the_target(tmp_path: Path) -> None:
+    target = tmp_path / "map.pgm"
+    with atomic_output(target) as tmp:
+        # hidden, beside the target, same suffix (Pillow picks the format from it)
+        assert tmp.parent == tmp_path
+        assert tmp.name.startswith(".map.pgm.tmp-")
+        assert tmp.suffix == ".pgm"
+        assert tmp.exists() and not target.exists()
+        tmp.write_bytes(b"new")
+    assert target.read_bytes() == b"new"
+    assert names(tmp_path) == ["map.pgm"]
+
+
+def test_success_overwrites_an_existing_target(tmp_path: Path) -> None:
+    target = tmp_path / "log.csv"
+    target.write_text("old")
+    with atomic_output(target) as tmp:
+        tmp.write_text("new")
+        assert target.read_text() == "old"  # untouched until the block ends
+    assert target.read_text() == "new"
+    assert names(tmp_path) == ["log.csv"]
+
+
+def test_permissions_are_those_of_a_plain_new_file(tmp_path: Path) -> None:
+    plain = tmp_path / "plain.txt"
+    plain.write_text("x")
+    target = tmp_path / "atomic.txt"
+    with atomic_output(target) as tmp:
+        tmp.write_text("x")
+    assert target.stat().st_mode == plain.stat().st_mode
+
+
+def test_exception_leaves_neither_target_nor_temporary_file(tmp_path: Path) -> None:
+    target = tmp_path / "map.png"
+    with pytest.raises(Boom), atomic_output(target) as tmp:
+        tmp.write_bytes(b"half")
+        raise Boom
+    assert names(tmp_path) == []
+
+
+def test_exception_keeps_an_existing_target(tmp_path: Path) -> None:
+    target = tmp_path / "map.png"
+    target.write_bytes(b"old")
+    with pytest.raises(Boom), atomic_output(target) as tmp:
+        tmp.write_bytes(b"half")
+        raise Boom
+    assert target.read_bytes() == b"old"
+    assert names(tmp_path) == ["map.png"]
+
+
+def test_keyboard_interrupt_also_cleans_up(tmp_path: Path) -> None:
+    target = tmp_path / "map.png"
+    with pytest.raises(KeyboardInterrupt), atomic_output(target) as tmp:
+        tmp.write_bytes(b"half")
+        raise KeyboardInterrupt
+    assert names(tmp_path) == []
+
+
+def test_outputs_all_renamed_on_success(tmp_path: Path) -> None:
+    image, meta = tmp_path / "m.pgm", tmp_path / "m.yaml"
+    with atomic_outputs([image, meta]) as (tmp_image, tmp_meta):
+        assert tmp_image.suffix == ".pgm" and tmp_meta.suffix == ".yaml"
+        tmp_image.write_bytes(b"P5")
+        tmp_meta.write_text("image: m.pgm\n")
+        assert not image.exists()  # nothing renamed before the whole block is done
+    assert image.read_bytes() == b"P5"
+    assert meta.read_text() == "image: m.pgm\n"
+    assert names(tmp_path) == ["m.pgm", "m.yaml"]
+
+
+def test_failure_in_the_second_file_leaves_no_first_file(tmp_path: Path) -> None:
+    image, meta = tmp_path / "m.pgm", tmp_path / "m.yaml"
+    with pytest.raises(Boom), atomic_outputs([image, meta]) as (tmp_image, tmp_meta):
+        tmp_image.write_bytes(b"P5 complete image")
+        tmp_meta.write_text("image: m.p")
+        raise Boom
+    assert names(tmp_path) == []
+
+
+def test_failed_rename_of_a_later_target_removes_the_earlier_new_one(tmp_path: Path) -> None:
+    image, meta = tmp_path / "m.pgm", tmp_path / "m.yaml"
+    meta.mkdir()  # os.replace cannot put a file over a directory
+    with pytest.raises(OSError), atomic_outputs([image, meta]) as (tmp_image, tmp_meta):
+        tmp_image.write_bytes(b"new image")
+        tmp_meta.write_text("new yaml")
+    assert names(tmp_path) == ["m.yaml"]
+    assert meta.is_dir()
+
+
+def test_failed_rename_restores_the_earlier_target_it_replaced(tmp_path: Path) -> None:
+    image, meta = tmp_path / "m.pgm", tmp_path / "m.yaml"
+    image.write_bytes(b"old image")
+    meta.mkdir()
+    with pytest.raises(OSError), atomic_outputs([image, meta]) as (tmp_image, tmp_meta):
+        tmp_image.write_bytes(b"new image")
+        tmp_meta.write_text("new yaml")
+    assert image.read_bytes() == b"old image"
+    assert names(tmp_path) == ["m.pgm", "m.yaml"]
+
+
+def test_outputs_in_different_folders(tmp_path: Path) -> None:
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    first, second = tmp_path / "a" / "x.txt", tmp_path / "b" / "y.txt"
+    with atomic_outputs([first, second]) as temps:
+        assert [t.parent for t in temps] == [first.parent, second.parent]
+        for t in temps:
+            t.write_text(t.parent.name)
+    assert first.read_text() == "a" and second.read_text() == "b"
+
+
+def test_the_same_output_twice_is_refused(tmp_path: Path) -> None:
+    target = tmp_path / "m.pgm"
+    with pytest.raises(ValueError, match="twice"), atomic_outputs([target, target]):
+        pass
+    assert names(tmp_path) == []
+
+
+def test_missing_folder_raises_and_creates_nothing(tmp_path: Path) -> None:
+    target = tmp_path / "no" / "such" / "m.pgm"
+    with pytest.raises(FileNotFoundError), atomic_output(target):
+        pass
+    assert names(tmp_path) == []
+    assert not os.path.exists(tmp_path / "no")
