@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from gridmap_cli.records import RangeLog
+from gridmap_cli.errors import InputFileError
+from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RobotDescription
 from gridmap_cli.sim.odometry import OdometryErrorModel, odometry_from_truth
 from gridmap_cli.sim.path import WaypointPath, trajectory
@@ -61,6 +62,7 @@ def simulate(
     model = (error_model if error_model is not None else OdometryErrorModel()).scaled(drift)
     rng = np.random.default_rng(seed)
     truth = trajectory(path, rate_hz, duration_s)
+    _check_clear(world, truth, path.source)
     # Draw order is fixed: odometry noise first, then range noise.
     odometry = odometry_from_truth(truth, model, rng)
     readings = simulate_ranges(world, truth, robot, rng)
@@ -78,3 +80,18 @@ def simulate(
             "drift": str(drift),
         },
     )
+
+
+def _check_clear(world: World, truth: PoseTrack, source: str) -> None:
+    """Refuse a path that drives the robot's centre through an occupied cell.
+
+    Sonars fired from inside an obstacle would log nonsense that no real robot can produce.
+    """
+    inside = world.occupied_at(truth.x_m, truth.y_m)
+    if inside.any():
+        k = int(np.argmax(inside))
+        raise InputFileError(
+            source,
+            f"the path drives through an obstacle of the world at x={truth.x_m[k]:.2f} m, "
+            f"y={truth.y_m[k]:.2f} m (t={truth.stamp_ns[k] / 1e9:.1f} s)",
+        )

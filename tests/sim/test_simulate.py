@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.grid import GridSpec
 from gridmap_cli.records import RangeLog
@@ -98,3 +99,14 @@ def test_more_drift_more_odometry_error(room: World) -> None:
 def test_duration_sets_the_length(room: World) -> None:
     log = run(room, duration_s=30.0, rate_hz=5.0)
     assert len(log.poses) == 150
+
+
+def test_a_path_through_an_obstacle_is_refused(room: World) -> None:
+    # a pillar in the middle of the room, and a path straight through it
+    occupied = np.array(room.occupied)
+    col, row = room.spec.world_to_cell(np.array([2.0]), np.array([1.5]))
+    occupied[row[0] - 2 : row[0] + 3, col[0] - 2 : col[0] + 3] = True
+    world = World(occupied, room.spec)
+    path = parse_path_yaml("gridmap-path: 1\nwaypoints: [[0.7, 1.5], [3.3, 1.5]]\n", "through.yaml")
+    with pytest.raises(InputFileError, match=r"through.yaml: the path drives through an obstacle"):
+        simulate(world, path, load_robot("p3at"), seed=0)
