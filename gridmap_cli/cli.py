@@ -24,7 +24,7 @@ from gridmap_cli.errors import GridmapError, InputFileError, OutputExistsError, 
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
 from gridmap_cli.readers import format_names, resolve_format
-from gridmap_cli.robot import RobotDescription, load_robot
+from gridmap_cli.robot import RobotDescription, load_robot, preset_names
 from gridmap_cli.writers.csv_log import save_csv_log
 from gridmap_cli.writers.map_image import MAP_MODES, check_map_outputs, write_map
 
@@ -89,9 +89,21 @@ def _check_output_folder(output: Path) -> None:
         raise GridmapError(f"{output}: directory {folder} does not exist")
 
 
-def _resolve_robot(spec: str | None, metadata: dict[str, str]) -> RobotDescription | None:
-    name = spec or metadata.get("robot")
-    return load_robot(name) if name else None
+def _robot_from_log(log: Path, metadata: dict[str, str]) -> RobotDescription | None:
+    """The robot a log names on its '# robot:' line: a preset, or a file beside the log."""
+    name = metadata.get("robot")
+    if not name:
+        return None
+    if name in preset_names():
+        return load_robot(name)
+    candidate = Path(name) if Path(name).is_absolute() else log.parent / name
+    if candidate.is_file():
+        return load_robot(str(candidate))
+    raise InputFileError(
+        log,
+        f"'# robot: {name}' is neither a preset ({', '.join(preset_names())}) nor a file "
+        f"beside the log; give --robot",
+    )
 
 
 @cli.command()
@@ -184,7 +196,7 @@ def build(
 
     data = fmt.read(log)
     if robot_desc is None:
-        robot_desc = _resolve_robot(None, data.metadata)
+        robot_desc = _robot_from_log(log, data.metadata)
     options = BuildOptions(resolution_m=resolution, mode=mode, sonar=sonar)
     with _progress_bar(len(data.readings), quiet, "mapping") as bar:
         result = build_map(data, robot_desc, options, progress=bar.update)

@@ -190,3 +190,30 @@ def test_installed_command_smoke(room_csv: Path, tmp_path: Path) -> None:
     assert (
         bad.returncode == 1 and bad.stderr.startswith("Error: ") and "Traceback" not in bad.stderr
     )
+
+
+def test_robot_named_in_the_log_resolves_beside_the_log(room_csv: Path, tmp_path: Path) -> None:
+    folder = tmp_path / "run"
+    folder.mkdir()
+    robot = (
+        "gridmap-robot: 1\nname: mine\n"
+        "defaults: {beam_width_deg: 25, min_range_m: 0.15, max_range_m: 4.335}\nsensors:\n"
+        + "".join(
+            f"  - {{name: sonar{i}, x_m: 0.0, y_m: 0.0, yaw_deg: {i * 22.5}}}\n" for i in range(16)
+        )
+    )
+    (folder / "bot.yaml").write_text(robot)
+    log = folder / "log.csv"
+    log.write_text(room_csv.read_text().replace("# robot: p3dx", "# robot: bot.yaml"))
+    code, _, stderr = run("build", str(log), "-o", str(tmp_path / "m.png"), "-q")
+    assert code == 0, stderr
+
+
+def test_unknown_robot_in_the_log_is_bad_data(room_csv: Path, tmp_path: Path) -> None:
+    room_csv.write_text(room_csv.read_text().replace("# robot: p3dx", "# robot: r2d2"))
+    code, _, stderr = run("build", str(room_csv), "-o", str(tmp_path / "m.png"))
+    assert code == 1
+    assert stderr.strip() == (
+        f"Error: {room_csv}: '# robot: r2d2' is neither a preset (p3at, p3dx) nor a file "
+        "beside the log; give --robot"
+    )
