@@ -11,6 +11,7 @@ Numbers depend on the machine; compare them between commits on the same machine.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
@@ -59,9 +60,18 @@ def run_measured(cmd: list[str]) -> tuple[float, int, str]:
     return wall, peak_kib // 1024, proc.stdout
 
 
+def _inputs_digest() -> str:
+    """Hash of everything the cached log depends on, so a changed simulator makes a new log."""
+    digest = hashlib.sha256()
+    sources = sorted((ROOT / "gridmap_cli" / "sim").glob("*.py"))
+    for path in [*sources, WORLD, PATH, WORLD.with_suffix(".pgm")]:
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:12]
+
+
 def ensure_log() -> Path:
     CACHE.mkdir(parents=True, exist_ok=True)
-    log = CACHE / f"corridor_loop_{DURATION_S}s_seed{SEED}.csv"
+    log = CACHE / f"corridor_loop_{DURATION_S}s_seed{SEED}_{_inputs_digest()}.csv"
     if not log.exists():
         print(f"simulating a {DURATION_S} s log (once; cached at {log.relative_to(ROOT)}) ...")
         start = time.perf_counter()
