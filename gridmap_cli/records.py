@@ -54,8 +54,8 @@ class RangeReadings:
 class RangeLog:
     """Everything a reader learned from one log file.
 
-    ``sensors`` holds mounting geometry only when the log itself carries it (otherwise the robot
-    description supplies it, matched by name). ``truth`` is a ground-truth track in the world frame,
+    ``sensors`` holds the mounting geometry of those sensors the log itself describes (any
+    subset of ``sensor_names``, matched by name); the robot description supplies the rest. ``truth`` is a ground-truth track in the world frame,
     when the log has one; ``build`` ignores it. ``metadata`` holds the log's own key/value header.
     """
 

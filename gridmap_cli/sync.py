@@ -56,23 +56,28 @@ class SyncStats:
 
 
 def sensors_for_log(log: RangeLog, robot: RobotDescription | None) -> tuple[RangeSensor, ...]:
-    """Mounting geometry for each of the log's sensor names, from the log or the robot."""
-    if log.sensors is not None:
-        return log.sensors
+    """Mounting geometry for each of the log's sensor names.
+
+    A sensor the log describes itself (``log.sensors``, matched by name) wins; the robot
+    description supplies the rest. A name neither knows is an error.
+    """
+    own = {s.name: s for s in log.sensors or ()}
+    table = {**(robot.by_name() if robot is not None else {}), **own}
+    unknown = [n for n in log.sensor_names if n not in table]
+    if not unknown:
+        return tuple(table[n] for n in log.sensor_names)
     if robot is None:
         raise GridmapError(
-            f"{log.source}: the log does not describe its sensors; give --robot "
-            "(a preset name or a robot YAML file)"
+            f"{log.source}: the log does not describe sensor"
+            f"{'s' if len(unknown) > 1 else ''} {', '.join(repr(u) for u in unknown[:5])}"
+            f"{' ...' if len(unknown) > 5 else ''}; give --robot "
+            "(a preset name, a robot YAML file or an ARIA .p file)"
         )
-    table = robot.by_name()
-    unknown = [n for n in log.sensor_names if n not in table]
-    if unknown:
-        raise GridmapError(
-            f"{log.source}: sensor column{'s' if len(unknown) > 1 else ''} "
-            f"{', '.join(repr(u) for u in unknown)} not described by robot '{robot.name}' "
-            f"(it has {', '.join(robot.names())})"
-        )
-    return tuple(table[n] for n in log.sensor_names)
+    raise GridmapError(
+        f"{log.source}: sensor column{'s' if len(unknown) > 1 else ''} "
+        f"{', '.join(repr(u) for u in unknown)} not described by robot '{robot.name}' "
+        f"(it has {', '.join(robot.names())})"
+    )
 
 
 def interpolate_pose(

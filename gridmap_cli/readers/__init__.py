@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gridmap_cli.errors import InputFileError, UnknownFormatError, UsageError
-from gridmap_cli.readers import csv_log
+from gridmap_cli.readers import aria_log, csv_log
 from gridmap_cli.records import RangeLog
 
 
@@ -27,7 +27,10 @@ class LogFormat:
     read: Callable[[Path], RangeLog]
 
 
-FORMATS: tuple[LogFormat, ...] = (LogFormat("csv", (".csv",), csv_log.sniff, csv_log.read_csv_log),)
+FORMATS: tuple[LogFormat, ...] = (
+    LogFormat("csv", (".csv",), csv_log.sniff, csv_log.read_csv_log),
+    LogFormat("aria", (".2d",), aria_log.sniff, aria_log.read_aria_log),
+)
 
 _SNIFF_BYTES = 4096
 
