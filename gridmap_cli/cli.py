@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import sys
 import time
 from collections.abc import Callable
@@ -117,7 +118,8 @@ def _robot_from_log(log: Path, metadata: dict[str, str]) -> RobotDescription | N
 )
 @click.option(
     "--robot",
-    help="Robot preset (p3at, p3dx) or robot YAML file; default: the log's own '# robot:' line.",
+    help="Robot preset (p3at, p3dx), robot YAML file or ARIA .p file; default: the log's own "
+    "'# robot:' line.",
 )
 @click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
 @click.option(
@@ -181,18 +183,18 @@ def build(
     started = time.perf_counter()
     if not (0.0 <= free < occupied <= 1.0):
         raise UsageError(f"need 0 <= --free < --occupied <= 1, got {free} and {occupied}")
-    if not resolution > 0.0:
-        raise UsageError(f"--resolution must be positive, got {resolution}")
+    if not (resolution > 0.0 and math.isfinite(resolution)):
+        raise UsageError(f"--resolution must be a positive number of metres, got {resolution}")
     try:
         sonar = StandardSonarParams(no_echo_free_m=no_echo_free)
     except ValueError as exc:
         raise UsageError(str(exc)) from exc
     check_map_outputs(output, map_mode, force)
     _check_output_folder(output)
+    robot_desc = load_robot(robot) if robot else None
     if not log.is_file():
         raise InputFileError(log, "no such file" if not log.exists() else "not a regular file")
     fmt = resolve_format(log, log_format)
-    robot_desc = load_robot(robot) if robot else None
 
     data = fmt.read(log)
     if robot_desc is None:
@@ -309,21 +311,21 @@ def simulate(
     from gridmap_cli.sim.simulate import simulate as run_simulation
     from gridmap_cli.sim.world import World
 
-    if rate <= 0.0:
-        raise UsageError(f"--rate must be positive, got {rate}")
-    if drift < 0.0:
-        raise UsageError(f"--drift must be >= 0, got {drift}")
-    if duration is not None and duration <= 0.0:
-        raise UsageError(f"--duration must be positive, got {duration}")
+    if not (rate > 0.0 and math.isfinite(rate)):
+        raise UsageError(f"--rate must be a positive number of Hz, got {rate}")
+    if not (drift >= 0.0 and math.isfinite(drift)):
+        raise UsageError(f"--drift must be a finite number >= 0, got {drift}")
+    if duration is not None and not (duration > 0.0 and math.isfinite(duration)):
+        raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
     if output.suffix.lower() != ".csv":
         raise UsageError(f"{output}: simulate writes CSV logs (.csv)")
     if output.exists() and not force:
         raise OutputExistsError(output)
     _check_output_folder(output)
+    robot_desc = load_robot(robot)
     for given in (world, path_file):
         if not given.is_file():
             raise InputFileError(given, "no such file")
-    robot_desc = load_robot(robot)
     loaded = load_map(world)
     waypoints = load_path(path_file)
     log = run_simulation(
@@ -335,7 +337,11 @@ def simulate(
         drift=drift,
         duration_s=duration,
     )
+    # everything needed to make the same log again goes into its header
     log.metadata.update({"robot": robot, "world": str(world), "path": str(path_file)})
+    log.metadata["rate"] = repr(rate)
+    if duration is not None:
+        log.metadata["duration"] = repr(duration)
     save_csv_log(log, output)
     if not quiet:
         zmax = np.asarray([s.max_range_m for s in robot_desc.sensors])

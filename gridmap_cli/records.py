@@ -55,8 +55,9 @@ class RangeLog:
     """Everything a reader learned from one log file.
 
     ``sensors`` holds the mounting geometry of those sensors the log itself describes (any
-    subset of ``sensor_names``, matched by name); the robot description supplies the rest. ``truth`` is a ground-truth track in the world frame,
-    when the log has one; ``build`` ignores it. ``metadata`` holds the log's own key/value header.
+    subset of ``sensor_names``, matched by name); the robot description supplies the rest.
+    ``truth`` is a ground-truth (or reference) track in the world frame, when the log has one;
+    ``build`` ignores it. ``metadata`` holds the log's own key/value header.
     """
 
     source: str

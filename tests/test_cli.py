@@ -144,7 +144,11 @@ def test_existing_yaml_alone_also_needs_force(room_csv: Path, tmp_path: Path) ->
     ("args", "message"),
     [
         (["--occupied", "0.2", "--free", "0.3"], "need 0 <= --free < --occupied <= 1"),
-        (["--resolution", "0"], "--resolution must be positive"),
+        (["--resolution", "0"], "--resolution must be a positive number of metres"),
+        (["--resolution", "nan"], "--resolution must be a positive number of metres, got nan"),
+        (["--resolution", "inf"], "--resolution must be a positive number of metres, got inf"),
+        (["--occupied", "nan"], "need 0 <= --free < --occupied <= 1"),
+        (["--no-echo-free", "nan"], "no-echo free range"),
         (["--map-mode", "scale", "-o", "x.pgm"], "scale"),
         (["-o", "x.jpg"], ".jpg"),
     ],

@@ -31,6 +31,12 @@ def write_csv_log(log: RangeLog, handle: TextIO) -> None:
     poses = log.poses
     n = len(poses)
     names = list(log.sensor_names)
+    for key, value in log.metadata.items():
+        if not key or ":" in key or any(c in key + value for c in "\r\n"):
+            raise GridmapError(f"metadata {key!r}: {value!r} cannot be a '# key: value' line")
+    truth = log.truth
+    if truth is not None and not np.array_equal(truth.stamp_ns, poses.stamp_ns):
+        raise GridmapError("the CSV layout needs ground truth at the odometry stamps")
     for name in names:
         if name in POSE_COLUMNS or name in TRUTH_COLUMNS or "," in name:
             raise GridmapError(f"sensor name {name!r} cannot be a CSV column")
@@ -44,6 +50,9 @@ def write_csv_log(log: RangeLog, handle: TextIO) -> None:
             f"a reading at {ns_to_seconds_text(bad)} s has no odometry row with the same stamp; "
             "the CSV layout keeps readings on odometry rows"
         )
+    cell = row_of * max(len(names), 1) + log.readings.sensor
+    if np.unique(cell).shape[0] != cell.shape[0]:
+        raise GridmapError("two readings of one sensor at one stamp cannot share a CSV cell")
     table = np.full((n, len(names)), np.nan)
     table[row_of, log.readings.sensor] = log.readings.range_m
 
@@ -51,7 +60,6 @@ def write_csv_log(log: RangeLog, handle: TextIO) -> None:
         handle.write(f"# {key}: {value}\n")
     header = list(POSE_COLUMNS) + names + (list(TRUTH_COLUMNS) if log.truth is not None else [])
     handle.write(",".join(header) + "\n")
-    truth = log.truth
     for i in range(n):
         fields = [
             ns_to_seconds_text(int(poses.stamp_ns[i])),
@@ -67,5 +75,8 @@ def write_csv_log(log: RangeLog, handle: TextIO) -> None:
 
 def save_csv_log(log: RangeLog, path: Path) -> None:
     """Write ``log`` to ``path`` atomically (nothing is left behind on failure)."""
-    with atomic_output(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as handle:
-        write_csv_log(log, handle)
+    try:
+        with atomic_output(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as handle:
+            write_csv_log(log, handle)
+    except OSError as exc:
+        raise GridmapError(f"{path}: cannot write the log: {exc.strerror or exc}") from exc
