@@ -64,16 +64,17 @@ def preset_names() -> list[str]:
 
 
 def load_robot(spec: str) -> RobotDescription:
-    """Resolve ``--robot``: a preset name, or a path to a robot YAML file."""
+    """Resolve ``--robot``: a preset name, a robot YAML file or an ARIA ``.p`` parameter file."""
     if spec in preset_names():
         res = resources.files("gridmap_cli") / "presets" / f"{spec}.yaml"
         return parse_robot_yaml(res.read_text(encoding="utf-8"), f"preset:{spec}")
     path = Path(spec)
     if path.is_file():
         if path.suffix.lower() == ".p":
-            raise RobotDescriptionError(
-                path, "ARIA .p robot parameter files are not supported yet; use a robot YAML file"
-            )
+            # imported here: the ARIA reader builds RobotDescriptions, so it imports this module
+            from gridmap_cli.readers.aria_params import read_aria_params
+
+            return read_aria_params(path).robot()
         try:
             text = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
