@@ -26,11 +26,16 @@ from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
 from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.robot import RobotDescription, load_robot, preset_names
+from gridmap_cli.writers.aria_log import save_aria_log
 from gridmap_cli.writers.csv_log import save_csv_log
 from gridmap_cli.writers.map_image import MAP_MODES, check_map_outputs, write_map
 
 P = ParamSpec("P")
 R = TypeVar("R")
+
+
+#: Log formats `simulate` writes, with their extension.
+SIM_FORMATS = {"csv": ".csv", "aria": ".2d"}
 
 
 class _UsageFailure(click.ClickException):
@@ -274,7 +279,13 @@ def _summary_line(s: dict[str, Any]) -> str:
     "--output",
     required=True,
     type=click.Path(path_type=Path, dir_okay=False),
-    help="CSV log to write.",
+    help="Log to write: .csv (gridmap CSV) or .2d (ARIA with sonar lines).",
+)
+@click.option(
+    "--format",
+    "log_format",
+    type=click.Choice(sorted(SIM_FORMATS)),
+    help="Log format; default: from the output's extension.",
 )
 @click.option("--robot", default="p3at", show_default=True, help="Robot preset or YAML file.")
 @click.option("--rate", type=float, default=10.0, show_default=True, help="Sensor rate, Hz.")
@@ -294,6 +305,7 @@ def simulate(
     world: Path,
     path_file: Path,
     output: Path,
+    log_format: str | None,
     robot: str,
     rate: float,
     seed: int,
@@ -302,7 +314,7 @@ def simulate(
     force: bool,
     quiet: bool,
 ) -> None:
-    """Drive a simulated robot along PATH in WORLD and write a CSV log with ground truth.
+    """Drive a simulated robot along PATH in WORLD and write a log with ground truth.
 
     WORLD is a map_server map (YAML + image); PATH a waypoint file (see docs/simulator.md).
     """
@@ -317,8 +329,14 @@ def simulate(
         raise UsageError(f"--drift must be a finite number >= 0, got {drift}")
     if duration is not None and not (duration > 0.0 and math.isfinite(duration)):
         raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
-    if output.suffix.lower() != ".csv":
-        raise UsageError(f"{output}: simulate writes CSV logs (.csv)")
+    if log_format is None:
+        by_suffix = {suffix: name for name, suffix in SIM_FORMATS.items()}
+        if output.suffix.lower() not in by_suffix:
+            raise UsageError(
+                f"{output}: simulate writes CSV (.csv) or ARIA (.2d) logs; "
+                "name the output so or give --format"
+            )
+        log_format = by_suffix[output.suffix.lower()]
     if output.exists() and not force:
         raise OutputExistsError(output)
     _check_output_folder(output)
@@ -342,7 +360,10 @@ def simulate(
     log.metadata["rate"] = repr(rate)
     if duration is not None:
         log.metadata["duration"] = repr(duration)
-    save_csv_log(log, output)
+    if log_format == "aria":
+        save_aria_log(log, robot_desc.sensors, output)
+    else:
+        save_csv_log(log, output)
     if not quiet:
         zmax = np.asarray([s.max_range_m for s in robot_desc.sensors])
         no_echo = int(np.count_nonzero(log.readings.range_m >= zmax[log.readings.sensor]))

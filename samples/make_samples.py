@@ -137,6 +137,22 @@ def write_path(name: str, waypoints: list[tuple[float, float]], laps: int = 1) -
     return path
 
 
+def simulate(gridmap: Path, world: Path, path: Path, out: Path, seed: int) -> None:
+    """Run `gridmap simulate` from the repository root with relative paths, so that the logs'
+    metadata is the same on every machine."""
+    root = HERE.parent
+    subprocess.run(
+        [
+            str(gridmap), "simulate", str(world.relative_to(root)), str(path.relative_to(root)),
+            "-o", str(out.relative_to(root)), "--robot", "p3at", "--seed", str(seed),
+            "--drift", "1", "--force", "--quiet",
+        ],
+        check=True,
+        cwd=root,
+    )  # fmt: skip
+    print(f"wrote {out.relative_to(root)}")
+
+
 def main() -> None:
     (HERE / "worlds").mkdir(exist_ok=True)
     (HERE / "paths").mkdir(exist_ok=True)
@@ -148,33 +164,10 @@ def main() -> None:
         canvas.save(name)
         path = write_path(name, waypoints)
         world = HERE / "worlds" / f"{name}.yaml"
-        out = HERE / f"{name}.csv"
-        # paths relative to the repository, so the logs' metadata is the same on every machine
-        world_rel, path_rel, out_rel = (str(p.relative_to(HERE.parent)) for p in (world, path, out))
-        subprocess.run(
-            [
-                str(gridmap),
-                "simulate",
-                world_rel,
-                path_rel,
-                "-o",
-                out_rel,
-                "--robot",
-                "p3at",
-                "--seed",
-                str(seed),
-                "--drift",
-                "1",
-                "--force",
-                "--quiet",
-            ],
-            check=True,
-            cwd=HERE.parent,
-        )
-        print(
-            f"wrote {world.relative_to(HERE.parent)}, {path.relative_to(HERE.parent)}, "
-            f"{out.relative_to(HERE.parent)}"
-        )
+        simulate(gridmap, world, path, HERE / f"{name}.csv", seed)
+        if name == "corridor_loop":
+            # the same run as an ARIA .2d log: it must build the same map as the CSV
+            simulate(gridmap, world, path, HERE / f"{name}.2d", seed)
 
 
 if __name__ == "__main__":

@@ -132,7 +132,12 @@ class _Parser:
         block: _Block | None = None
         for number, raw in lines:
             text = raw.strip()
-            if not text or text.startswith("#"):
+            if not text:
+                continue
+            if text.startswith("#"):
+                key, sep, value = text[1:].partition(":")
+                if block is None and sep and key.strip() and " " not in key.strip():
+                    self.metadata[key.strip()] = value.strip()
                 continue
             tag, sep, values = text.partition(":")
             if not sep:
@@ -321,9 +326,10 @@ class _Parser:
                 mm = np.asarray(values, dtype=np.float64)
                 if (mm < 0).any():
                     raise self.error(line, "sonar: negative range")
-                stamps.append(np.full(len(values), block.stamp_ns, dtype=np.int64))
-                index.append(offsets["sonar"] + np.arange(len(values)))
-                ranges.append(mm / 1000.0)
+                present = mm > 0  # 0 is no reading, as in sick<N>: lines
+                stamps.append(np.full(int(present.sum()), block.stamp_ns, dtype=np.int64))
+                index.append(offsets["sonar"] + np.nonzero(present)[0])
+                ranges.append(mm[present] / 1000.0)
         if not stamps:
             return RangeReadings(
                 np.empty(0, np.int64), np.empty(0, np.int32), np.empty(0, np.float64)

@@ -6,10 +6,13 @@ a reader would, so a simulated log can be written by any writer and mapped like 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.records import PoseTrack, RangeLog
+from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RobotDescription
 from gridmap_cli.sim.odometry import OdometryErrorModel, odometry_from_truth
 from gridmap_cli.sim.path import WaypointPath, trajectory
@@ -57,7 +60,7 @@ def simulate(
         :mod:`gridmap_cli.sim.odometry`); ``truth``: the true poses in the world frame;
         ``readings``: one per pose and sensor, ordered by stamp then sensor; ``sensor_names``: the
         robot's, in order; ``sensors`` None (the robot description supplies the geometry);
-        ``metadata``: ``gridmap-csv``, ``robot``, ``seed`` and ``drift``.
+        ``metadata``: ``robot``, ``seed`` and ``drift``.
     """
     model = (error_model if error_model is not None else OdometryErrorModel()).scaled(drift)
     rng = np.random.default_rng(seed)
@@ -68,13 +71,12 @@ def simulate(
     readings = simulate_ranges(world, truth, robot, rng)
     return RangeLog(
         source=f"simulation of {path.source}",
-        poses=odometry,
-        readings=readings,
+        poses=quantize_track(odometry),
+        readings=quantize_readings(readings),
         sensor_names=robot.names(),
         sensors=None,
-        truth=truth,
+        truth=quantize_track(truth),
         metadata={
-            "gridmap-csv": "1",
             "robot": robot.name,
             "seed": str(seed),
             "drift": str(drift),
@@ -95,3 +97,25 @@ def _check_clear(world: World, truth: PoseTrack, source: str) -> None:
             f"the path drives through an obstacle of the world at x={truth.x_m[k]:.2f} m, "
             f"y={truth.y_m[k]:.2f} m (t={truth.stamp_ns[k] / 1e9:.1f} s)",
         )
+
+
+def _to_mm(values_m: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    # mm / 1000 is correctly rounded, so it is the same double as parsing the decimal "x.xxx"
+    return np.round(values_m * 1000.0) / 1000.0
+
+
+def quantize_track(track: PoseTrack) -> PoseTrack:
+    """Poses at the resolution a Pioneer reports and ARIA logs hold: 1 mm and 0.01 degree.
+
+    Every log format gridmap writes then holds the same numbers exactly, so the same run stored
+    as CSV or ARIA reads back bit-identical. Headings are radians(round(degrees, 2)), computed
+    the way a reader converts the logged degrees.
+    """
+    degrees = np.round(np.degrees(track.theta_rad), 2)
+    theta = np.asarray([math.radians(float(f"{d:.2f}")) for d in degrees], dtype=np.float64)
+    return PoseTrack(track.stamp_ns, _to_mm(track.x_m), _to_mm(track.y_m), theta)
+
+
+def quantize_readings(readings: RangeReadings) -> RangeReadings:
+    """Ranges at 1 mm, as the Pioneer's sonar reports them."""
+    return RangeReadings(readings.stamp_ns, readings.sensor, _to_mm(readings.range_m))

@@ -17,6 +17,8 @@ from gridmap_cli.errors import GridmapError
 from gridmap_cli.readers.csv_log import POSE_COLUMNS, TRUTH_COLUMNS
 from gridmap_cli.records import RangeLog
 
+CSV_VERSION_KEY = "gridmap-csv"
+
 
 def ns_to_seconds_text(stamp_ns: int) -> str:
     """Exact decimal seconds for integer nanoseconds: 1500000000 -> '1.5', 0 -> '0.0'."""
@@ -56,8 +58,11 @@ def write_csv_log(log: RangeLog, handle: TextIO) -> None:
     table = np.full((n, len(names)), np.nan)
     table[row_of, log.readings.sensor] = log.readings.range_m
 
+    # the layout's version first; a log read from a CSV carries it in its metadata already
+    handle.write(f"# {CSV_VERSION_KEY}: 1\n")
     for key, value in log.metadata.items():
-        handle.write(f"# {key}: {value}\n")
+        if key != CSV_VERSION_KEY:
+            handle.write(f"# {key}: {value}\n")
     header = list(POSE_COLUMNS) + names + (list(TRUTH_COLUMNS) if log.truth is not None else [])
     handle.write(",".join(header) + "\n")
     for i in range(n):

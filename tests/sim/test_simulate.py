@@ -45,7 +45,7 @@ def test_log_contents(room: World) -> None:
     robot = load_robot("p3at")
     assert log.sensor_names == robot.names()
     assert log.sensors is None
-    assert log.metadata == {"gridmap-csv": "1", "robot": "p3at", "seed": "3", "drift": "1.5"}
+    assert log.metadata == {"robot": "p3at", "seed": "3", "drift": "1.5"}
     assert log.truth is not None
     assert len(log.poses) == len(log.truth)
     np.testing.assert_array_equal(log.poses.stamp_ns, log.truth.stamp_ns)

@@ -163,7 +163,7 @@ def test_any_finite_poses_and_ranges_round_trip_bit_exact(
     assert back.readings.stamp_ns.tolist() == log.readings.stamp_ns.tolist()
     assert back.readings.sensor.tolist() == log.readings.sensor.tolist()
     assert bits(back.readings.range_m) == bits(log.readings.range_m)
-    assert back.metadata == {"seed": str(start)}
+    assert back.metadata == {"gridmap-csv": "1", "seed": str(start)}  # the writer adds the version
 
 
 # --- times as text -------------------------------------------------------------------------------
