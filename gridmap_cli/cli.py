@@ -26,6 +26,7 @@ from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
 from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.robot import RobotDescription, load_robot, preset_names
+from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers.aria_log import save_aria_log
 from gridmap_cli.writers.csv_log import save_csv_log
 from gridmap_cli.writers.map_image import MAP_MODES, check_map_outputs, write_map
@@ -165,6 +166,13 @@ def _robot_from_log(log: Path, metadata: dict[str, str]) -> RobotDescription | N
     show_default=True,
     help="Metres of free space a max-range (no echo) reading clears; 0 ignores them.",
 )
+@click.option(
+    "--pose",
+    type=click.Choice(POSE_SOURCES),
+    default="odometry",
+    show_default=True,
+    help="Map with the odometry, or with the log's global pose (ARIA robotGlobal, CSV true_*).",
+)
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -180,6 +188,7 @@ def build(
     occupied: float,
     free: float,
     no_echo_free: float,
+    pose: str,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -201,7 +210,7 @@ def build(
         raise InputFileError(log, "no such file" if not log.exists() else "not a regular file")
     fmt = resolve_format(log, log_format)
 
-    data = fmt.read(log)
+    data = select_poses(fmt.read(log), pose)
     if robot_desc is None:
         robot_desc = _robot_from_log(log, data.metadata)
     options = BuildOptions(resolution_m=resolution, mode=mode, sonar=sonar)

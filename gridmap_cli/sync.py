@@ -8,6 +8,7 @@ robot does not describe are counted and dropped, never silently mapped.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +54,28 @@ class SyncStats:
     used: int
     outside_odometry: int
     below_min_range: int
+
+
+POSE_SOURCES = ("odometry", "global")
+
+
+def select_poses(log: RangeLog, source: str) -> RangeLog:
+    """The log with the pose track to map with: its odometry, or its global pose.
+
+    The global pose is the log's reference track: ARIA's ``robotGlobal:`` (a corrected pose) or
+    a CSV's ``true_*`` columns (ground truth). Mapping with it shows what the map would be with
+    the robot's pose known; mapping with odometry shows what the robot's own data gives.
+    """
+    if source == "odometry":
+        return log
+    if source != "global":
+        raise GridmapError(f"unknown pose source '{source}' (known: {', '.join(POSE_SOURCES)})")
+    if log.truth is None:
+        raise GridmapError(
+            f"{log.source}: the log has no global pose (ARIA robotGlobal: lines in every block, "
+            "or CSV true_x, true_y, true_theta columns)"
+        )
+    return dataclasses.replace(log, poses=log.truth)
 
 
 def sensors_for_log(log: RangeLog, robot: RobotDescription | None) -> tuple[RangeSensor, ...]:

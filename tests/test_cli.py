@@ -221,3 +221,45 @@ def test_unknown_robot_in_the_log_is_bad_data(room_csv: Path, tmp_path: Path) ->
         f"Error: {room_csv}: '# robot: r2d2' is neither a preset (p3at, p3dx) nor a file "
         "beside the log; give --robot"
     )
+
+
+def test_pose_global_maps_with_the_logs_reference_track(tmp_path: Path) -> None:
+    import numpy as np
+    from scipy import ndimage
+
+    from gridmap_cli.mapfile import load_map
+
+    samples = Path(__file__).resolve().parents[1] / "samples"
+    world = load_map(samples / "worlds" / "corridor_loop.yaml")
+    near_wall = ndimage.binary_dilation(world.occupied_mask(), iterations=2)
+
+    def on_true_walls(source: str) -> float:
+        """Share of the map's occupied cells within 2 cells of a wall, read in the world frame."""
+        out = tmp_path / f"{source}.png"
+        code, _, stderr = run(
+            "build", str(samples / "corridor_loop.csv"), "-o", str(out), "--pose", source, "-q"
+        )
+        assert code == 0, stderr
+        m = load_map(out.with_suffix(".yaml"))
+        rows, cols = np.nonzero(m.occupancy == 100)
+        x, y = m.spec.cell_center(cols, rows)
+        wc, wr = world.spec.world_to_cell(x, y)
+        inside = (wc >= 0) & (wr >= 0) & (wc < world.spec.width) & (wr < world.spec.height)
+        hits = np.zeros(len(x), dtype=bool)
+        hits[inside] = near_wall[wr[inside], wc[inside]]
+        return float(hits.mean())
+
+    # the truth is in the world frame: walls mapped with it land on the world's walls; the
+    # odometry map is in the odometry frame (and drifted), so it does not
+    assert on_true_walls("global") > 0.6
+    assert on_true_walls("odometry") < 0.2
+
+
+def test_pose_global_needs_a_global_track(room_csv: Path, tmp_path: Path) -> None:
+    code, _, stderr = run("build", str(room_csv), "-o", str(tmp_path / "m.png"), "--pose", "global")
+    assert code == 1
+    assert stderr.strip() == (
+        f"Error: {room_csv}: the log has no global pose (ARIA robotGlobal: lines in every block, "
+        "or CSV true_x, true_y, true_theta columns)"
+    )
+    assert not (tmp_path / "m.png").exists()
