@@ -92,7 +92,11 @@ _SENSOR_KEYS = {
     "beam_width_deg",
     "min_range_m",
     "max_range_m",
+    "first_deg",
+    "last_deg",
+    "samples",
 }
+_LASER_ONLY = ("first_deg", "last_deg", "samples")
 
 
 def _number(source: str, where: str, value: Any, line: int | None) -> float:
@@ -137,51 +141,80 @@ def parse_robot_yaml(text: str, source: str) -> RobotDescription:
         unknown = sorted(set(merged) - _SENSOR_KEYS)
         if unknown:
             raise RobotDescriptionError(source, f"sensor {i}: unknown keys {unknown}", line)
-        missing = sorted(
-            {"name", "x_m", "y_m", "yaw_deg", "beam_width_deg", "max_range_m"} - set(merged)
-        )
+        kind = merged.get("kind", "sonar")
+        if kind not in SENSOR_KINDS:
+            raise RobotDescriptionError(
+                source, f"sensor {i}: kind must be one of {SENSOR_KINDS}, got {kind!r}", line
+            )
+        required = {"name", "x_m", "y_m", "yaw_deg", "max_range_m"}
+        required |= set(_LASER_ONLY) if kind == "laser" else {"beam_width_deg"}
+        missing = sorted(required - set(merged))
         if missing:
             raise RobotDescriptionError(source, f"sensor {i}: missing keys {missing}", line)
         sname = merged["name"]
         if not isinstance(sname, str) or not sname:
             raise RobotDescriptionError(source, f"sensor {i}: 'name' must be a string", line)
-        kind = merged.get("kind", "sonar")
-        if kind not in SENSOR_KINDS:
-            raise RobotDescriptionError(
-                source, f"sensor '{sname}': kind must be one of {SENSOR_KINDS}", line
-            )
-        width = _number(source, f"sensor '{sname}' beam_width_deg", merged["beam_width_deg"], line)
         rmin = _number(
             source, f"sensor '{sname}' min_range_m", merged.get("min_range_m", 0.0), line
         )
         rmax = _number(source, f"sensor '{sname}' max_range_m", merged["max_range_m"], line)
-        if not 0.0 <= width < 180.0:
-            raise RobotDescriptionError(
-                source, f"sensor '{sname}': beam_width_deg must be in [0, 180)", line
-            )
         if not 0.0 <= rmin < rmax:
             raise RobotDescriptionError(
                 source, f"sensor '{sname}': need 0 <= min_range_m < max_range_m", line
             )
-        sensors.append(
-            RangeSensor(
-                name=sname,
-                x_m=_number(source, f"sensor '{sname}' x_m", merged["x_m"], line),
-                y_m=_number(source, f"sensor '{sname}' y_m", merged["y_m"], line),
-                yaw_rad=math.radians(
-                    _number(source, f"sensor '{sname}' yaw_deg", merged["yaw_deg"], line)
-                ),
-                beam_width_rad=math.radians(width),
-                min_range_m=rmin,
-                max_range_m=rmax,
-                kind=kind,
+        x = _number(source, f"sensor '{sname}' x_m", merged["x_m"], line)
+        y = _number(source, f"sensor '{sname}' y_m", merged["y_m"], line)
+        yaw = math.radians(_number(source, f"sensor '{sname}' yaw_deg", merged["yaw_deg"], line))
+        if kind == "laser":
+            sensors.extend(_laser_beams(source, line, sname, merged, x, y, yaw, rmin, rmax))
+            continue
+        stray = [k for k in _LASER_ONLY if k in entry]
+        if stray:
+            raise RobotDescriptionError(
+                source, f"sensor '{sname}': {stray} only apply to kind: laser", line
             )
-        )
+        width = _number(source, f"sensor '{sname}' beam_width_deg", merged["beam_width_deg"], line)
+        if not 0.0 <= width < 180.0:
+            raise RobotDescriptionError(
+                source, f"sensor '{sname}': beam_width_deg must be in [0, 180)", line
+            )
+        sensors.append(RangeSensor(sname, x, y, yaw, math.radians(width), rmin, rmax, kind))
     names = [s.name for s in sensors]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise RobotDescriptionError(source, f"duplicate sensor names {dup}")
     return RobotDescription(name=name, sensors=tuple(sensors))
+
+
+def _laser_beams(
+    source: str,
+    line: int | None,
+    name: str,
+    entry: dict[str, Any],
+    x: float,
+    y: float,
+    yaw: float,
+    rmin: float,
+    rmax: float,
+) -> list[RangeSensor]:
+    """A scanning laser as one ray sensor per beam: ``<name>_0`` .. ``<name>_<samples-1>``.
+
+    Beam i points ``first_deg + i * (last_deg - first_deg) / (samples - 1)`` from the laser's
+    own axis, as ARIA's ``sick<N>conf:`` lines describe a scan.
+    """
+    first = _number(source, f"sensor '{name}' first_deg", entry["first_deg"], line)
+    last = _number(source, f"sensor '{name}' last_deg", entry["last_deg"], line)
+    samples = entry["samples"]
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
+        raise RobotDescriptionError(
+            source, f"sensor '{name}': samples must be a whole number >= 1, got {samples!r}", line
+        )
+    step = (last - first) / (samples - 1) if samples > 1 else 0.0
+    return [
+        RangeSensor(f"{name}_{i}", x, y, yaw + math.radians(first + i * step), 0.0, rmin, rmax,
+                    "laser")
+        for i in range(samples)
+    ]  # fmt: skip
 
 
 def _sensor_lines(node: yaml.Node | None) -> list[int]:

@@ -12,6 +12,7 @@ import yaml
 from click.testing import CliRunner
 
 from gridmap_cli.cli import cli
+from gridmap_cli.robot import preset_names
 
 
 def run(*args: str) -> tuple[int, str, str]:
@@ -119,7 +120,9 @@ def test_missing_log(tmp_path: Path) -> None:
 def test_unknown_robot_is_a_usage_error(room_csv: Path, tmp_path: Path) -> None:
     code, _, stderr = run("build", str(room_csv), "-o", str(tmp_path / "m.png"), "--robot", "r2")
     assert code == 2
-    assert stderr.strip().startswith("Error: unknown robot 'r2': not a preset (p3at, p3dx")
+    assert stderr.strip() == (
+        f"Error: unknown robot 'r2': not a preset ({', '.join(preset_names())}) and no such file"
+    )
     assert files(tmp_path) == {"room.csv"}
 
 
@@ -218,7 +221,8 @@ def test_unknown_robot_in_the_log_is_bad_data(room_csv: Path, tmp_path: Path) ->
     code, _, stderr = run("build", str(room_csv), "-o", str(tmp_path / "m.png"))
     assert code == 1
     assert stderr.strip() == (
-        f"Error: {room_csv}: '# robot: r2d2' is neither a preset (p3at, p3dx) nor a file "
+        f"Error: {room_csv}: '# robot: r2d2' is neither a preset ({', '.join(preset_names())}) "
+        "nor a file "
         "beside the log; give --robot"
     )
 

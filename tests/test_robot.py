@@ -49,8 +49,12 @@ def test_robot_yaml_file(tmp_path: Path) -> None:
 
 
 def test_unknown_robot_names_presets() -> None:
-    with pytest.raises(UnknownRobotError, match=r"unknown robot 'r2d2': not a preset \(p3at, p3dx"):
+    with pytest.raises(UnknownRobotError) as info:
         load_robot("r2d2")
+    assert str(info.value) == (
+        f"unknown robot 'r2d2': not a preset ({', '.join(preset_names())}) and no such file"
+    )
+    assert {"p3at", "p3dx", "p3at-lms200"} <= set(preset_names())
 
 
 BASE = "gridmap-robot: 1\nname: bot\nsensors:\n"
@@ -103,3 +107,47 @@ def test_parse_from_text() -> None:
         "inline",
     )
     assert robot.name == "bot" and robot.sensors[0].min_range_m == 0.0
+
+
+def test_a_laser_entry_expands_into_its_beams(tmp_path: Path) -> None:
+    path = tmp_path / "bot.yaml"
+    path.write_text(
+        "gridmap-robot: 1\nname: bot\nsensors:\n"
+        "  - {name: scan, kind: laser, x_m: 0.1, y_m: 0.0, yaw_deg: 10, first_deg: -45,"
+        " last_deg: 45, samples: 3, max_range_m: 8}\n"
+    )
+    robot = load_robot(str(path))
+    assert robot.names() == ("scan_0", "scan_1", "scan_2")
+    assert [s.yaw_rad for s in robot.sensors] == pytest.approx(
+        [math.radians(-35), math.radians(10), math.radians(55)]
+    )
+    assert all(s.kind == "laser" and s.beam_width_rad == 0.0 for s in robot.sensors)
+
+
+def test_the_lms200_preset_is_the_p3at_plus_its_laser() -> None:
+    both = load_robot("p3at-lms200")
+    assert both.sensors[:16] == load_robot("p3at").sensors
+    lasers = both.sensors[16:]
+    assert len(lasers) == 181 and lasers[90].yaw_rad == 0.0 and lasers[0].x_m == 0.16
+
+
+@pytest.mark.parametrize(
+    ("entry", "message"),
+    [
+        ("{name: l, kind: laser, x_m: 0, y_m: 0, yaw_deg: 0, max_range_m: 8}",
+         "missing keys ['first_deg', 'last_deg', 'samples']"),
+        ("{name: l, kind: laser, x_m: 0, y_m: 0, yaw_deg: 0, first_deg: -90, last_deg: 90,"
+         " samples: 2.5, max_range_m: 8}", "samples must be a whole number >= 1, got 2.5"),
+        ("{name: s, x_m: 0, y_m: 0, yaw_deg: 0, beam_width_deg: 25, samples: 3,"
+         " max_range_m: 4}", "['samples'] only apply to kind: laser"),
+        ("{name: s, kind: radar, x_m: 0, y_m: 0, yaw_deg: 0, beam_width_deg: 25,"
+         " max_range_m: 4}", "kind must be one of ('sonar', 'laser'), got 'radar'"),
+    ],
+)  # fmt: skip
+def test_bad_laser_entries(tmp_path: Path, entry: str, message: str) -> None:
+    path = tmp_path / "bot.yaml"
+    path.write_text(f"gridmap-robot: 1\nname: bot\nsensors:\n  - {entry}\n")
+    with pytest.raises(RobotDescriptionError) as info:
+        load_robot(str(path))
+    assert str(info.value).startswith(f"{path}:4: ")
+    assert message in str(info.value)

@@ -18,6 +18,10 @@ corner's bisector), as corner reflectors do.
 
 Multiple reflections (the long phantom readings of real sonars) and crosstalk are not simulated:
 a beam without an echo reads exactly its maximum range.
+
+Laser beams (sensor kind ``laser``, beam width 0) are simulated in the same pass with what differs
+for light: surfaces scatter it diffusely, so any hit short of exactly grazing echoes, and the
+range noise is absolute (``laser_noise_m``, 1 cm as for a SICK LMS200) rather than relative.
 """
 
 from __future__ import annotations
@@ -55,6 +59,7 @@ def simulate_ranges(
     rays_per_beam: int = DEFAULT_RAYS_PER_BEAM,
     range_noise: float = 0.01,
     critical_incidence_deg: float = DEFAULT_CRITICAL_INCIDENCE_DEG,
+    laser_noise_m: float = 0.01,
 ) -> RangeReadings:
     """One reading per sensor of ``robot`` at every pose of ``truth``.
 
@@ -76,7 +81,9 @@ def simulate_ranges(
     range_noise
         Standard deviation of the range noise relative to the range (0.01: 1 cm at 1 m).
     critical_incidence_deg
-        Rays meeting a surface further than this from its normal give no echo.
+        Rays meeting a surface further than this from its normal give no echo (sonar only).
+    laser_noise_m
+        Standard deviation of a laser's range noise, metres.
 
     Returns
     -------
@@ -102,7 +109,9 @@ def simulate_ranges(
     # ray directions relative to each beam axis, shape (S, R)
     fan = np.linspace(-0.5, 0.5, rays_per_beam) if rays_per_beam > 1 else np.zeros(1)
     offsets = width[:, None] * fan[None, :]
-    critical = math.radians(critical_incidence_deg)
+    laser = np.asarray([s.kind == "laser" for s in sensors], dtype=bool)
+    # light scatters diffusely: a laser hears any hit that is not exactly grazing
+    critical = np.where(laser, math.pi / 2, math.radians(critical_incidence_deg))
 
     range_m = np.empty((n_poses, n_sensors), dtype=np.float64)
     per_chunk = max(_RAYS_PER_CHUNK // max(n_sensors * rays_per_beam, 1), 1)
@@ -122,12 +131,13 @@ def simulate_ranges(
             sx[:, :, None], sy[:, :, None], sth[:, :, None] + offsets[None], rmax[None, :, None]
         )
         # NaN incidence (no hit) compares False: no echo
-        echo = incidence < critical
+        echo = incidence < critical[None, :, None]
         nearest = np.min(np.where(echo, ray_range, np.inf), axis=2)
         range_m[lo:hi] = nearest
 
     heard = np.isfinite(range_m)
-    noisy = range_m + range_noise * np.where(heard, range_m, 0.0) * noise
+    sigma = np.where(laser[None, :], laser_noise_m, range_noise * np.where(heard, range_m, 0.0))
+    noisy = range_m + np.where(heard, sigma, 0.0) * noise
     # Noise must neither turn an echo into "no echo" (>= max) nor push an echo from the usable
     # interval below the minimum range; echoes truly below the minimum stay below it.
     below_max = np.nextafter(rmax, 0.0)[None, :]
