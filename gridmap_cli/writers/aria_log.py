@@ -1,4 +1,4 @@
-"""Writer for ARIA-style ``.2d`` logs with gridmap's sonar extension (``schemas/aria-log.md``).
+"""Writer for ARIA-style ``.2d`` logs, lasers and gridmap's sonar extension (schemas/aria-log.md).
 
 Poses are written as ARIA does (mm, mm, degrees with two decimals), ranges in whole mm, times as
 exact decimal seconds; a log at that resolution (as ``gridmap simulate`` makes them) therefore
@@ -22,6 +22,7 @@ from gridmap_cli.robot import RangeSensor
 from gridmap_cli.writers.csv_log import ns_to_seconds_text
 
 _SONAR_NAME = re.compile(r"^sonar(\d+)$")
+_LASER_BEAM = re.compile(r"^laser(\d+)_(\d+)$")
 
 
 def _num(value: float) -> str:
@@ -34,21 +35,40 @@ def _pose(x_m: float, y_m: float, theta_rad: float) -> str:
     return f"{round(x_m * 1000.0):d} {round(y_m * 1000.0):d} {math.degrees(theta_rad):.2f}"
 
 
-def write_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], handle: TextIO) -> None:
-    """Write a sonar log; ``sensors`` gives the geometry of ``log.sensor_names`` in order.
+def _layout(
+    names: list[str], sensors: tuple[RangeSensor, ...]
+) -> tuple[list[int], dict[int, list[int]]]:
+    """Column indices of the sonar units (in unit order) and of each laser's beams."""
+    sonar: list[int] = []
+    lasers: dict[int, list[int]] = {}
+    for column, (name, sensor) in enumerate(zip(names, sensors, strict=True)):
+        sonar_match = _SONAR_NAME.match(name)
+        laser_match = _LASER_BEAM.match(name)
+        if sensor.kind == "sonar" and sonar_match and int(sonar_match.group(1)) == len(sonar):
+            sonar.append(column)
+        elif sensor.kind == "laser" and laser_match:
+            beams = lasers.setdefault(int(laser_match.group(1)), [])
+            if int(laser_match.group(2)) != len(beams):
+                raise GridmapError(f"laser beams must be numbered in order: {name!r}")
+            beams.append(column)
+        else:
+            raise GridmapError(
+                f"the ARIA format cannot hold sensor {name!r}: sonar units are sonar0, sonar1, "
+                "... in order and laser beams laser<N>_0, laser<N>_1, ..."
+            )
+    return sonar, lasers
 
-    Sonar units must be named ``sonar0`` .. ``sonarN-1`` in that order, as ARIA numbers them.
+
+def write_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], handle: TextIO) -> None:
+    """Write a log of sonar and laser readings; ``sensors`` gives ``log.sensor_names``' geometry.
+
+    Sonar units must be named ``sonar0`` .. ``sonarN-1`` in order, as ARIA numbers them, and
+    laser beams ``laser<N>_0`` .. in order (beam angles evenly spaced, as ``sick<N>conf:`` says).
+    Laser beams with no return are written as 0, the way ARIA marks a reading it ignored.
     """
     names = list(log.sensor_names)
-    for i, name in enumerate(names):
-        match = _SONAR_NAME.match(name)
-        if match is None or int(match.group(1)) != i:
-            raise GridmapError(
-                f"the ARIA sonar format numbers its units: sensor {i} must be 'sonar{i}', "
-                f"not {name!r}"
-            )
-    max_ranges = {s.max_range_m for s in sensors}
-    if len(max_ranges) > 1:
+    sonar, lasers = _layout(names, sensors)
+    if len({sensors[c].max_range_m for c in sonar}) > 1:
         raise GridmapError("the ARIA sonar format has one sonarMaxRange for all units")
     for key, value in log.metadata.items():
         if not key or ":" in key or any(c in key + value for c in "\r\n"):
@@ -61,28 +81,43 @@ def write_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], handle: Text
         raise GridmapError("the ARIA format keeps readings in pose blocks: a reading has no pose")
     if truth is not None and not np.array_equal(truth.stamp_ns, poses.stamp_ns):
         raise GridmapError("the ARIA format needs robotGlobal poses at the odometry stamps")
+    max_range = np.asarray([s.max_range_m for s in sensors], dtype=np.float64)
+    mm = np.round(readings.range_m * 1000.0).astype(np.int64)
+    no_return = (readings.range_m >= max_range[readings.sensor]) & np.isin(
+        readings.sensor, [c for beams in lasers.values() for c in beams]
+    )
     table = np.zeros((len(poses), len(names)), dtype=np.int64)  # 0 = no reading
-    table[row_of, readings.sensor] = np.round(readings.range_m * 1000.0).astype(np.int64)
+    table[row_of, readings.sensor] = np.where(no_return, 0, mm)
 
     handle.write("LaserOdometryLog\n#Created by gridmap\n")
     for key, value in log.metadata.items():
         handle.write(f"# {key}: {value}\n")
     handle.write("version: 4\n")
-    handle.write("locationTypes: robot" + (" robotGlobal\n" if truth is not None else "\n"))
-    for i, s in enumerate(sensors):
+    for number, beams in sorted(lasers.items()):
+        first, last = sensors[beams[0]], sensors[beams[-1]]
         handle.write(
-            f"sonarUnit: {i} {_num(s.x_m * 1000.0)} {_num(s.y_m * 1000.0)} "
+            f"sick{number}pose: {_num(first.x_m * 1000.0)} {_num(first.y_m * 1000.0)} 0\n"
+            f"sick{number}conf: {_num(math.degrees(first.yaw_rad))} "
+            f"{_num(math.degrees(last.yaw_rad))} {len(beams)}\n"
+        )
+    handle.write("locationTypes: robot" + (" robotGlobal\n" if truth is not None else "\n"))
+    for unit, column in enumerate(sonar):
+        s = sensors[column]
+        handle.write(
+            f"sonarUnit: {unit} {_num(s.x_m * 1000.0)} {_num(s.y_m * 1000.0)} "
             f"{_num(math.degrees(s.yaw_rad))}\n"
         )
-    if sensors:
-        handle.write(f"sonarMaxRange: {_num(sensors[0].max_range_m * 1000.0)}\n")
+    if sonar:
+        handle.write(f"sonarMaxRange: {_num(sensors[sonar[0]].max_range_m * 1000.0)}\n")
     for i in range(len(poses)):
         handle.write(f"logTime: {ns_to_seconds_text(int(poses.stamp_ns[i]))}\n")
         handle.write(f"robot: {_pose(poses.x_m[i], poses.y_m[i], poses.theta_rad[i])}\n")
         if truth is not None:
             handle.write(f"robotGlobal: {_pose(truth.x_m[i], truth.y_m[i], truth.theta_rad[i])}\n")
-        if names:
-            handle.write("sonar: " + " ".join(str(v) for v in table[i]) + "\n")
+        if sonar:
+            handle.write("sonar: " + " ".join(str(v) for v in table[i, sonar]) + "\n")
+        for number, beams in sorted(lasers.items()):
+            handle.write(f"sick{number}: " + " ".join(str(v) for v in table[i, beams]) + "\n")
 
 
 def save_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], path: Path) -> None:

@@ -1,0 +1,94 @@
+"""The ARIA .2d writer: what it writes reads back, and what the format cannot hold is refused."""
+
+from __future__ import annotations
+
+import io
+import math
+
+import numpy as np
+import pytest
+
+from gridmap_cli.errors import GridmapError
+from gridmap_cli.readers.aria_log import read_aria_log
+from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
+from gridmap_cli.robot import RangeSensor, load_robot
+from gridmap_cli.writers.aria_log import write_aria_log
+
+S = 1_000_000_000
+POSES = PoseTrack(
+    np.array([0, S // 10], dtype=np.int64),
+    np.array([0.0, 0.041]),
+    np.array([0.0, -0.002]),
+    np.array([0.0, math.radians(1.25)]),
+)
+
+
+def log_for(names: tuple[str, ...], rows: list[tuple[int, int, float]]) -> RangeLog:
+    readings = RangeReadings(
+        np.array([r[0] for r in rows], dtype=np.int64),
+        np.array([r[1] for r in rows], dtype=np.int32),
+        np.array([r[2] for r in rows], dtype=np.float64),
+    )
+    return RangeLog("mem", POSES, readings, names, truth=POSES, metadata={"seed": "1"})
+
+
+def written(log: RangeLog, sensors: tuple[RangeSensor, ...]) -> str:
+    out = io.StringIO()
+    write_aria_log(log, sensors, out)
+    return out.getvalue()
+
+
+def test_sonar_and_laser_round_trip() -> None:
+    robot = load_robot("p3at-lms200")
+    names = robot.names()
+    laser0, laser90 = names.index("laser1_0"), names.index("laser1_90")
+    log = log_for(
+        names,
+        [
+            (0, 0, 1.234),
+            (0, 15, 4.335),  # sonar no echo: kept as a range at the maximum
+            (0, laser0, 2.5),
+            (0, laser90, 8.0),  # laser no return: written as 0, read as no reading
+            (S // 10, laser90, 7.999),
+        ],
+    )
+    text = written(log, robot.sensors)
+    assert "sick1pose: 160 0 0\nsick1conf: -90 90 181\n" in text
+    assert "sonarUnit: 15 -144 136 90\nsonarMaxRange: 4335\n" in text
+    assert "# seed: 1\n" in text
+    back = read_aria_log(io.StringIO(text), "back.2d")
+    assert back.metadata["seed"] == "1"
+    assert np.array_equal(back.poses.x_m, POSES.x_m)
+    assert np.array_equal(back.poses.theta_rad, POSES.theta_rad)
+    got = {(int(t), back.sensor_names[k], r) for t, k, r in zip(
+        back.readings.stamp_ns, back.readings.sensor, back.readings.range_m, strict=True
+    )}  # fmt: skip
+    assert got == {
+        (0, "sonar0", 1.234),
+        (0, "sonar15", 4.335),
+        (0, "laser1_0", 2.5),
+        (S // 10, "laser1_90", 7.999),
+    }
+    assert back.sensors is not None
+    beams = {s.name: s for s in back.sensors}
+    assert beams["laser1_0"].yaw_rad == pytest.approx(-math.pi / 2)
+    assert beams["laser1_180"].yaw_rad == pytest.approx(math.pi / 2)
+
+
+@pytest.mark.parametrize(
+    ("names", "message"),
+    [
+        (("sonar1",), "cannot hold sensor 'sonar1'"),
+        (("front",), "cannot hold sensor 'front'"),
+    ],
+)
+def test_sensors_the_format_cannot_name_are_refused(names: tuple[str, ...], message: str) -> None:
+    sensors = tuple(RangeSensor(n, 0, 0, 0, 0.4, 0.1, 4.0) for n in names)
+    with pytest.raises(GridmapError, match=message):
+        written(log_for(names, [(0, 0, 1.0)]), sensors)
+
+
+def test_a_reading_between_poses_is_refused() -> None:
+    sensors = (RangeSensor("sonar0", 0, 0, 0, 0.4, 0.1, 4.0),)
+    with pytest.raises(GridmapError, match="a reading has no pose"):
+        written(log_for(("sonar0",), [(S // 20, 0, 1.0)]), sensors)
