@@ -267,3 +267,33 @@ def test_pose_global_needs_a_global_track(room_csv: Path, tmp_path: Path) -> Non
         "or CSV true_x, true_y, true_theta columns)"
     )
     assert not (tmp_path / "m.png").exists()
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ("robot: 40 0 0", "robot: 40 0", "robot: expected 3 numbers, found 2"),
+        ("logTime: 0.2", "logTime: 0.05", "time goes backwards"),
+        ("sonar: 460 1200", "sonar: 460 12O0", "sonar: not a number: '12O0'"),
+    ],
+)
+def test_malformed_aria_log_exits_1_with_path_line_and_no_output(
+    tmp_path: Path, old: str, new: str, message: str
+) -> None:
+    good = (
+        "LaserOdometryLog\nversion: 4\nsonarUnit: 0 147 136 90\nsonarUnit: 1 193 119 50\n"
+        "logTime: 0.1\nrobot: 0 0 0\nsonar: 500 4335\nlogTime: 0.2\nrobot: 40 0 0\n"
+        "sonar: 460 1200\n"
+    )
+    log = tmp_path / "run.2d"
+    log.write_text(good.replace(old, new))
+    out = tmp_path / "out"
+    out.mkdir()
+    code, _, stderr = run("build", str(log), "-o", str(out / "map.png"))
+    line = good.split("\n").index(old) + 1
+    assert code == 1
+    assert stderr.startswith(f"Error: {log}:{line}: ") and message in stderr
+    assert len(stderr.strip().splitlines()) == 1
+    assert list(out.iterdir()) == []
+    log.write_text(good)
+    assert run("build", str(log), "-o", str(out / "map.png"), "-q")[0] == 0
