@@ -8,11 +8,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
+import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError, NoDataError
 from gridmap_cli.grid import DEFAULT_MAX_CELLS, GridSpec, LogOddsAccumulator, OccupancyMap
+from gridmap_cli.models.ray import RayModel, RayParams
 from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RobotDescription
@@ -28,6 +31,7 @@ class BuildOptions:
     resolution_m: float = 0.05
     mode: str = "standard"
     sonar: StandardSonarParams = field(default_factory=StandardSonarParams)
+    ray: RayParams = field(default_factory=RayParams)
     margin_m: float = 0.2
     max_cells: int = DEFAULT_MAX_CELLS
     batch_size: int = 20_000
@@ -46,7 +50,19 @@ class BuildResult:
         return int(np.count_nonzero(~np.isnan(self.map.prob)))
 
 
-def _select(readings: SensorReadings, sl: slice) -> SensorReadings:
+class SensorModel(Protocol):
+    """What the pipeline needs of a sensor model."""
+
+    def bounds(self, readings: SensorReadings) -> tuple[float, float, float, float]:
+        """Box (xmin, ymin, xmax, ymax), metres, holding every cell the readings can touch."""
+        ...
+
+    def accumulate(self, grid: LogOddsAccumulator, readings: SensorReadings) -> int:
+        """Add the readings' evidence to ``grid``; returns the number of cell updates."""
+        ...
+
+
+def _select(readings: SensorReadings, sl: slice | npt.NDArray[np.bool_]) -> SensorReadings:
     return SensorReadings(
         stamp_ns=readings.stamp_ns[sl],
         sensor=readings.sensor[sl],
@@ -75,24 +91,41 @@ def build_map(
     readings, stats = synchronise(log, robot)
     if len(readings) == 0:
         raise NoDataError(_why_empty(log, stats))
-    narrow = sorted({s.name for s in readings.sensors if s.beam_width_rad <= 0.0})
-    if narrow:
-        raise GridmapError(f"sensors {narrow} have beam width 0; the sonar model needs a beam cone")
-    model = StandardSonarModel(options.sonar, options.resolution_m)
-    xmin, ymin, xmax, ymax = model.bounds(readings)
+    parts = _by_model(readings, options)
+    boxes = np.array([model.bounds(part) for model, part in parts])  # (xmin, ymin, xmax, ymax)
+    xmin, ymin, _, _ = boxes.min(axis=0)
+    _, _, xmax, ymax = boxes.max(axis=0)
     spec = GridSpec.covering(
         xmin, ymin, xmax, ymax, options.resolution_m, options.margin_m, options.max_cells
     )
     grid = LogOddsAccumulator(spec)
     updates = 0
-    for start in range(0, len(readings), options.batch_size):
-        batch = _select(readings, slice(start, start + options.batch_size))
-        updates += model.accumulate(grid, batch)
-        if progress is not None:
-            progress(len(batch))
+    for model, part in parts:
+        for start in range(0, len(part), options.batch_size):
+            batch = _select(part, slice(start, start + options.batch_size))
+            updates += model.accumulate(grid, batch)
+            if progress is not None:
+                progress(len(batch))
     return BuildResult(
         map=grid.occupancy_map(options.sonar.clamp_logodds), sync=stats, cell_updates=updates
     )
+
+
+def _by_model(
+    readings: SensorReadings, options: BuildOptions
+) -> list[tuple[SensorModel, SensorReadings]]:
+    """Each model with its share of the readings; models without readings are left out.
+
+    Narrow-beam sensors (kind "laser" or beam width 0) go to the ray model, the others to the
+    sonar model. Log-odds sums do not depend on order, so the models may run one after the other.
+    """
+    narrow = np.array([s.kind == "laser" or s.beam_width_rad <= 0.0 for s in readings.sensors])
+    is_ray = narrow[readings.sensor]
+    parts: list[tuple[SensorModel, SensorReadings]] = [
+        (RayModel(options.ray, options.resolution_m), _select(readings, is_ray)),
+        (StandardSonarModel(options.sonar, options.resolution_m), _select(readings, ~is_ray)),
+    ]
+    return [(model, part) for model, part in parts if len(part) > 0]
 
 
 def _why_empty(log: RangeLog, stats: SyncStats) -> str:
