@@ -7,6 +7,7 @@ nanoseconds; everything else is SI (metres, radians). Arrays are time-ordered.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +32,19 @@ class PoseTrack:
 
     def __len__(self) -> int:
         return int(self.stamp_ns.shape[0])
+
+    @classmethod
+    def from_rows(
+        cls, stamp_ns: npt.NDArray[np.int64], rows: Sequence[tuple[float, float, float]]
+    ) -> PoseTrack:
+        """A track from (x_m, y_m, theta_rad) rows, one per stamp."""
+        arr = np.asarray(rows, dtype=np.float64).reshape(len(rows), 3)
+        return cls(
+            stamp_ns=stamp_ns,
+            x_m=np.ascontiguousarray(arr[:, 0]),
+            y_m=np.ascontiguousarray(arr[:, 1]),
+            theta_rad=np.ascontiguousarray(arr[:, 2]),
+        )
 
 
 @dataclass(frozen=True)

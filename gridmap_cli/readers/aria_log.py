@@ -231,10 +231,12 @@ class _Parser:
         sensors, names, offsets = self.sensors(data)
         readings = self.readings(data, sensors, offsets)
         stamps = np.asarray([b.stamp_ns for b in data], dtype=np.int64)
-        poses = _track(stamps, [b.robot for b in data if b.robot is not None])
+        poses = PoseTrack.from_rows(stamps, [b.robot for b in data if b.robot is not None])
         truth = None
         if all(b.global_pose is not None for b in data):
-            truth = _track(stamps, [b.global_pose for b in data if b.global_pose is not None])
+            truth = PoseTrack.from_rows(
+                stamps, [b.global_pose for b in data if b.global_pose is not None]
+            )
         self.metadata.setdefault("format", "aria")
         return RangeLog(
             source=self.path,
@@ -361,13 +363,3 @@ class _Parser:
         ignored = (xy[:, 0] == 0.0) & (xy[:, 1] == 0.0)
         dist = np.hypot(xy[:, 0] - lx, xy[:, 1] - ly)
         return np.where(ignored, np.nan, dist)
-
-
-def _track(stamps: np.ndarray, rows: list[tuple[float, float, float]]) -> PoseTrack:
-    arr = np.asarray(rows, dtype=np.float64).reshape(len(rows), 3)
-    return PoseTrack(
-        stamp_ns=stamps,
-        x_m=np.ascontiguousarray(arr[:, 0]),
-        y_m=np.ascontiguousarray(arr[:, 1]),
-        theta_rad=np.ascontiguousarray(arr[:, 2]),
-    )

@@ -143,8 +143,8 @@ def _read(handle: TextIO, path: str) -> RangeLog:
         raise InputFileError(path, "no data rows after the header", line_no)
 
     stamp_arr = np.asarray(stamps, dtype=np.int64)
-    poses = _track(stamp_arr, pose_rows)
-    truth = _track(stamp_arr, truth_rows) if truth_idx else None
+    poses = PoseTrack.from_rows(stamp_arr, pose_rows)
+    truth = PoseTrack.from_rows(stamp_arr, truth_rows) if truth_idx else None
     if sensor_cols:
         matrix = np.asarray(sensor_rows, dtype=np.float64).reshape(len(stamps), len(sensor_cols))
     else:
@@ -220,13 +220,3 @@ def _range(path: str, line: int, field: str, name: str) -> float:
     if value < 0.0:
         raise InputFileError(path, f"negative range {text} m", line, name)
     return value
-
-
-def _track(stamps: np.ndarray, rows: list[tuple[float, float, float]]) -> PoseTrack:
-    arr = np.asarray(rows, dtype=np.float64).reshape(len(rows), 3)
-    return PoseTrack(
-        stamp_ns=stamps,
-        x_m=np.ascontiguousarray(arr[:, 0]),
-        y_m=np.ascontiguousarray(arr[:, 1]),
-        theta_rad=np.ascontiguousarray(arr[:, 2]),
-    )

@@ -19,6 +19,7 @@ from gridmap_cli.atomic import atomic_output
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RangeSensor
+from gridmap_cli.writers import check_metadata_lines
 from gridmap_cli.writers.csv_log import ns_to_seconds_text
 
 _SONAR_NAME = re.compile(r"^sonar(\d+)$")
@@ -70,9 +71,7 @@ def write_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], handle: Text
     sonar, lasers = _layout(names, sensors)
     if len({sensors[c].max_range_m for c in sonar}) > 1:
         raise GridmapError("the ARIA sonar format has one sonarMaxRange for all units")
-    for key, value in log.metadata.items():
-        if not key or ":" in key or any(c in key + value for c in "\r\n"):
-            raise GridmapError(f"metadata {key!r}: {value!r} cannot be a '# key: value' line")
+    check_metadata_lines(log.metadata)
 
     poses, truth, readings = log.poses, log.truth, log.readings
     row_of = np.searchsorted(poses.stamp_ns, readings.stamp_ns)

@@ -16,6 +16,7 @@ from gridmap_cli.atomic import atomic_output
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.readers.csv_log import POSE_COLUMNS, TRUTH_COLUMNS
 from gridmap_cli.records import RangeLog
+from gridmap_cli.writers import check_metadata_lines
 
 CSV_VERSION_KEY = "gridmap-csv"
 
@@ -33,9 +34,7 @@ def write_csv_log(log: RangeLog, handle: TextIO) -> None:
     poses = log.poses
     n = len(poses)
     names = list(log.sensor_names)
-    for key, value in log.metadata.items():
-        if not key or ":" in key or any(c in key + value for c in "\r\n"):
-            raise GridmapError(f"metadata {key!r}: {value!r} cannot be a '# key: value' line")
+    check_metadata_lines(log.metadata)
     truth = log.truth
     if truth is not None and not np.array_equal(truth.stamp_ns, poses.stamp_ns):
         raise GridmapError("the CSV layout needs ground truth at the odometry stamps")
