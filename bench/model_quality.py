@@ -11,11 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-from scipy import ndimage
-
-from gridmap_cli.geometry import compose
 from gridmap_cli.mapfile import load_map
+from gridmap_cli.metrics import WallScores, wall_scores
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.pipeline import BuildOptions, build_map
 from gridmap_cli.records import RangeLog
@@ -36,29 +33,14 @@ SETTINGS = {
 }
 
 
-def score(name: str, log: RangeLog, params: StandardSonarParams) -> tuple[float, ...]:
+def score(name: str, log: RangeLog, params: StandardSonarParams) -> WallScores:
     world = load_map(SAMPLES / "worlds" / f"{name}.yaml")
-    walls = world.occupied_mask()
     result = build_map(log, load_robot("p3at"), BuildOptions(sonar=params))
-    spec, p = result.map.spec, result.map.prob
-    rows, cols = np.indices(p.shape)
-    cx, cy = spec.cell_center(cols, rows)
     t = log.truth
     assert t is not None
-    wx, wy, _ = compose(t.x_m[0], t.y_m[0], t.theta_rad[0], cx, cy, 0.0)
-    wc, wr = world.spec.world_to_cell(wx, wy)
-    inside = (wc >= 0) & (wr >= 0) & (wc < world.spec.width) & (wr < world.spec.height)
-    true_wall = np.zeros(p.shape, bool)
-    true_near = np.zeros(p.shape, bool)
-    true_wall[inside] = walls[wr[inside], wc[inside]]
-    true_near[inside] = ndimage.binary_dilation(walls, iterations=1)[wr[inside], wc[inside]]
-    known = ~np.isnan(p)
-    occupied, free = known & (p >= 0.65), known & (p <= 0.25)
-    visible = true_wall & ndimage.binary_dilation(known, iterations=2)
-    recall = (visible & ndimage.binary_dilation(occupied, iterations=1)).sum() / visible.sum()
-    erased = (visible & free).sum() / visible.sum()
-    false_occupied = (occupied & ~true_near).sum() / max(occupied.sum(), 1)
-    return recall, erased, false_occupied, free.sum() * spec.resolution_m**2
+    # the odometry frame is the frame of the first true pose
+    start = (float(t.x_m[0]), float(t.y_m[0]), float(t.theta_rad[0]))
+    return wall_scores(result.map, world.spec, world.occupied_mask(), start)
 
 
 def main() -> None:
@@ -74,8 +56,10 @@ def main() -> None:
     for label, kwargs in SETTINGS.items():
         cells = []
         for name in WORLDS:
-            r, e, f, a = score(name, logs[name], StandardSonarParams(**kwargs))
-            cells.append(f"{r:.2f} / {e:.2f} / {f:.2f}, {a:.0f} m^2")
+            w = score(name, logs[name], StandardSonarParams(**kwargs))
+            cells.append(
+                f"{w.recall:.2f} / {w.erased:.2f} / {w.false_occupied:.2f}, {w.free_m2:.0f} m^2"
+            )
         print(f"{label:28s} | " + " | ".join(cells))
 
 

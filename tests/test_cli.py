@@ -228,10 +228,10 @@ def test_unknown_robot_in_the_log_is_bad_data(room_csv: Path, tmp_path: Path) ->
 
 
 def test_pose_global_maps_with_the_logs_reference_track(tmp_path: Path) -> None:
-    import numpy as np
     from scipy import ndimage
 
     from gridmap_cli.mapfile import load_map
+    from gridmap_cli.metrics import walls_in_map_frame
 
     samples = Path(__file__).resolve().parents[1] / "samples"
     world = load_map(samples / "worlds" / "corridor_loop.yaml")
@@ -245,13 +245,10 @@ def test_pose_global_maps_with_the_logs_reference_track(tmp_path: Path) -> None:
         )
         assert code == 0, stderr
         m = load_map(out.with_suffix(".yaml"))
-        rows, cols = np.nonzero(m.occupancy == 100)
-        x, y = m.spec.cell_center(cols, rows)
-        wc, wr = world.spec.world_to_cell(x, y)
-        inside = (wc >= 0) & (wr >= 0) & (wc < world.spec.width) & (wr < world.spec.height)
-        hits = np.zeros(len(x), dtype=bool)
-        hits[inside] = near_wall[wr[inside], wc[inside]]
-        return float(hits.mean())
+        # the map read as if its frame were the world's
+        on_wall = walls_in_map_frame(m.spec, world.spec, near_wall)
+        occupied = m.occupancy == 100
+        return float((occupied & on_wall).sum() / occupied.sum())
 
     # the truth is in the world frame: walls mapped with it land on the world's walls; the
     # odometry map is in the odometry frame (and drifted), so it does not

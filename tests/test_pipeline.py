@@ -10,11 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy import ndimage
 
 from gridmap_cli.errors import NoDataError
-from gridmap_cli.geometry import compose
 from gridmap_cli.mapfile import load_map
+from gridmap_cli.metrics import WallScores, wall_scores
 from gridmap_cli.pipeline import BuildOptions, build_map
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import load_robot
@@ -25,7 +24,7 @@ from gridmap_cli.sim.world import World
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 
 
-def wall_scores(name: str, seed: int) -> dict[str, float]:
+def corridor_scores(name: str, seed: int) -> WallScores:
     loaded = load_map(SAMPLES / "worlds" / f"{name}.yaml")
     robot = load_robot("p3at")
     log = simulate(
@@ -36,41 +35,21 @@ def wall_scores(name: str, seed: int) -> dict[str, float]:
         drift=0.0,
     )
     result = build_map(log, robot, BuildOptions())
-    spec, prob = result.map.spec, result.map.prob
-    rows, cols = np.indices(prob.shape)
-    cx, cy = spec.cell_center(cols, rows)
-    # odometry frame = frame of the first true pose: map cells -> world cells
     t = log.truth
     assert t is not None
-    wx, wy, _ = compose(t.x_m[0], t.y_m[0], t.theta_rad[0], cx, cy, 0.0)
-    wc, wr = loaded.spec.world_to_cell(wx, wy)
-    inside = (wc >= 0) & (wr >= 0) & (wc < loaded.spec.width) & (wr < loaded.spec.height)
-    walls = loaded.occupied_mask()
-    near = ndimage.binary_dilation(walls, iterations=1)
-    true_wall = np.zeros(prob.shape, bool)
-    true_near = np.zeros(prob.shape, bool)
-    true_wall[inside] = walls[wr[inside], wc[inside]]
-    true_near[inside] = near[wr[inside], wc[inside]]
-    known = ~np.isnan(prob)
-    occupied = known & (prob >= 0.65)
-    free = known & (prob <= 0.25)
-    visible = true_wall & ndimage.binary_dilation(known, iterations=2)
-    return {
-        "recall": (visible & ndimage.binary_dilation(occupied, iterations=1)).sum() / visible.sum(),
-        "erased": (visible & free).sum() / visible.sum(),
-        "false_occupied": (occupied & ~true_near).sum() / occupied.sum(),
-        "free_cells": float(free.sum()),
-    }
+    # odometry frame = frame of the first true pose
+    start = (float(t.x_m[0]), float(t.y_m[0]), float(t.theta_rad[0]))
+    return wall_scores(result.map, loaded.spec, loaded.occupied_mask(), start)
 
 
 def test_corridor_loop_walls_are_where_the_world_has_them() -> None:
-    s = wall_scores("corridor_loop", seed=11)
+    s = corridor_scores("corridor_loop", seed=11)
     # measured: recall 0.92, erased 0.23, false occupied 0.37 (sonar arcs at corners)
-    assert s["recall"] >= 0.85
-    assert s["erased"] <= 0.30
-    assert s["false_occupied"] <= 0.45
+    assert s.recall >= 0.85
+    assert s.erased <= 0.30
+    assert s.false_occupied <= 0.45
     # the corridor ring (2 m wide, about 56 m round: 112 m^2) is mostly mapped free
-    assert s["free_cells"] * 0.05**2 >= 0.6 * 2.0 * 56.0
+    assert s.free_m2 >= 0.6 * 2.0 * 56.0
 
 
 def test_no_readings_inside_the_odometry_span_is_an_error() -> None:
