@@ -15,6 +15,10 @@ import numpy.typing as npt
 
 from gridmap_cli.errors import MapSizeError
 
+#: Probabilities the summed log-odds are clamped to when a map is finished: OctoMap's default
+#: clamping thresholds (docs/sensor-model.md says why, and why once at the end).
+DEFAULT_CLAMP_P = (0.12, 0.97)
+
 #: Refuse maps larger than this many cells unless asked: 1e8 cells is 10 km x 10 km at 1 m, or
 #: 500 m x 500 m at 5 cm; a bigger map almost always means absurd coordinates in the log.
 DEFAULT_MAX_CELLS = 100_000_000
@@ -169,9 +173,14 @@ class LogOddsAccumulator:
         grid = self._counts.reshape(self.spec.height, self._stride)
         return np.cumsum(grid, axis=1)[:, : self.spec.width]
 
-    def occupancy_map(self, clamp_logodds: tuple[float, float]) -> OccupancyMap:
-        """Probabilities from the clamped log-odds; cells never observed are NaN."""
-        lo, hi = clamp_logodds
+    def occupancy_map(self, clamp_p: tuple[float, float] = DEFAULT_CLAMP_P) -> OccupancyMap:
+        """Probabilities from the log-odds clamped to ``clamp_p`` (min, max); never observed: NaN.
+
+        Raises ValueError unless 0 < min < 0.5 < max < 1.
+        """
+        if not 0.0 < clamp_p[0] < 0.5 < clamp_p[1] < 1.0:
+            raise ValueError("clamp probabilities must satisfy 0 < min < 0.5 < max < 1")
+        lo, hi = logodds(clamp_p[0]), logodds(clamp_p[1])
         clamped = np.clip(self.log_odds(), lo, hi)
         prob = 1.0 - 1.0 / (1.0 + np.exp(clamped))
         prob[self.observations() == 0] = np.nan

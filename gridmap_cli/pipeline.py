@@ -14,7 +14,13 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError, NoDataError
-from gridmap_cli.grid import DEFAULT_MAX_CELLS, GridSpec, LogOddsAccumulator, OccupancyMap
+from gridmap_cli.grid import (
+    DEFAULT_CLAMP_P,
+    DEFAULT_MAX_CELLS,
+    GridSpec,
+    LogOddsAccumulator,
+    OccupancyMap,
+)
 from gridmap_cli.models.ray import RayModel, RayParams
 from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
 from gridmap_cli.records import RangeLog
@@ -32,6 +38,7 @@ class BuildOptions:
     mode: str = "standard"
     sonar: StandardSonarParams = field(default_factory=StandardSonarParams)
     ray: RayParams = field(default_factory=RayParams)
+    clamp_p: tuple[float, float] = DEFAULT_CLAMP_P
     margin_m: float = 0.2
     max_cells: int = DEFAULT_MAX_CELLS
     batch_size: int = 20_000
@@ -106,9 +113,7 @@ def build_map(
             updates += model.accumulate(grid, batch)
             if progress is not None:
                 progress(len(batch))
-    return BuildResult(
-        map=grid.occupancy_map(options.sonar.clamp_logodds), sync=stats, cell_updates=updates
-    )
+    return BuildResult(map=grid.occupancy_map(options.clamp_p), sync=stats, cell_updates=updates)
 
 
 def _by_model(

@@ -46,7 +46,7 @@ class RayParams:
 
     ``no_echo_free_m``: metres of free space a no-echo reading clears, capped at the sensor's
     maximum range; ``math.inf`` (the default) means the full maximum range, 0 ignores no-echo
-    readings. The clamp is not here: one grid has one clamp, the standard model's.
+    readings. The clamp is not here: one grid has one clamp (BuildOptions.clamp_p).
     """
 
     p_occupied: float = 0.7

@@ -32,8 +32,6 @@ class StandardSonarParams:
     p_free: float = 0.4
     obstacle_thickness_m: float = 0.10
     no_echo_free_m: float = 1.0
-    clamp_min_p: float = 0.12
-    clamp_max_p: float = 0.97
 
     def __post_init__(self) -> None:
         if not 0.5 < self.p_occupied < 1.0:
@@ -44,12 +42,6 @@ class StandardSonarParams:
             raise ValueError("obstacle thickness must be a positive number of metres")
         if not (self.no_echo_free_m >= 0 and math.isfinite(self.no_echo_free_m)):
             raise ValueError("the no-echo free range must be >= 0 metres")
-        if not 0.0 < self.clamp_min_p < 0.5 < self.clamp_max_p < 1.0:
-            raise ValueError("clamp probabilities must satisfy 0 < min < 0.5 < max < 1")
-
-    @property
-    def clamp_logodds(self) -> tuple[float, float]:
-        return logodds(self.clamp_min_p), logodds(self.clamp_max_p)
 
     def band_half_m(self, resolution_m: float) -> float:
         """Half the obstacle band: never thinner than a cell diagonal, so no arc has gaps."""

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from gridmap_cli.grid import GridSpec, LogOddsAccumulator, logodds
+from gridmap_cli.grid import DEFAULT_CLAMP_P, GridSpec, LogOddsAccumulator, logodds
 from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.sync import SensorReadings
@@ -118,7 +118,6 @@ def test_order_of_readings_does_not_change_the_map() -> None:
         {"p_free": 0.6},
         {"obstacle_thickness_m": 0.0},
         {"no_echo_free_m": -1.0},
-        {"clamp_min_p": 0.6},
     ],
 )
 def test_params_refuse_nonsense(kwargs: dict) -> None:
@@ -127,12 +126,17 @@ def test_params_refuse_nonsense(kwargs: dict) -> None:
 
 
 def test_clamping_bounds_probabilities() -> None:
-    params = StandardSonarParams()
     grid = LogOddsAccumulator(SPEC)
-    model = StandardSonarModel(params, SPEC.resolution_m)
+    model = StandardSonarModel(StandardSonarParams(), SPEC.resolution_m)
     for _ in range(30):
         model.accumulate(grid, one_reading(2.0))
-    prob = grid.occupancy_map(params.clamp_logodds).prob
-    assert np.nanmax(prob) == pytest.approx(params.clamp_max_p)
-    assert np.nanmin(prob) == pytest.approx(params.clamp_min_p)
+    prob = grid.occupancy_map(DEFAULT_CLAMP_P).prob
+    assert np.nanmax(prob) == pytest.approx(DEFAULT_CLAMP_P[1])
+    assert np.nanmin(prob) == pytest.approx(DEFAULT_CLAMP_P[0])
     assert np.isnan(prob[0, 0])  # never observed
+
+
+@pytest.mark.parametrize("clamp", [(0.6, 0.97), (0.12, 0.4), (0.0, 0.97), (0.12, 1.0)])
+def test_clamp_refuses_nonsense(clamp: tuple[float, float]) -> None:
+    with pytest.raises(ValueError, match="clamp probabilities"):
+        LogOddsAccumulator(SPEC).occupancy_map(clamp)
