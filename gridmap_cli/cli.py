@@ -237,7 +237,7 @@ def _summary(
 ) -> dict[str, Any]:
     spec = result.map.spec
     prob = result.map.prob
-    known = ~(prob != prob)  # NaN-safe "observed"
+    known = ~np.isnan(prob)
     return {
         "image": str(image),
         "yaml": str(yaml_path),

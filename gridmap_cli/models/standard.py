@@ -85,7 +85,7 @@ class StandardSonarModel:
         zmax = readings.per_sensor("max_range_m")
         half_w = 0.5 * readings.per_sensor("beam_width_rad")
         echo = z < zmax
-        band = self.band_half_m()
+        band = p.band_half_m(self.resolution_m)
         free_reach = np.where(echo, z - band, np.minimum(zmax, p.no_echo_free_m))
         outer = np.where(echo, z + band, free_reach)
         return SectorEvidence(
@@ -99,9 +99,6 @@ class StandardSonarModel:
             outer_m=outer,
             outer_value=np.where(echo, self.l_occ, 0.0),
         )
-
-    def band_half_m(self) -> float:
-        return self.params.band_half_m(self.resolution_m)
 
     def bounds(self, readings: SensorReadings) -> tuple[float, float, float, float]:
         """Box holding every cell any reading can touch."""

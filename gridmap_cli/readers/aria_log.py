@@ -237,7 +237,6 @@ class _Parser:
             truth = PoseTrack.from_rows(
                 stamps, [b.global_pose for b in data if b.global_pose is not None]
             )
-        self.metadata.setdefault("format", "aria")
         return RangeLog(
             source=self.path,
             poses=poses,
