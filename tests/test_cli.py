@@ -13,17 +13,7 @@ from click.testing import CliRunner
 
 from gridmap_cli.cli import cli
 from gridmap_cli.robot import preset_names
-
-
-def run(*args: str) -> tuple[int, str, str]:
-    result = CliRunner().invoke(cli, list(args))
-    if result.exception and not isinstance(result.exception, SystemExit):
-        raise result.exception
-    return result.exit_code, result.stdout, result.stderr
-
-
-def files(folder: Path) -> set[str]:
-    return {p.name for p in folder.iterdir()}
+from tests.helpers import names, run
 
 
 def test_build_writes_png_and_yaml(room_csv: Path, tmp_path: Path) -> None:
@@ -37,7 +27,7 @@ def test_build_writes_png_and_yaml(room_csv: Path, tmp_path: Path) -> None:
     assert meta["occupied_thresh"] == 0.65 and meta["free_thresh"] == 0.196
     assert stdout == ""
     assert "3,200 of 3,200 readings mapped" in stderr and str(out) in stderr
-    assert files(out.parent) == {"room.png", "room.yaml"}
+    assert names(out.parent) == {"room.png", "room.yaml"}
 
 
 def test_build_json_summary(room_csv: Path, tmp_path: Path) -> None:
@@ -108,13 +98,13 @@ def test_bad_logs_give_one_line_and_no_output(
     assert message in lines[0]
     if ":" in message[:3]:
         assert lines[0].startswith(f"Error: {log}{message.split(':')[0]}:")
-    assert files(out.parent) == set(), "nothing may be written for bad input"
+    assert names(out.parent) == set(), "nothing may be written for bad input"
 
 
 def test_missing_log(tmp_path: Path) -> None:
     code, _, stderr = run("build", str(tmp_path / "nope.csv"), "-o", str(tmp_path / "m.png"))
     assert code == 1 and stderr.strip() == f"Error: {tmp_path / 'nope.csv'}: no such file"
-    assert files(tmp_path) == set()
+    assert names(tmp_path) == set()
 
 
 def test_unknown_robot_is_a_usage_error(room_csv: Path, tmp_path: Path) -> None:
@@ -123,7 +113,7 @@ def test_unknown_robot_is_a_usage_error(room_csv: Path, tmp_path: Path) -> None:
     assert stderr.strip() == (
         f"Error: unknown robot 'r2': not a preset ({', '.join(preset_names())}) and no such file"
     )
-    assert files(tmp_path) == {"room.csv"}
+    assert names(tmp_path) == {"room.csv"}
 
 
 def test_existing_output_needs_force(room_csv: Path, tmp_path: Path) -> None:
@@ -161,7 +151,7 @@ def test_usage_errors_exit_2(room_csv: Path, tmp_path: Path, args: list[str], me
     argv = [str(tmp_path / a) if a.startswith("x.") else a for a in argv]
     code, _, stderr = run(*argv)
     assert code == 2 and message in stderr and len(stderr.strip().splitlines()) == 1
-    assert files(tmp_path) == {"room.csv"}
+    assert names(tmp_path) == {"room.csv"}
 
 
 def test_output_folder_must_exist(room_csv: Path, tmp_path: Path) -> None:

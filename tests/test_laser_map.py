@@ -4,12 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from click.testing import CliRunner
-
-from gridmap_cli.cli import cli
 from gridmap_cli.grid import OccupancyMap
 from gridmap_cli.mapfile import load_map
 from gridmap_cli.metrics import wall_scores, walls_in_map_frame
+from tests.helpers import run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 ROBOT = """\
@@ -22,8 +20,8 @@ sensors:
 
 
 def invoke(*args: str) -> None:
-    result = CliRunner().invoke(cli, list(args))
-    assert result.exit_code == 0, result.stderr
+    code, _, stderr = run(*args)
+    assert code == 0, stderr
 
 
 def test_laser_log_maps_thin_walls_where_the_world_has_them(tmp_path: Path) -> None:

@@ -8,14 +8,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from gridmap_cli.cli import cli
 from gridmap_cli.grid import GridSpec, OccupancyMap
 from gridmap_cli.readers.csv_log import read_csv_log
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import load_robot, preset_names
 from gridmap_cli.writers.map_image import write_map
+from tests.helpers import names, run
 
 RES_M = 0.05
 ROOM_W_M, ROOM_H_M = 4.0, 3.0
@@ -25,17 +24,6 @@ INNER_M = WALL_CELLS * RES_M  # where the free space begins, from each edge
 # Three waypoints: a 2 m leg along +x, a 90 degree turn in place, a 1 m leg along +y.
 WAYPOINTS = [(1.0, 1.0), (3.0, 1.0), (3.0, 2.0)]
 PATH_YAML = "gridmap-path: 1\nwaypoints:\n" + "".join(f"  - [{x}, {y}]\n" for x, y in WAYPOINTS)
-
-
-def run(*args: str) -> tuple[int, str, str]:
-    result = CliRunner().invoke(cli, list(args))
-    if result.exception and not isinstance(result.exception, SystemExit):
-        raise result.exception
-    return result.exit_code, result.stdout, result.stderr
-
-
-def names(folder: Path) -> set[str]:
-    return {p.name for p in folder.iterdir()}
 
 
 @pytest.fixture
