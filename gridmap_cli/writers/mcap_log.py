@@ -121,7 +121,10 @@ def _json_time(stamp_ns: int) -> dict[str, int]:
 
 
 def _dumps(message: dict[str, Any]) -> bytes:
-    return json.dumps(message, separators=(",", ":"), allow_nan=False).encode("utf-8")
+    try:
+        return json.dumps(message, separators=(",", ":"), allow_nan=False).encode("utf-8")
+    except ValueError as exc:  # NaN or infinity, which JSON cannot hold
+        raise GridmapError(f"a non-finite number cannot be written as JSON: {message}") from exc
 
 
 def _write_json(log: RangeLog, sensors: tuple[RangeSensor, ...], writer: Writer) -> None:
@@ -177,13 +180,11 @@ def _write_json(log: RangeLog, sensors: tuple[RangeSensor, ...], writer: Writer)
         elif group == 1 and truth is not None and truth_ch is not None:
             writer.add_message(truth_ch, stamp, pose(truth, i, WORLD_FRAME), stamp, sequence=i)
         else:
-            data = _dumps(
-                {
-                    "timestamp": _json_time(stamp),
-                    "sensor": names[int(readings.sensor[i])],
-                    "range": float(readings.range_m[i]),
-                }
-            )
+            column = int(readings.sensor[i])
+            value = float(readings.range_m[i])
+            if math.isinf(value):  # no echo: JSON has no infinity, the layout says max_range
+                value = sensors[column].max_range_m
+            data = _dumps({"timestamp": _json_time(stamp), "sensor": names[column], "range": value})
             writer.add_message(range_ch, stamp, data, stamp, sequence=i)
 
 
