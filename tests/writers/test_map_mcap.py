@@ -117,3 +117,25 @@ def test_build_refuses_map_mode_for_mcap(tmp_path: Path) -> None:
         "Error: --map-mode applies to map images; an MCAP map holds 0..100 and -1"
     )
     assert names(tmp_path) == set()
+
+
+@pytest.mark.parametrize(("width", "height"), [(1, 1), (3, 2), (7, 5)])
+def test_cells_appended_by_hand_equal_the_generic_cdr_encoder(width: int, height: int) -> None:
+    from mcap_ros2._dynamic import serialize_dynamic
+
+    from gridmap_cli.writers.map_mcap import _with_cells
+    from gridmap_cli.writers.ros2_msgdefs import message_definition
+
+    spec = GridSpec(0.5, -0.25, 0.1, width, height)
+    prob = np.linspace(0.0, 1.0, width * height).reshape(height, width)
+    prob[0, 0] = np.nan
+    encode = serialize_dynamic(
+        "nav_msgs/msg/OccupancyGrid", message_definition("nav_msgs/msg/OccupancyGrid")
+    )["nav_msgs/msg/OccupancyGrid"]
+    message: dict[str, Any] = {
+        "header": {"frame_id": "map"},
+        "info": {"resolution": 0.1, "width": width, "height": height},
+    }
+    generic = encode({**message, "data": occupancy_values(prob).ravel().tolist()})
+    by_hand = _with_cells(encode({**message, "data": []}), OccupancyMap(spec, prob))
+    assert by_hand == generic
