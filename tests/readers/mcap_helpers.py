@@ -116,6 +116,7 @@ def ros2_definition(name: str) -> str:
 _R1 = {k: v for k, v in _R2.items() if k != "builtin_interfaces/Time"}
 _R1["std_msgs/Header"] = "uint32 seq\ntime stamp\nstring frame_id"
 _R1["tf/tfMessage"] = _R2["tf2_msgs/TFMessage"]
+_R1["geometry_msgs/Quaternion"] = "float64 x\nfloat64 y\nfloat64 z\nfloat64 w"  # no defaults
 
 
 def ros1_definition(name: str) -> str:
