@@ -333,6 +333,41 @@ def _summary_line(s: dict[str, Any]) -> str:
 
 
 @cli.command()
+@click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("--robot", help="Robot preset, robot YAML file or ARIA .p file.")
+@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@_topic_options
+@click.option("--json", "as_json", is_flag=True, help="Print the description as JSON.")
+@_handle_errors
+def inspect(
+    log: Path,
+    robot: str | None,
+    log_format: str | None,
+    odom_topic: str | None,
+    range_topics: tuple[str, ...],
+    odom_frame: str | None,
+    base_frame: str | None,
+    as_json: bool,
+) -> None:
+    """Describe LOG (CSV, ARIA .2d or MCAP) and what build would make of it.
+
+    Channels or columns, message counts, time span, rates, distance travelled, sensors and
+    their mounting poses, and the topics, frames and robot build would use.
+    """
+    from gridmap_cli.describe import describe_log, render_text
+
+    robot_desc = load_robot(robot) if robot else None
+    if not log.is_file():
+        raise InputFileError(log, "no such file" if not log.exists() else "not a regular file")
+    fmt = resolve_format(log, log_format)
+    read_options = _read_options(odom_topic, range_topics, odom_frame, base_frame, robot_desc)
+    if fmt.name != "mcap":
+        read_options.refuse_topic_flags(fmt.name.upper())
+    description = describe_log(log, fmt, read_options)
+    click.echo(json.dumps(description, indent=2) if as_json else render_text(description))
+
+
+@cli.command()
 @click.argument("world", type=click.Path(path_type=Path, dir_okay=False))
 @click.argument("path_file", metavar="PATH", type=click.Path(path_type=Path, dir_okay=False))
 @click.option(

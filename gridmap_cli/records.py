@@ -86,12 +86,12 @@ class RangeLog:
 
 #: Stamps at or after this (2001-09-09) are taken as Unix epoch times when shown to people;
 #: smaller ones are seconds since some start (simulation time, a log's own clock).
-_EPOCH_FROM_NS = 1_000_000_000 * 1_000_000_000
+EPOCH_FROM_NS = 1_000_000_000 * 1_000_000_000
 
 
 def stamp_text(stamp_ns: int) -> str:
     """A stamp for people: UTC date and time for epoch stamps, else seconds."""
-    if stamp_ns >= _EPOCH_FROM_NS:
+    if stamp_ns >= EPOCH_FROM_NS:
         when = datetime.fromtimestamp(stamp_ns // 1_000_000_000, tz=UTC)
         frac = (stamp_ns % 1_000_000_000) // 1_000_000
         return f"{when:%Y-%m-%d %H:%M:%S}.{frac:03d} UTC"
@@ -102,6 +102,6 @@ def span_text(first_ns: int, last_ns: int) -> str:
     """A time span for people: ``start to end (duration)``."""
     end = stamp_text(last_ns)
     start = stamp_text(first_ns)
-    if start[:10] == end[:10] and first_ns >= _EPOCH_FROM_NS:
+    if start[:10] == end[:10] and first_ns >= EPOCH_FROM_NS:
         end = end[11:]  # same day: the date once
     return f"{start} to {end} ({(last_ns - first_ns) / 1e9:.1f} s)"

@@ -259,14 +259,19 @@ class Plan:
     base_frame: str | None
 
     def topics(self) -> list[str]:
-        """Every topic the read decodes."""
+        """Every topic the read decodes: /tf only when it carries odometry or mounting."""
         out = [t for t in (self.odom_topic, self.truth_topic, self.sensors_topic) if t]
-        out += [*self.range_topics, *self.tf_topics, *self.static_topics]
+        out += [*self.range_topics, *self.static_topics]
+        if self.odom_topic is None or not self.static_topics:
+            out += self.tf_topics
         return list(dict.fromkeys(out))
 
 
-def plan_topics(survey: Survey, options: ReadOptions) -> Plan:
-    """Choose the topics to read. Raises InputFileError / UsageError listing the topics."""
+def plan_topics(survey: Survey, options: ReadOptions, strict: bool = True) -> Plan:
+    """Choose the topics to read. Raises InputFileError / UsageError listing the topics.
+
+    ``strict=False`` (for ``inspect``) accepts a file with no odometry or no range topic.
+    """
     path = survey.path
     by_role: dict[str, list[ChannelInfo]] = {}
     for channel in survey.channels:
@@ -303,7 +308,7 @@ def plan_topics(survey: Survey, options: ReadOptions) -> Plan:
             )
         if candidates:
             odom_topic = candidates[0].topic
-        elif tf_topics:
+        elif tf_topics or not strict:
             odom_topic = None
         else:
             raise InputFileError(
@@ -329,7 +334,7 @@ def plan_topics(survey: Survey, options: ReadOptions) -> Plan:
         range_topics = tuple(dict.fromkeys(ranges))
     else:
         range_topics = tuple(c.topic for c in by_role.get("range", []))
-        if not range_topics:
+        if not range_topics and strict:
             raise InputFileError(
                 path,
                 "no range readings: no sensor_msgs/Range, LaserScan, PointCloud (sonar) or "
@@ -346,3 +351,19 @@ def plan_topics(survey: Survey, options: ReadOptions) -> Plan:
         odom_frame=options.odom_frame or "odom",
         base_frame=options.base_frame,
     )
+
+
+def channel_spans(path: Path) -> dict[str, tuple[int, int]]:
+    """First and last log time (ns) of each topic, from one pass over the undecoded messages."""
+    spans: dict[str, tuple[int, int]] = {}
+    try:
+        with open(path, "rb") as handle:
+            reader = open_reader(path, handle)
+            read_summary(path, reader)
+            for _schema, channel, message in reader.iter_messages(log_time_order=False):
+                t = message.log_time
+                first, last = spans.get(channel.topic, (t, t))
+                spans[channel.topic] = (min(first, t), max(last, t))
+    except DAMAGED as exc:
+        raise InputFileError(path, f"truncated or damaged MCAP data ({exc})") from exc
+    return spans

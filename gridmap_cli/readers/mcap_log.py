@@ -71,18 +71,41 @@ def _factories() -> list[McapDecoderFactory]:
     return [Ros1DecoderFactory(), Ros2DecoderFactory(), JsonDecoderFactory()]
 
 
-def read_mcap_log(source: str | Path, options: ReadOptions | None = None) -> RangeLog:
+def read_mcap_log(
+    source: str | Path, options: ReadOptions | None = None, strict: bool = True
+) -> RangeLog:
     """Read an MCAP recording into the canonical record stream.
 
     Raises :class:`InputFileError` naming the file (and topic) for damaged files, missing
     odometry or ranges, unknown sensor mounting; :class:`UsageError` for a topic flag that
-    names no usable topic.
+    names no usable topic. ``strict=False`` (for ``inspect``) reads what is there instead: no
+    odometry gives an empty track, a sensor with unknown mounting gets a NaN mounting pose.
     """
+    return read_mcap(source, options, strict).log
+
+
+@dataclass(frozen=True)
+class McapRead:
+    """A read MCAP recording: the canonical log, the file's survey, the topics and base frame."""
+
+    log: RangeLog
+    survey: Survey
+    plan: Plan
+    base_frame: str
+    tf_pairs: dict[tuple[str, str], int]  # (parent, child) -> transforms seen on non-static TF
+    static_frames: tuple[str, ...]  # frames with a static transform below the base frame
+    mount_from: dict[str, str]  # sensor frame -> where its mounting came from: TF, robot, unknown
+
+
+def read_mcap(
+    source: str | Path, options: ReadOptions | None = None, strict: bool = True
+) -> McapRead:
+    """:func:`read_mcap_log`, also returning what was chosen (for ``inspect``)."""
     path = Path(source)
     opts = options or ReadOptions()
     survey = survey_mcap(path)
-    plan = plan_topics(survey, opts)
-    acc = _Accumulator(str(path), plan, opts.robot)
+    plan = plan_topics(survey, opts, strict)
+    acc = _Accumulator(str(path), plan, opts.robot, strict)
     try:
         with open(path, "rb") as handle:
             reader = open_reader(path, handle, _factories())
@@ -103,7 +126,10 @@ def read_mcap_log(source: str | Path, options: ReadOptions | None = None) -> Ran
                         item.decoded_message)  # fmt: skip
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
-    return acc.finish(survey)
+    log = acc.finish(survey)
+    base = acc.base_frame()
+    below = tuple(f for f in acc.tree.order if acc.tree.lookup(base, f) is not None)
+    return McapRead(log, survey, plan, base, dict(acc.tf_pairs), below, acc.mount_from)
 
 
 def _get(obj: Any, name: str) -> Any:
@@ -177,8 +203,11 @@ class _Sonar:
 class _Accumulator:
     """Collects decoded messages; :meth:`finish` turns them into a RangeLog."""
 
-    def __init__(self, path: str, plan: Plan, robot: RobotDescription | None) -> None:
+    def __init__(
+        self, path: str, plan: Plan, robot: RobotDescription | None, strict: bool = True
+    ) -> None:
         self.path = path
+        self.strict = strict
         self.plan = plan
         self.robot = robot
         self.odom = _Track()
@@ -186,6 +215,7 @@ class _Accumulator:
         self.tf_odom: dict[str, _Track] = {}
         self.tf_pairs: Counter[tuple[str, str]] = Counter()
         self.tree = FrameTree()
+        self.mount_from: dict[str, str] = {}  # sensor frame -> "TF", "robot" or "unknown"
         self.odom_children: Counter[str] = Counter()
         self.frame_topic: dict[str, str] = {}  # sensor frame -> topic it arrived on
         self.sonars: dict[str, _Sonar] = {}
@@ -262,7 +292,8 @@ class _Accumulator:
     def _tf(self, topic: str, msg: Any, static: bool, log_time: int) -> None:
         for t in msg.transforms:
             parent, child = frame_name(t.header.frame_id), frame_name(t.child_frame_id)
-            self.tf_pairs[(parent, child)] += 1
+            if not static:
+                self.tf_pairs[(parent, child)] += 1
             transform = _transform(t.transform)
             if parent == self.plan.odom_frame and not static:
                 x, y, _ = transform.translation
@@ -437,6 +468,8 @@ class _Accumulator:
         )
 
     def _odometry(self, base: str) -> PoseTrack:
+        if not self.strict and not self.odom.stamps and base not in self.tf_odom:
+            return PoseTrack.from_rows(np.empty(0, dtype=np.int64), [])
         if self.plan.odom_topic is not None:
             if not self.odom.stamps:
                 raise InputFileError(self.path, f"{self.plan.odom_topic} holds no messages")
@@ -456,11 +489,16 @@ class _Accumulator:
     def _mount(self, base: str, frame: str) -> tuple[float, float, float] | None:
         transform = self.tree.lookup(base, frame)
         if transform is not None:
+            self.mount_from[frame] = "TF"
             return transform.planar()
         if self.robot is not None:
             known = self.robot.by_name().get(frame)
             if known is not None:
+                self.mount_from[frame] = "robot"
                 return known.x_m, known.y_m, known.yaw_rad
+        if not self.strict and not (self.robot and f"{frame}_0" in self.robot.by_name()):
+            self.mount_from[frame] = "unknown"
+            return math.nan, math.nan, math.nan
         return None
 
     def _unknown_mount(self, base: str, frame: str, topic: str) -> InputFileError:
@@ -498,6 +536,7 @@ class _Accumulator:
         if self.clouds and self.robot is not None:
             for s in self._cloud_sonars():
                 out[s.name] = [s]
+                self.mount_from[s.name] = "robot"
         ranks = {frame: i for i, frame in enumerate(self.tree.order)}
         robot_rank = {n: i for i, n in enumerate(self.robot.names())} if self.robot else {}
         appearance = {name: i for i, name in enumerate(self.keys)}
@@ -524,6 +563,7 @@ class _Accumulator:
             ]  # fmt: skip
         known = self.robot.by_name() if self.robot is not None else {}
         if all(n in known for n in names):
+            self.mount_from[frame] = "robot"
             return [
                 RangeSensor(n, known[n].x_m, known[n].y_m, known[n].yaw_rad, 0.0,
                             scan.range_min, scan.range_max, "laser")
@@ -539,6 +579,8 @@ class _Accumulator:
         """Ranges from RosAria point clouds: distance from each sonar's mount to its point."""
         topic = self.frame_topic[self.clouds[0][1]]
         if self.robot is None:
+            if not self.strict:
+                return
             raise InputFileError(
                 self.path,
                 f"{topic}: sonar point clouds (as RosAria publishes them) need the sonar "
