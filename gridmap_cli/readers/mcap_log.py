@@ -16,8 +16,8 @@ only the topics :func:`~gridmap_cli.readers.mcap_channels.plan_topics` chose:
   ``gridmap.RangeReading`` with ``gridmap.RangeSensor`` descriptions.
 
 Stamps are the messages' header stamps (``timestamp`` in JSON); a zero stamp falls back to the
-message's log time. Frame ids are compared without a leading ``/``. ``schemas/mcap-log.md``
-describes the layout gridmap writes and these rules.
+message's log time. Frame ids are compared without a leading ``/``. ``docs/reading-mcap.md``
+states these rules for users.
 """
 
 from __future__ import annotations
