@@ -326,7 +326,7 @@ class _Accumulator:
     def _range(self, topic: str, log_time: int, msg: Any) -> None:
         frame = frame_name(msg.header.frame_id)
         self._claim(frame, topic)
-        rmin, rmax = float(msg.min_range), float(msg.max_range)
+        rmin, rmax = _f32(msg.min_range), _f32(msg.max_range)
         if not (0.0 <= rmin < rmax and math.isfinite(rmax)):
             raise InputFileError(
                 self.path,
@@ -335,11 +335,11 @@ class _Accumulator:
             )
         sonar = self.sonars.get(frame)
         if sonar is None:
-            self.sonars[frame] = _Sonar(topic, float(msg.field_of_view), rmin, rmax)
+            self.sonars[frame] = _Sonar(topic, _f32(msg.field_of_view), rmin, rmax)
         else:
             sonar.min_range = max(sonar.min_range, rmin)
             sonar.max_range = max(sonar.max_range, rmax)
-        value = _classify(float(msg.range), rmax)
+        value = _classify(_f32(msg.range), rmax)
         key = self._key(frame)
         if value is not None:
             self._push(
@@ -351,14 +351,14 @@ class _Accumulator:
     def _scan(self, topic: str, log_time: int, msg: Any) -> None:
         frame = frame_name(msg.header.frame_id)
         self._claim(frame, topic)
-        ranges = np.asarray(msg.ranges, dtype=np.float64)
+        ranges = float32_decimal(msg.ranges) if len(msg.ranges) else np.empty(0)
         geometry = _Scan(
             topic,
-            float(msg.angle_min),
-            float(msg.angle_increment),
+            _f32(msg.angle_min),
+            _f32(msg.angle_increment),
             len(ranges),
-            float(msg.range_min),
-            float(msg.range_max),
+            _f32(msg.range_min),
+            _f32(msg.range_max),
         )
         known = self.scans.setdefault(frame, geometry)
         if (known.angle_min, known.angle_increment, known.count) != (
@@ -605,6 +605,31 @@ class _Accumulator:
                 px, py = tx + c * px - s * py, ty + s * px + c * py
             n = len(points)
             self._push(stamp, keys[:n], np.hypot(px - sx[:n], py - sy[:n]))
+
+
+def float32_decimal(values: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """float32 message fields as the shortest decimal (up to 9 places) each float32 stands for.
+
+    ``sensor_msgs/Range`` and ``LaserScan`` carry float32: a range written as 1.234 arrives as
+    1.2339999675750732. Reading it back as 1.234 keeps logs that went through ROS messages
+    equal to the same run stored as CSV; both doubles round to the same float32.
+    """
+    v32 = np.atleast_1d(np.asarray(values, dtype=np.float32))
+    exact = v32.astype(np.float64)
+    out = exact.copy()
+    todo = np.flatnonzero(np.isfinite(exact))
+    for places in range(10):
+        if len(todo) == 0:
+            break
+        candidate = np.round(exact[todo], places)
+        ok = candidate.astype(np.float32) == v32[todo]
+        out[todo[ok]] = candidate[ok]
+        todo = todo[~ok]
+    return out
+
+
+def _f32(value: float) -> float:
+    return float(float32_decimal(value)[0])
 
 
 def _classify(value: float, max_range: float) -> float | None:

@@ -6,12 +6,15 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from mcap.writer import Writer
 
 from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.readers import read_log, resolve_format
-from gridmap_cli.readers.mcap_log import read_mcap_log
+from gridmap_cli.readers.mcap_log import float32_decimal, read_mcap_log
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot
 from tests.helpers import names, run
@@ -423,3 +426,19 @@ def test_gridmap_json_build_uses_ground_truth_with_pose_global(tmp_path: Path) -
     # the ground-truth track is the odometry moved by (5, 1) m: so is the map
     assert origins[1][0] - origins[0][0] == pytest.approx(5.0, abs=0.051)
     assert origins[1][1] - origins[0][1] == pytest.approx(1.0, abs=0.051)
+
+
+@given(st.integers(min_value=0, max_value=100_000))
+def test_float32_fields_read_back_as_the_millimetres_written(mm: int) -> None:
+    written = mm / 1000
+    assert float32_decimal(np.float32(written))[0] == written
+
+
+@given(st.floats(min_value=-1e6, max_value=1e6, width=32))
+def test_float32_decimal_stands_for_the_same_float32(value: float) -> None:
+    assert np.float32(float32_decimal(value)[0]) == np.float32(value)
+
+
+def test_float32_decimal_keeps_non_finite_values() -> None:
+    out = float32_decimal([math.inf, -math.inf, math.nan, 0.5])
+    assert out[0] == math.inf and out[1] == -math.inf and math.isnan(out[2]) and out[3] == 0.5
