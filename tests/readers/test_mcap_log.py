@@ -442,3 +442,24 @@ def test_float32_decimal_stands_for_the_same_float32(value: float) -> None:
 def test_float32_decimal_keeps_non_finite_values() -> None:
     out = float32_decimal([math.inf, -math.inf, math.nan, 0.5])
     assert out[0] == math.inf and out[1] == -math.inf and math.isnan(out[2]) and out[3] == 0.5
+
+
+def test_posestamped_odometry_and_undecodable_other_topics(tmp_path: Path) -> None:
+    # only the topics gridmap uses are decoded: a protobuf camera topic (no decoder) is no problem
+    path = tmp_path / "pose.mcap"
+    with Recording(path) as rec:
+        for k in range(3):
+            ns = S + k * S
+            turn = {"x": 0.0, "y": 0.0, "z": math.sin(0.25), "w": math.cos(0.25)}
+            pose = {"position": {"x": float(k), "y": 0.0, "z": 0.0}, "orientation": turn}
+            rec.write("/pose", "geometry_msgs/PoseStamped", ns,
+                      {"header": rec.header(ns, "odom"), "pose": pose})  # fmt: skip
+            rec.write("/sonar", "sensor_msgs/Range", ns, sonar_range(rec, ns, "base_link", 1.0))
+        raw = rec.writer._writer
+        schema = raw.register_schema("foxglove.CompressedImage", "protobuf", b"\x00")
+        channel = raw.register_channel("/camera", "protobuf", schema)
+        raw.add_message(channel, S, b"\xff\xfe", S)
+    log = read_log(path)
+    assert log.poses.x_m.tolist() == [0.0, 1.0, 2.0]
+    assert log.poses.theta_rad.tolist() == pytest.approx([0.5, 0.5, 0.5])
+    assert log.sensors is not None and log.sensors[0].x_m == 0.0  # frame = base frame
