@@ -26,6 +26,7 @@ from gridmap_cli.errors import GridmapError, InputFileError, OutputExistsError, 
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
 from gridmap_cli.readers import format_names, resolve_format
+from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import RobotDescription, load_robot, preset_names
 from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers.map_image import MAP_MODES, check_map_outputs, write_map
@@ -110,6 +111,49 @@ def _robot_from_log(log: Path, metadata: dict[str, str]) -> RobotDescription | N
     )
 
 
+def _topic_options(func: Callable[P, R]) -> Callable[P, R]:
+    """The MCAP topic and frame choices, shared by build and inspect."""
+    options = [
+        click.option(
+            "--odom-topic",
+            help="MCAP: pose topic to use as odometry, or /tf for its odom -> base transforms; "
+            "default: the only Odometry/PoseStamped topic, else TF.",
+        ),
+        click.option(
+            "--range-topic",
+            "range_topics",
+            multiple=True,
+            help="MCAP: range topic to map (repeatable); default: every Range, LaserScan, "
+            "RosAria sonar and gridmap range topic.",
+        ),
+        click.option("--odom-frame", help="MCAP: odometry frame in TF [default: odom]."),
+        click.option(
+            "--base-frame",
+            help="MCAP: the robot's base frame; default: the odometry's child frame, else "
+            "base_link.",
+        ),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def _read_options(
+    odom_topic: str | None,
+    range_topics: tuple[str, ...],
+    odom_frame: str | None,
+    base_frame: str | None,
+    robot: RobotDescription | None,
+) -> ReadOptions:
+    return ReadOptions(
+        odom_topic=odom_topic,
+        range_topics=tuple(range_topics),
+        odom_frame=odom_frame,
+        base_frame=base_frame,
+        robot=robot,
+    )
+
+
 @cli.command()
 @click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
 @click.option(
@@ -171,6 +215,7 @@ def _robot_from_log(log: Path, metadata: dict[str, str]) -> RobotDescription | N
     show_default=True,
     help="Map with the odometry, or with the log's global pose (ARIA robotGlobal, CSV true_*).",
 )
+@_topic_options
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -187,6 +232,10 @@ def build(
     free: float,
     no_echo_free: float,
     pose: str,
+    odom_topic: str | None,
+    range_topics: tuple[str, ...],
+    odom_frame: str | None,
+    base_frame: str | None,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -215,8 +264,11 @@ def build(
     if not log.is_file():
         raise InputFileError(log, "no such file" if not log.exists() else "not a regular file")
     fmt = resolve_format(log, log_format)
+    read_options = _read_options(odom_topic, range_topics, odom_frame, base_frame, robot_desc)
+    if fmt.name != "mcap":
+        read_options.refuse_topic_flags(fmt.name.upper())
 
-    data = select_poses(fmt.read(log), pose)
+    data = select_poses(fmt.read(log, read_options), pose)
     if robot_desc is None:
         robot_desc = _robot_from_log(log, data.metadata)
     options = BuildOptions(resolution_m=resolution, mode=mode, sonar=sonar)
@@ -292,6 +344,41 @@ def _summary_line(s: dict[str, Any]) -> str:
         f"({m['width'] * m['resolution']:.1f} x {m['height'] * m['resolution']:.1f} m) "
         f"in {s['seconds']:.1f} s -> {s['image']}" + (f", {s['yaml']}" if s["yaml"] else "")
     )
+
+
+@cli.command()
+@click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("--robot", help="Robot preset, robot YAML file or ARIA .p file.")
+@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@_topic_options
+@click.option("--json", "as_json", is_flag=True, help="Print the description as JSON.")
+@_handle_errors
+def inspect(
+    log: Path,
+    robot: str | None,
+    log_format: str | None,
+    odom_topic: str | None,
+    range_topics: tuple[str, ...],
+    odom_frame: str | None,
+    base_frame: str | None,
+    as_json: bool,
+) -> None:
+    """Describe LOG (CSV, ARIA .2d or MCAP) and what build would make of it.
+
+    Channels or columns, message counts, time span, rates, distance travelled, sensors and
+    their mounting poses, and the topics, frames and robot build would use.
+    """
+    from gridmap_cli.describe import describe_log, render_text
+
+    robot_desc = load_robot(robot) if robot else None
+    if not log.is_file():
+        raise InputFileError(log, "no such file" if not log.exists() else "not a regular file")
+    fmt = resolve_format(log, log_format)
+    read_options = _read_options(odom_topic, range_topics, odom_frame, base_frame, robot_desc)
+    if fmt.name != "mcap":
+        read_options.refuse_topic_flags(fmt.name.upper())
+    description = describe_log(log, fmt, read_options)
+    click.echo(json.dumps(description, indent=2) if as_json else render_text(description))
 
 
 @cli.command()

@@ -23,7 +23,7 @@ from gridmap_cli.grid import (
 )
 from gridmap_cli.models.ray import RayModel, RayParams
 from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
-from gridmap_cli.records import RangeLog
+from gridmap_cli.records import RangeLog, span_text
 from gridmap_cli.robot import RobotDescription
 from gridmap_cli.sync import SensorReadings, SyncStats, synchronise
 
@@ -136,6 +136,13 @@ def _by_model(
 def _why_empty(log: RangeLog, stats: SyncStats) -> str:
     if stats.total == 0:
         return f"{log.source}: the log holds no range readings"
+    if stats.outside_odometry == stats.total:
+        odo, rd = log.poses.stamp_ns, log.readings.stamp_ns
+        return (
+            f"{log.source}: no odometry during the range readings: the {stats.total} readings "
+            f"span {span_text(int(rd.min()), int(rd.max()))}, the odometry "
+            f"{span_text(int(odo[0]), int(odo[-1]))} (recorded at different times?)"
+        )
     parts = []
     if stats.outside_odometry:
         parts.append(f"{stats.outside_odometry} outside the odometry's time span")

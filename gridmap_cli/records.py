@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 
 import numpy as np
 import numpy.typing as npt
@@ -81,3 +82,26 @@ class RangeLog:
     sensors: tuple[RangeSensor, ...] | None = None
     truth: PoseTrack | None = None
     metadata: dict[str, str] = field(default_factory=dict)
+
+
+#: Stamps at or after this (2001-09-09) are taken as Unix epoch times when shown to people;
+#: smaller ones are seconds since some start (simulation time, a log's own clock).
+EPOCH_FROM_NS = 1_000_000_000 * 1_000_000_000
+
+
+def stamp_text(stamp_ns: int) -> str:
+    """A stamp for people: UTC date and time for epoch stamps, else seconds."""
+    if stamp_ns >= EPOCH_FROM_NS:
+        when = datetime.fromtimestamp(stamp_ns // 1_000_000_000, tz=UTC)
+        frac = (stamp_ns % 1_000_000_000) // 1_000_000
+        return f"{when:%Y-%m-%d %H:%M:%S}.{frac:03d} UTC"
+    return f"{stamp_ns / 1e9:.3f} s"
+
+
+def span_text(first_ns: int, last_ns: int) -> str:
+    """A time span for people: ``start to end (duration)``."""
+    end = stamp_text(last_ns)
+    start = stamp_text(first_ns)
+    if start[:10] == end[:10] and first_ns >= EPOCH_FROM_NS:
+        end = end[11:]  # same day: the date once
+    return f"{start} to {end} ({(last_ns - first_ns) / 1e9:.1f} s)"

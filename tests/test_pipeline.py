@@ -53,9 +53,25 @@ def test_corridor_loop_walls_are_where_the_world_has_them() -> None:
 
 
 def test_no_readings_inside_the_odometry_span_is_an_error() -> None:
+    s = 1_000_000_000
+    poses = PoseTrack(np.array([0, 10 * s], dtype=np.int64), np.zeros(2), np.zeros(2), np.zeros(2))
+    readings = RangeReadings(
+        np.array([20 * s, 30 * s], dtype=np.int64), np.zeros(2, dtype=np.int32), np.ones(2)
+    )
+    log = RangeLog("mem.csv", poses, readings, ("sonar0",))
+    with pytest.raises(NoDataError) as err:
+        build_map(log, load_robot("p3at"), BuildOptions())
+    assert str(err.value) == (
+        "mem.csv: no odometry during the range readings: the 2 readings span 20.000 s to "
+        "30.000 s (10.0 s), the odometry 0.000 s to 10.000 s (10.0 s) "
+        "(recorded at different times?)"
+    )
+
+
+def test_readings_dropped_for_several_reasons_are_counted_in_the_error() -> None:
     poses = PoseTrack(np.array([0, 10], dtype=np.int64), np.zeros(2), np.zeros(2), np.zeros(2))
     readings = RangeReadings(
-        np.array([20, 30], dtype=np.int64), np.zeros(2, dtype=np.int32), np.ones(2)
+        np.array([5, 30], dtype=np.int64), np.zeros(2, dtype=np.int32), np.array([0.01, 1.0])
     )
     log = RangeLog("mem.csv", poses, readings, ("sonar0",))
     with pytest.raises(NoDataError, match="none of the 2 range readings can be mapped"):

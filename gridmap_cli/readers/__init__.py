@@ -13,7 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gridmap_cli.errors import InputFileError, UnknownFormatError, UsageError
-from gridmap_cli.readers import aria_log, csv_log
+from gridmap_cli.readers import aria_log, csv_log, mcap_log
+from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
 
 
@@ -24,12 +25,27 @@ class LogFormat:
     name: str
     extensions: tuple[str, ...]
     sniff: Callable[[bytes], bool]
-    read: Callable[[Path], RangeLog]
+    reader: Callable[[Path, ReadOptions], RangeLog]
+
+    def read(self, path: Path, options: ReadOptions | None = None) -> RangeLog:
+        """Read ``path`` into the canonical record stream."""
+        return self.reader(path, options or ReadOptions())
+
+
+def _read_csv(path: Path, options: ReadOptions) -> RangeLog:
+    options.refuse_topic_flags("CSV")
+    return csv_log.read_csv_log(path)
+
+
+def _read_aria(path: Path, options: ReadOptions) -> RangeLog:
+    options.refuse_topic_flags("ARIA")
+    return aria_log.read_aria_log(path)
 
 
 FORMATS: tuple[LogFormat, ...] = (
-    LogFormat("csv", (".csv",), csv_log.sniff, csv_log.read_csv_log),
-    LogFormat("aria", (".2d",), aria_log.sniff, aria_log.read_aria_log),
+    LogFormat("csv", (".csv",), csv_log.sniff, _read_csv),
+    LogFormat("aria", (".2d",), aria_log.sniff, _read_aria),
+    LogFormat("mcap", (".mcap",), mcap_log.sniff, mcap_log.read_mcap_log),
 )
 
 _SNIFF_BYTES = 4096
@@ -62,6 +78,8 @@ def resolve_format(path: Path, name: str | None = None) -> LogFormat:
     raise UnknownFormatError(path, known)
 
 
-def read_log(path: Path, format_name: str | None = None) -> RangeLog:
+def read_log(
+    path: Path, format_name: str | None = None, options: ReadOptions | None = None
+) -> RangeLog:
     """Read any supported log into the canonical record stream."""
-    return resolve_format(path, format_name).read(path)
+    return resolve_format(path, format_name).read(path, options)

@@ -1,0 +1,475 @@
+"""``gridmap inspect``: what a log holds and what ``build`` would make of it.
+
+:func:`describe_log` returns plain data (the ``--json`` output); :func:`render_text` turns it
+into the text a person reads. Nothing here prints.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gridmap_cli.errors import GridmapError
+from gridmap_cli.geometry import wrap_angle
+from gridmap_cli.readers import LogFormat
+from gridmap_cli.readers.mcap_channels import Survey, channel_spans
+from gridmap_cli.readers.mcap_log import McapRead, read_mcap
+from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.records import EPOCH_FROM_NS, PoseTrack, RangeLog, span_text
+from gridmap_cli.robot import RangeSensor, RobotDescription, load_robot, preset_names
+from gridmap_cli.sync import interpolate_pose
+
+
+def describe_log(path: Path, fmt: LogFormat, options: ReadOptions) -> dict[str, Any]:
+    """Describe a log of any format. Raises what the reader raises for a broken CSV/ARIA file."""
+    out: dict[str, Any] = {"file": str(path), "format": fmt.name, "bytes": path.stat().st_size}
+    problem: str | None = None
+    mcap: McapRead | None = None
+    if fmt.name == "mcap":
+        try:
+            mcap = read_mcap(path, options)
+        except GridmapError as exc:
+            problem = str(exc)
+            mcap = read_mcap(path, options, strict=False)
+        log = mcap.log
+        out["mcap"] = _mcap_part(path, mcap.survey, mcap)
+    else:
+        log = fmt.read(path, options)
+    robot, robot_source = _robot(path, log, options)
+    out["log"] = _log_part(log, robot, mcap.mount_from if mcap is not None else None)
+    out["build"] = _build_part(fmt, log, mcap, robot, robot_source, problem)
+    return out
+
+
+def _robot(
+    path: Path, log: RangeLog, options: ReadOptions
+) -> tuple[RobotDescription | None, str | None]:
+    if options.robot is not None:
+        return options.robot, "--robot"
+    name = log.metadata.get("robot")
+    if not name:
+        return None, None
+    try:
+        if name in preset_names():
+            return load_robot(name), "the log's robot line"
+        candidate = Path(name) if Path(name).is_absolute() else path.parent / name
+        return load_robot(str(candidate)), "the log's robot line"
+    except GridmapError:
+        return None, None
+
+
+def _rate(count: int, span_ns: int) -> float | None:
+    return round((count - 1) / (span_ns / 1e9), 3) if count > 1 and span_ns > 0 else None
+
+
+def _use(topic: str, read: McapRead) -> str:
+    """What a read does with ``topic``, in words ('' when nothing)."""
+    plan = read.plan
+    if topic == plan.odom_topic:
+        return "odometry"
+    if topic == plan.truth_topic:
+        return "ground truth"
+    if topic in plan.range_topics:
+        return "range readings"
+    if topic == plan.sensors_topic:
+        return "sensor descriptions"
+    if topic in plan.static_topics:
+        return "sensor mounting"
+    uses = []
+    if topic in plan.tf_topics and plan.odom_topic is None:
+        uses.append(f"odometry ({plan.odom_frame} -> {read.base_frame})")
+    if topic in plan.tf_topics and not plan.static_topics:
+        uses.append("sensor mounting")
+    return " + ".join(uses)
+
+
+def _mcap_part(path: Path, survey: Survey, read: McapRead) -> dict[str, Any]:
+    span = (survey.end_ns or 0) - (survey.start_ns or 0)
+    spans = channel_spans(path)
+    channels = []
+    for c in survey.channels:
+        first, last = spans.get(c.topic, (0, 0))
+        channels.append(
+            {
+                "topic": c.topic,
+                "type": c.type_name,
+                "schema_encoding": c.schema_encoding,
+                "message_encoding": c.message_encoding,
+                "messages": c.count,
+                "first_ns": first if c.count else None,
+                "last_ns": last if c.count else None,
+                "rate_hz": _rate(c.count, last - first),
+                "used_as": _use(c.topic, read),
+            }
+        )
+    return {
+        "profile": survey.profile,
+        "library": survey.library,
+        "indexed": survey.indexed,
+        "messages": survey.message_count,
+        "log_time": None
+        if survey.start_ns is None
+        else {"start_ns": survey.start_ns, "end_ns": survey.end_ns, "duration_s": span / 1e9},
+        "channels": channels,
+        "metadata": survey.metadata,
+        "tf": [
+            {"parent": p, "child": c, "transforms": n}
+            for (p, c), n in sorted(read.tf_pairs.items())
+        ],
+        "static_frames": list(read.static_frames),
+    }
+
+
+def _track_part(track: PoseTrack) -> dict[str, Any] | None:
+    n = len(track)
+    if n == 0:
+        return None
+    t = track.stamp_ns
+    span = int(t[-1] - t[0])
+    steps = np.hypot(np.diff(track.x_m), np.diff(track.y_m))
+    turns = np.abs(wrap_angle(np.diff(track.theta_rad)))
+    return {
+        "count": n,
+        "start_ns": int(t[0]),
+        "end_ns": int(t[-1]),
+        "duration_s": span / 1e9,
+        "rate_hz": _rate(n, span),
+        "distance_m": round(float(steps.sum()), 3),
+        "rotation_deg": round(math.degrees(float(turns.sum())), 1),
+        "start_pose": [float(track.x_m[0]), float(track.y_m[0]), float(track.theta_rad[0])],
+        "end_pose": [float(track.x_m[-1]), float(track.y_m[-1]), float(track.theta_rad[-1])],
+    }
+
+
+def _sensor_part(
+    name: str,
+    own: RangeSensor | None,
+    robot_sensor: RangeSensor | None,
+    count: int,
+    no_echo: int,
+    source: str | None,
+) -> dict[str, Any]:
+    sensor = own or robot_sensor
+    entry: dict[str, Any] = {"name": name, "readings": count, "no_echo": no_echo}
+    if sensor is None or math.isnan(sensor.x_m):
+        entry["mounting"] = None
+        entry["mounting_from"] = "unknown"
+    else:
+        entry["mounting"] = {
+            "x_m": round(sensor.x_m, 6),
+            "y_m": round(sensor.y_m, 6),
+            "yaw_deg": round(math.degrees(sensor.yaw_rad), 3),
+        }
+        entry["mounting_from"] = source or ("log" if own is not None else "robot")
+    if sensor is not None:
+        entry.update(
+            kind=sensor.kind,
+            beam_width_deg=round(math.degrees(sensor.beam_width_rad), 3),
+            min_range_m=round(sensor.min_range_m, 6),
+            max_range_m=round(sensor.max_range_m, 6),
+        )
+    return entry
+
+
+def _log_part(
+    log: RangeLog, robot: RobotDescription | None, mount_from: dict[str, str] | None
+) -> dict[str, Any]:
+    r = log.readings
+    own = {s.name: s for s in log.sensors or ()}
+    theirs = robot.by_name() if robot is not None else {}
+    counts = np.bincount(r.sensor, minlength=len(log.sensor_names))
+    sensors = []
+    for i, name in enumerate(log.sensor_names):
+        sensor = own.get(name) or theirs.get(name)
+        mine = r.range_m[r.sensor == i]
+        no_echo = int(np.count_nonzero(mine >= sensor.max_range_m)) if sensor else 0
+        frame = name if name in (mount_from or {}) else name.rpartition("_")[0]
+        source = (mount_from or {}).get(frame)
+        sensors.append(
+            _sensor_part(name, own.get(name), theirs.get(name), int(counts[i]), no_echo, source)
+        )
+    readings: dict[str, Any] | None = None
+    if len(r):
+        span = int(r.stamp_ns.max() - r.stamp_ns.min())
+        inside = 0
+        if len(log.poses):
+            inside = int(np.count_nonzero(interpolate_pose(log.poses, r.stamp_ns)[3]))
+        readings = {
+            "count": len(r),
+            "start_ns": int(r.stamp_ns.min()),
+            "end_ns": int(r.stamp_ns.max()),
+            "duration_s": span / 1e9,
+            "rate_hz": round(len(r) / (span / 1e9), 3) if span > 0 else None,
+            "no_echo": sum(s["no_echo"] for s in sensors),
+            "during_odometry": inside,
+        }
+    return {
+        "odometry": _track_part(log.poses),
+        "truth": _track_part(log.truth) if log.truth is not None else None,
+        "readings": readings,
+        "sensors": sensors,
+        "metadata": log.metadata,
+    }
+
+
+def _build_part(
+    fmt: LogFormat,
+    log: RangeLog,
+    mcap: McapRead | None,
+    robot: RobotDescription | None,
+    robot_source: str | None,
+    problem: str | None,
+) -> dict[str, Any]:
+    if mcap is not None:
+        plan = mcap.plan
+        if plan.odom_topic is not None:
+            channel = mcap.survey.topic(plan.odom_topic)
+            odometry = f"{plan.odom_topic} ({channel.type_name if channel else '?'})"
+        elif plan.tf_topics:
+            odometry = f"TF {plan.odom_frame} -> {mcap.base_frame} on {', '.join(plan.tf_topics)}"
+        else:
+            odometry = None
+        ranges = list(plan.range_topics)
+        truth = plan.truth_topic
+        frames: dict[str, Any] = {"odom": plan.odom_frame, "base": mcap.base_frame}
+    elif fmt.name == "csv":
+        odometry = "columns time, x, y, theta"
+        ranges = [f"{len(log.sensor_names)} sensor columns: {' '.join(_ends(log.sensor_names))}"]
+        truth = "columns true_x, true_y, true_theta" if log.truth is not None else None
+        frames = {}
+    else:
+        odometry = "robot: lines (encoder pose)"
+        lasers = [n for n in log.sensor_names if n.startswith("laser")]
+        sonars = [n for n in log.sensor_names if not n.startswith("laser")]
+        ranges = []
+        if sonars:
+            ranges.append(f"sonar: lines ({len(sonars)} sonars)")
+        if lasers:
+            ranges.append(f"sick/scan lines ({len(lasers)} laser beams)")
+        truth = "robotGlobal: lines" if log.truth is not None else None
+        frames = {}
+    unknown = [
+        n
+        for n in log.sensor_names
+        if n not in {s.name for s in log.sensors or () if not math.isnan(s.x_m)}
+        and (robot is None or n not in robot.by_name())
+    ]
+    if problem is None and unknown:
+        problem = (
+            f"no mounting pose for sensor{'s' if len(unknown) > 1 else ''} "
+            f"{', '.join(unknown[:5])}{' ...' if len(unknown) > 5 else ''}: give --robot"
+        )
+    if problem is None and len(log.readings) and len(log.poses):
+        inside = int(np.count_nonzero(interpolate_pose(log.poses, log.readings.stamp_ns)[3]))
+        if inside == 0:
+            problem = "no odometry during the range readings (recorded at different times?)"
+    return {
+        "odometry": odometry,
+        "frames": frames,
+        "ranges": ranges,
+        "truth": truth,
+        "sensors": len(log.sensor_names),
+        "robot": None if robot is None else {"name": robot.name, "from": robot_source},
+        "ready": problem is None,
+        "problem": problem,
+    }
+
+
+# ------------------------------------------------------------------------------------ text
+
+
+def _some(items: list[str], limit: int) -> str:
+    more = f" and {len(items) - limit} more" if len(items) > limit else ""
+    return ", ".join(items[:limit]) + more
+
+
+def _ends(names: tuple[str, ...]) -> list[str]:
+    if len(names) <= 3:
+        return list(names)
+    return [names[0], "..", names[-1]]
+
+
+def _n(value: int) -> str:
+    return f"{value:,}"
+
+
+def _hz(value: float | None) -> str:
+    if not value:
+        return "-"
+    return f"{value:,.0f} Hz" if value >= 100 else f"{value:.3g} Hz"
+
+
+def _pose_text(pose: list[float]) -> str:
+    return f"({pose[0]:.3f} m, {pose[1]:.3f} m, {math.degrees(pose[2]):.1f} deg)"
+
+
+def _table(rows: list[list[str]]) -> list[str]:
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+    return ["  " + "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip()
+            for row in rows]  # fmt: skip
+
+
+def render_text(d: dict[str, Any]) -> str:
+    """The description as text for people, one section per subject."""
+    lines: list[str] = []
+    size = d["bytes"]
+    size_text = f"{size / 1e6:.1f} MB" if size >= 100_000 else f"{_n(size)} bytes"
+    head = f"{d['file']}: {d['format'].upper()} log, {size_text}"
+    mcap = d.get("mcap")
+    if mcap is not None:
+        head += f"; profile '{mcap['profile'] or 'none'}', written by {mcap['library'] or '?'}"
+    lines.append(head)
+    if mcap is not None:
+        lt = mcap["log_time"]
+        if lt is None:
+            lines.append("  no messages")
+        else:
+            lines.append(
+                f"  {_n(mcap['messages'])} messages, log time "
+                f"{span_text(lt['start_ns'], lt['end_ns'])}"
+            )
+        if not mcap["indexed"]:
+            lines.append("  no index: the file is read from start to end")
+        lines += ["", "Channels:"]
+        rows = [["topic", "type", "encoding", "messages", "rate", "gridmap uses it as"]]
+        for c in mcap["channels"]:
+            rows.append([c["topic"], c["type"] or "(no schema)", c["message_encoding"],
+                         _n(c["messages"]), _hz(c["rate_hz"]), c["used_as"] or "-"])  # fmt: skip
+        lines += _table(rows)
+        if mcap["tf"]:
+            pairs = [f"{t['parent']} -> {t['child']} ({_n(t['transforms'])})" for t in mcap["tf"]]
+            lines.append(f"  TF read: {_some(pairs, 6)}")
+        if mcap["static_frames"]:
+            frames = mcap["static_frames"]
+            base = d["build"]["frames"]["base"]
+            lines.append(
+                f"  mounting known for {len(frames)} frame{'s' if len(frames) > 1 else ''} "
+                f"below '{base}': {_some(frames, 6)}"
+            )
+    log = d["log"]
+    for key, title in (("odometry", "Odometry"), ("truth", "Ground truth")):
+        track = log[key]
+        lines.append("")
+        if track is None:
+            lines.append(f"{title}: none")
+            continue
+        lines.append(
+            f"{title}: {_n(track['count'])} poses, "
+            f"{span_text(track['start_ns'], track['end_ns'])}, {_hz(track['rate_hz'])}"
+        )
+        clock = _clock_note(track["start_ns"], mcap)
+        if clock:
+            lines.append(clock)
+        lines.append(
+            f"  travelled {track['distance_m']:.2f} m and turned {track['rotation_deg']:.0f} deg, "
+            f"from {_pose_text(track['start_pose'])} to {_pose_text(track['end_pose'])}"
+        )
+    readings = log["readings"]
+    lines.append("")
+    if readings is None:
+        lines.append("Range readings: none")
+    else:
+        lines.append(
+            f"Range readings: {_n(readings['count'])} ({_n(readings['no_echo'])} no echo), "
+            f"{span_text(readings['start_ns'], readings['end_ns'])}, {_hz(readings['rate_hz'])}"
+        )
+        lines.append(f"  {_n(readings['during_odometry'])} of them during the odometry's time span")
+    lines += _sensor_lines(log["sensors"])
+    if log["metadata"]:
+        lines += ["", "Log header: " + ", ".join(f"{k}: {v}" for k, v in log["metadata"].items())]
+    b = d["build"]
+    lines += ["", "What build would use:"]
+    lines.append(f"  odometry  {b['odometry'] or 'none'}")
+    if b["frames"]:
+        lines.append(f"  frames    odometry '{b['frames']['odom']}', base '{b['frames']['base']}'")
+    lines.append(f"  ranges    {_some(b['ranges'], 6) or 'none'}")
+    if b["truth"]:
+        lines.append(f"  truth     {b['truth']} (with --pose global)")
+    lines.append(f"  sensors   {b['sensors']}")
+    robot = b["robot"]
+    lines.append(f"  robot     {robot['name'] + ' (' + robot['from'] + ')' if robot else 'none'}")
+    if b["ready"]:
+        lines.append("  -> ready to build")
+    else:
+        # the file name and topic list are shown above already
+        problem = b["problem"].removeprefix(f"{d['file']}: ").split("; topics: ")[0]
+        lines.append(f"  -> build would fail: {problem}")
+    return "\n".join(lines)
+
+
+def _yaw_text(s: dict[str, Any]) -> str:
+    m = s["mounting"]
+    if not m:
+        return "?"
+    if s.get("_last_yaw") is not None:
+        return f"{m['yaw_deg']:.1f}..{s['_last_yaw']:.1f}"
+    return f"{m['yaw_deg']:.1f}"
+
+
+def _clock_note(first_ns: int, mcap: dict[str, Any] | None) -> str:
+    """A note when message stamps and log times are on different clocks (simulation time)."""
+    if mcap is None or mcap["log_time"] is None:
+        return ""
+    if (first_ns >= EPOCH_FROM_NS) == (mcap["log_time"]["start_ns"] >= EPOCH_FROM_NS):
+        return ""
+    return (
+        "  (stamps are the messages' header stamps, on another clock than the log time, "
+        "e.g. simulation time)"
+    )
+
+
+def _group_beams(sensors: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Laser beams ``<laser>_0`` .. ``<laser>_<n-1>`` folded into one row per laser."""
+    out: list[dict[str, Any]] = []
+    for s in sensors:
+        prefix, _, index = s["name"].rpartition("_")
+        last = out[-1] if out else None
+        if (
+            s.get("kind") == "laser"
+            and last is not None
+            and last.get("kind") == "laser"
+            and last.get("_prefix") == prefix
+            and index.isdigit()
+        ):
+            last["_count"] += 1
+            last["readings"] += s["readings"]
+            last["no_echo"] += s["no_echo"]
+            last["_last_yaw"] = s["mounting"]["yaw_deg"] if s["mounting"] else None
+            last["name"] = f"{prefix}_{last['_first']}..{index} ({last['_count']} beams)"
+            continue
+        entry = dict(s)
+        if s.get("kind") == "laser" and index.isdigit():
+            entry.update(_prefix=prefix, _first=index, _count=1, _last_yaw=None)
+        out.append(entry)
+    return out
+
+
+def _sensor_lines(sensors: list[dict[str, Any]]) -> list[str]:
+    lines = ["", f"Sensors: {len(sensors) or 'none'}"]
+    if not sensors:
+        return lines
+    sensors = _group_beams(sensors)
+    rows = [["name", "kind", "x m", "y m", "yaw deg", "beam deg", "range m", "readings",
+             "no echo", "mounting from"]]  # fmt: skip
+    shown = sensors if len(sensors) <= 20 else sensors[:8] + sensors[-4:]
+    for s in shown:
+        m = s["mounting"]
+        rows.append([
+            s["name"],
+            s.get("kind", "?"),
+            f"{m['x_m']:.3f}" if m else "?",
+            f"{m['y_m']:.3f}" if m else "?",
+            _yaw_text(s),
+            f"{s['beam_width_deg']:.1f}" if "beam_width_deg" in s else "?",
+            f"{s['min_range_m']:.3g}-{s['max_range_m']:.3g}" if "max_range_m" in s else "?",
+            _n(s["readings"]),
+            _n(s["no_echo"]),
+            s["mounting_from"],
+        ])  # fmt: skip
+    lines += _table(rows)
+    if len(sensors) > 20:
+        lines.insert(-4, f"  ... {len(sensors) - 12} more ...")
+    return lines

@@ -1,0 +1,52 @@
+"""What a reader may be told besides the path: topic and frame choices, and the robot.
+
+One object for every reader so that the registry can call them alike; readers of formats with no
+topics or frames (CSV, ARIA) refuse the MCAP-only choices instead of ignoring them silently.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from gridmap_cli.errors import UsageError
+from gridmap_cli.robot import RobotDescription
+
+
+@dataclass(frozen=True)
+class ReadOptions:
+    """Choices for reading a log.
+
+    ``odom_topic``: the pose topic to use as odometry (``/tf`` for the odom -> base transforms).
+    ``range_topics``: the range topics to map (empty: every supported one).
+    ``odom_frame``, ``base_frame``: TF frame names (default ``odom``, and the odometry message's
+    child frame or ``base_link``). ``robot``: the robot description (``--robot``), for sensor
+    mounting the log does not carry (and the sonar positions RosAria's point clouds need).
+    """
+
+    odom_topic: str | None = None
+    range_topics: tuple[str, ...] = ()
+    odom_frame: str | None = None
+    base_frame: str | None = None
+    robot: RobotDescription | None = None
+
+    def topic_flags(self) -> list[str]:
+        """The MCAP-only flags that were given, spelled as on the command line."""
+        given = []
+        if self.odom_topic is not None:
+            given.append("--odom-topic")
+        if self.range_topics:
+            given.append("--range-topic")
+        if self.odom_frame is not None:
+            given.append("--odom-frame")
+        if self.base_frame is not None:
+            given.append("--base-frame")
+        return given
+
+    def refuse_topic_flags(self, format_name: str) -> None:
+        """Raise :class:`UsageError` if MCAP-only flags were given for a ``format_name`` log."""
+        given = self.topic_flags()
+        if given:
+            raise UsageError(
+                f"{', '.join(given)} only appl{'y' if len(given) > 1 else 'ies'} to MCAP logs, "
+                f"not to {format_name} logs"
+            )

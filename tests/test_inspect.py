@@ -1,0 +1,175 @@
+"""gridmap inspect: what a log holds and what build would use, for every format."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.helpers import run
+from tests.readers.mcap_helpers import DATA, merge_mcaps
+from tests.readers.test_mcap_log import ros2_sonar_log, write_json_log
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+real = pytest.mark.skipif(not DATA.is_dir(), reason="../shared/data/mcap is not present")
+
+
+def inspect_json(*args: str) -> Any:
+    code, out, err = run("inspect", *args, "--json")
+    assert code == 0, err
+    return json.loads(out)
+
+
+@real
+def test_rosbag2_text_explains_channels_odometry_and_why_build_fails() -> None:
+    code, out, err = run("inspect", str(DATA / "rosbag2_turtlebot_odometry.mcap"))
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0].endswith("MCAP log, 0.5 MB; profile 'ros2', written by mcap go v1.8.0; "
+                             "libmcap 1.4.0")  # fmt: skip
+    assert (
+        "  8,197 messages, log time 2026-05-08 09:59:13.382 UTC to 10:00:50.738 UTC (97.4 s)"
+        in lines
+    )
+    odom_row = next(line for line in lines if line.startswith("  /odom "))
+    assert odom_row.split() == [
+        "/odom",
+        "nav_msgs/Odometry",
+        "cdr",
+        "2,639",
+        "27.1",
+        "Hz",
+        "odometry",
+    ]
+    assert any(
+        line.startswith("  /tf_static ") and line.endswith("sensor mounting") for line in lines
+    )
+    assert "Odometry: 2,639 poses, 928.800 s to 1025.496 s (96.7 s), 27.3 Hz" in lines
+    assert any("travelled 34.32 m" in line for line in lines)
+    assert "Range readings: none" in lines
+    assert lines[-1] == (
+        "  -> build would fail: no range readings: no sensor_msgs/Range, LaserScan, PointCloud "
+        "(sonar) or gridmap.RangeReading topic"
+    )
+
+
+@real
+def test_rosbag2_json() -> None:
+    d = inspect_json(str(DATA / "rosbag2_turtlebot_odometry.mcap"))
+    mcap = d["mcap"]
+    assert isinstance(mcap, dict)
+    counts = {c["topic"]: (c["messages"], c["used_as"]) for c in mcap["channels"]}
+    assert counts == {
+        "/odom": (2639, "odometry"),
+        "/tf": (5422, ""),
+        "/tf_static": (1, "sensor mounting"),
+        "/amcl_pose": (135, ""),
+    }
+    assert len(mcap["static_frames"]) == 29
+    assert "rplidar_link" in mcap["static_frames"]
+    log = d["log"]
+    assert isinstance(log, dict)
+    assert log["odometry"]["count"] == 2639
+    assert log["readings"] is None
+    build = d["build"]
+    assert isinstance(build, dict)
+    assert build["odometry"] == "/odom (nav_msgs/Odometry)"
+    assert build["frames"] == {"odom": "odom", "base": "base_link"}
+    assert build["ready"] is False
+
+
+@real
+def test_tiago_recordings_at_different_times(tmp_path: Path) -> None:
+    both = tmp_path / "tiago.mcap"
+    merge_mcaps([DATA / "tiago_sonar_range_ros1.mcap", DATA / "tiago_odometry_ros1.mcap"], both)
+    d = inspect_json(str(both))
+    build = d["build"]
+    assert isinstance(build, dict)
+    assert build["frames"] == {"odom": "odom", "base": "base_footprint"}
+    assert build["problem"].endswith(
+        "sensor frame 'base_sonar_01_link' (/sonar_base): mounting pose unknown: the recording "
+        "has no TF, and no --robot describing it"
+    )
+    log = d["log"]
+    assert isinstance(log, dict)
+    assert [
+        (s["name"], s["readings"], s["no_echo"], s["mounting_from"]) for s in log["sensors"]
+    ] == [
+        ("base_sonar_01_link", 203, 144, "unknown"),
+        ("base_sonar_02_link", 203, 156, "unknown"),
+        ("base_sonar_03_link", 203, 142, "unknown"),
+    ]
+    assert log["readings"]["during_odometry"] == 0
+    robot = tmp_path / "tiago.yaml"
+    robot.write_text(
+        "gridmap-robot: 1\nname: tiago\ndefaults: {beam_width_deg: 28.6, max_range_m: 1.0}\n"
+        "sensors:\n"
+        + "".join(
+            f"  - {{name: base_sonar_0{i}_link, x_m: 0, y_m: 0, yaw_deg: 0}}\n" for i in (1, 2, 3)
+        )
+    )
+    with_robot = inspect_json(str(both), "--robot", str(robot))
+    assert with_robot["build"]["problem"] == (
+        "no odometry during the range readings (recorded at different times?)"
+    )
+    assert {s["mounting_from"] for s in with_robot["log"]["sensors"]} == {"robot"}
+
+
+def test_csv_sample() -> None:
+    d = inspect_json(str(SAMPLES / "corridor_loop.csv"))
+    log = d["log"]
+    assert isinstance(log, dict)
+    assert log["odometry"]["count"] == 1468
+    assert log["odometry"]["duration_s"] == 146.7
+    assert log["odometry"]["rate_hz"] == 10.0
+    assert log["truth"]["count"] == 1468
+    assert log["readings"]["count"] == 23488
+    assert log["readings"]["during_odometry"] == 23488
+    assert len(log["sensors"]) == 16
+    assert log["sensors"][0]["mounting"] == {"x_m": 0.147, "y_m": 0.136, "yaw_deg": 90.0}
+    assert {s["mounting_from"] for s in log["sensors"]} == {"robot"}
+    build = d["build"]
+    assert isinstance(build, dict)
+    assert build["robot"] == {"name": "p3at", "from": "the log's robot line"}
+    assert build["truth"] == "columns true_x, true_y, true_theta"
+    assert build["ready"] is True
+
+
+def test_aria_sample_has_the_same_run_with_sonar_units_in_the_log() -> None:
+    csv = inspect_json(str(SAMPLES / "corridor_loop.csv"))["log"]
+    aria = inspect_json(str(SAMPLES / "corridor_loop.2d"))["log"]
+    assert isinstance(csv, dict) and isinstance(aria, dict)
+    assert aria["odometry"]["distance_m"] == csv["odometry"]["distance_m"]
+    assert aria["readings"]["count"] == csv["readings"]["count"]
+    assert {s["mounting_from"] for s in aria["sensors"]} == {"log"}
+
+
+def test_ros2_and_json_mcaps_are_ready(tmp_path: Path) -> None:
+    d = inspect_json(str(ros2_sonar_log(tmp_path / "r.mcap")))
+    sensors = d["log"]["sensors"]
+    assert [(s["name"], s["mounting_from"], s["mounting"]["yaw_deg"]) for s in sensors] == [
+        ("sonar_left", "TF", 90.0)
+    ]
+    assert d["build"]["ready"] is True
+    path = tmp_path / "sim.mcap"
+    write_json_log(path)
+    code, out, _ = run("inspect", str(path))
+    assert code == 0
+    assert "  truth     /ground_truth (with --pose global)" in out.splitlines()
+    assert "Log header: robot: p3at, seed: 7" in out.splitlines()
+    assert out.splitlines()[-1] == "  -> ready to build"
+
+
+def test_broken_inputs_are_errors(tmp_path: Path) -> None:
+    code, _, err = run("inspect", str(tmp_path / "absent.mcap"))
+    assert (code, err.strip()) == (1, f"Error: {tmp_path / 'absent.mcap'}: no such file")
+    whole = ros2_sonar_log(tmp_path / "r.mcap").read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(whole[:100])
+    code, _, err = run("inspect", str(cut))
+    assert code == 1
+    assert err.startswith(f"Error: {cut}: truncated or damaged MCAP file")
+    code, _, err = run("inspect", str(SAMPLES / "hall.csv"), "--odom-topic", "/odom")
+    assert code == 2
