@@ -16,6 +16,7 @@ import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, wrap_angle
+from gridmap_cli.odometry_error import travelled
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription
 
@@ -134,20 +135,6 @@ def interpolate_pose(
     dth = wrap_angle(track.theta_rad[hi] - track.theta_rad[lo])
     theta = wrap_angle(track.theta_rad[lo] + frac * dth)
     return x, y, theta, valid
-
-
-def travelled(
-    track: PoseTrack,
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """Distance driven (metres) and rotation turned (radians, absolute) from the track's start.
-
-    Shape (N,) each, cumulative, starting at 0: the sum of step lengths and of absolute wrapped
-    heading changes between consecutive poses.
-    """
-    step = np.hypot(np.diff(track.x_m), np.diff(track.y_m))
-    turn = np.abs(wrap_angle(np.diff(track.theta_rad)))
-    zero = np.zeros(1)
-    return np.concatenate([zero, np.cumsum(step)]), np.concatenate([zero, np.cumsum(turn)])
 
 
 def synchronise(log: RangeLog, robot: RobotDescription | None) -> tuple[SensorReadings, SyncStats]:
