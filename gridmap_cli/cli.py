@@ -23,22 +23,19 @@ from tqdm import tqdm
 from gridmap_cli import __version__
 from gridmap_cli.calibrate import Calibration
 from gridmap_cli.calibrate import calibrate as calibrate_log
+from gridmap_cli.convert import output_writer, write_log, writer_names
 from gridmap_cli.errors import GridmapError, InputFileError, OutputExistsError, UsageError
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
 from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.robot import RobotDescription, load_robot, preset_names
 from gridmap_cli.sync import POSE_SOURCES, select_poses
-from gridmap_cli.writers.aria_log import save_aria_log
-from gridmap_cli.writers.csv_log import save_csv_log
 from gridmap_cli.writers.map_image import MAP_MODES, check_map_outputs, write_map
+from gridmap_cli.writers.map_mcap import check_map_mcap_output, write_map_mcap
+from gridmap_cli.writers.mcap_log import ENCODINGS
 
 P = ParamSpec("P")
 R = TypeVar("R")
-
-
-#: Log formats `simulate` writes, with their extension.
-SIM_FORMATS = {"csv": ".csv", "aria": ".2d"}
 
 
 class _UsageFailure(click.ClickException):
@@ -122,7 +119,8 @@ def _robot_from_log(log: Path, metadata: dict[str, str]) -> RobotDescription | N
     "--output",
     required=True,
     type=click.Path(path_type=Path, dir_okay=False),
-    help="Map image to write (.png or .pgm); the YAML is written beside it.",
+    help="Map to write: an image (.png or .pgm) with its YAML beside it, or an MCAP (.mcap) "
+    "holding a nav_msgs/msg/OccupancyGrid on /map.",
 )
 @click.option(
     "--robot",
@@ -195,7 +193,8 @@ def build(
     quiet: bool,
     as_json: bool,
 ) -> None:
-    """Build an occupancy-grid map from LOG and write it as a map_server image + YAML."""
+    """Build an occupancy-grid map from LOG and write it as a map_server image + YAML, or as an
+    OccupancyGrid in an MCAP file."""
     started = time.perf_counter()
     if not (0.0 <= free < occupied <= 1.0):
         raise UsageError(f"need 0 <= --free < --occupied <= 1, got {free} and {occupied}")
@@ -205,7 +204,14 @@ def build(
         sonar = StandardSonarParams(no_echo_free_m=no_echo_free)
     except ValueError as exc:
         raise UsageError(str(exc)) from exc
-    check_map_outputs(output, map_mode, force)
+    to_mcap = output.suffix.lower() == ".mcap"
+    if to_mcap:
+        source = click.get_current_context().get_parameter_source("map_mode")
+        if source is not None and source != click.core.ParameterSource.DEFAULT:
+            raise UsageError("--map-mode applies to map images; an MCAP map holds 0..100 and -1")
+        check_map_mcap_output(output, force)
+    else:
+        check_map_outputs(output, map_mode, force)
     _check_output_folder(output)
     robot_desc = load_robot(robot) if robot else None
     if not log.is_file():
@@ -218,9 +224,17 @@ def build(
     options = BuildOptions(resolution_m=resolution, mode=mode, sonar=sonar)
     with _progress_bar(len(data.readings), quiet, "mapping") as bar:
         result = build_map(data, robot_desc, options, progress=bar.update)
-    image_path, yaml_path = write_map(
-        output, result.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free, force=force
-    )
+    yaml_path: Path | None
+    if to_mcap:
+        # stamped at the last reading: the map is what the robot knew then
+        stamp = int(data.readings.stamp_ns[-1]) if len(data.readings) else 0
+        image_path = write_map_mcap(output, result.map, stamp_ns=stamp, force=force)
+        yaml_path = None
+    else:
+        image_path, yaml_path = write_map(
+            output, result.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free,
+            force=force,
+        )  # fmt: skip
     elapsed = time.perf_counter() - started
     summary = _summary(result, image_path, yaml_path, elapsed, occupied, free)
     if as_json:
@@ -232,7 +246,7 @@ def build(
 def _summary(
     result: BuildResult,
     image: Path,
-    yaml_path: Path,
+    yaml_path: Path | None,
     seconds: float,
     occupied: float,
     free: float,
@@ -242,7 +256,7 @@ def _summary(
     known = ~np.isnan(prob)
     return {
         "image": str(image),
-        "yaml": str(yaml_path),
+        "yaml": str(yaml_path) if yaml_path is not None else None,
         "readings": {
             "total": result.sync.total,
             "used": result.sync.used,
@@ -278,7 +292,7 @@ def _summary_line(s: dict[str, Any]) -> str:
         f"gridmap: {r['used']:,} of {r['total']:,} readings mapped{skipped}; "
         f"{m['width']} x {m['height']} cells at {m['resolution']} m "
         f"({m['width'] * m['resolution']:.1f} x {m['height'] * m['resolution']:.1f} m) "
-        f"in {s['seconds']:.1f} s -> {s['image']}, {s['yaml']}"
+        f"in {s['seconds']:.1f} s -> {s['image']}" + (f", {s['yaml']}" if s["yaml"] else "")
     )
 
 
@@ -290,13 +304,18 @@ def _summary_line(s: dict[str, Any]) -> str:
     "--output",
     required=True,
     type=click.Path(path_type=Path, dir_okay=False),
-    help="Log to write: .csv (gridmap CSV) or .2d (ARIA with sonar lines).",
+    help="Log to write: .csv (gridmap CSV), .2d (ARIA with sonar lines) or .mcap.",
 )
 @click.option(
     "--format",
     "log_format",
-    type=click.Choice(sorted(SIM_FORMATS)),
+    type=click.Choice(writer_names()),
     help="Log format; default: from the output's extension.",
+)
+@click.option(
+    "--encoding",
+    type=click.Choice(ENCODINGS),
+    help="MCAP only: gridmap's JSON channels (default) or standard ROS 2 messages (cdr).",
 )
 @click.option("--robot", default="p3at", show_default=True, help="Robot preset or YAML file.")
 @click.option("--rate", type=float, default=10.0, show_default=True, help="Sensor rate, Hz.")
@@ -317,6 +336,7 @@ def simulate(
     path_file: Path,
     output: Path,
     log_format: str | None,
+    encoding: str | None,
     robot: str,
     rate: float,
     seed: int,
@@ -340,14 +360,7 @@ def simulate(
         raise UsageError(f"--drift must be a finite number >= 0, got {drift}")
     if duration is not None and not (duration > 0.0 and math.isfinite(duration)):
         raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
-    if log_format is None:
-        by_suffix = {suffix: name for name, suffix in SIM_FORMATS.items()}
-        if output.suffix.lower() not in by_suffix:
-            raise UsageError(
-                f"{output}: simulate writes CSV (.csv) or ARIA (.2d) logs; "
-                "name the output so or give --format"
-            )
-        log_format = by_suffix[output.suffix.lower()]
+    writer = output_writer(output, log_format, encoding)
     if output.exists() and not force:
         raise OutputExistsError(output)
     _check_output_folder(output)
@@ -371,10 +384,7 @@ def simulate(
     log.metadata["rate"] = repr(rate)
     if duration is not None:
         log.metadata["duration"] = repr(duration)
-    if log_format == "aria":
-        save_aria_log(log, robot_desc.sensors, output)
-    else:
-        save_csv_log(log, output)
+    write_log(log, output, writer, robot_desc, encoding)
     if not quiet:
         zmax = np.asarray([s.max_range_m for s in robot_desc.sensors])
         no_echo = int(np.count_nonzero(log.readings.range_m >= zmax[log.readings.sensor]))
@@ -521,6 +531,69 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
         f"wrote {output}" if output is not None else "(give -o FILE to write these)",
     ]
     return "\n".join(lines)
+
+
+@cli.command()
+@click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
+@click.argument("output", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "--format",
+    "out_format",
+    type=click.Choice(writer_names()),
+    help="Output format; default: from OUTPUT's extension (.csv, .2d, .mcap).",
+)
+@click.option("--input-format", type=click.Choice(format_names()), help="Format of LOG.")
+@click.option(
+    "--encoding",
+    type=click.Choice(ENCODINGS),
+    help="MCAP output only: gridmap's JSON channels (default) or standard ROS 2 messages.",
+)
+@click.option(
+    "--robot",
+    help="Robot preset, robot YAML or ARIA .p file for sensor geometry the log lacks "
+    "(.2d and MCAP outputs need it); default: the log's own robot.",
+)
+@click.option("--force", is_flag=True, help="Overwrite an existing output.")
+@click.option("-q", "--quiet", is_flag=True, help="No summary on stderr.")
+@_handle_errors
+def convert(
+    log: Path,
+    output: Path,
+    out_format: str | None,
+    input_format: str | None,
+    encoding: str | None,
+    robot: str | None,
+    force: bool,
+    quiet: bool,
+) -> None:
+    """Convert LOG to OUTPUT between gridmap CSV, ARIA .2d and MCAP.
+
+    What the output format cannot hold is refused, never dropped (see schemas/*.md).
+    """
+    writer = output_writer(output, out_format, encoding)
+    if output.is_dir():
+        raise UsageError(f"{output} is a directory")
+    if output.exists() and not force:
+        raise OutputExistsError(output)
+    _check_output_folder(output)
+    robot_desc = load_robot(robot) if robot else None
+    if not log.is_file():
+        raise InputFileError(log, "no such file" if not log.exists() else "not a regular file")
+    fmt = resolve_format(log, input_format)
+    data = fmt.read(log)
+    if robot_desc is None and writer.needs_sensors:
+        known = {s.name for s in data.sensors or ()}
+        if not set(data.sensor_names) <= known:
+            robot_desc = _robot_from_log(log, data.metadata)
+    write_log(data, output, writer, robot_desc, encoding)
+    if not quiet:
+        what = writer.name + (f" ({encoding or 'json'})" if writer.name == "mcap" else "")
+        click.echo(
+            f"gridmap: {fmt.name} -> {what}: {len(data.poses):,} poses, "
+            f"{len(data.readings):,} readings"
+            f"{', ground truth' if data.truth is not None else ''} -> {output}",
+            err=True,
+        )
 
 
 def main() -> None:

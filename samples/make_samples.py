@@ -137,7 +137,9 @@ def write_path(name: str, waypoints: list[tuple[float, float]], laps: int = 1) -
     return path
 
 
-def simulate(gridmap: Path, world: Path, path: Path, out: Path, seed: int) -> None:
+def simulate(
+    gridmap: Path, world: Path, path: Path, out: Path, seed: int, *extra: str
+) -> None:
     """Run `gridmap simulate` from the repository root with relative paths, so that the logs'
     metadata is the same on every machine."""
     root = HERE.parent
@@ -145,7 +147,7 @@ def simulate(gridmap: Path, world: Path, path: Path, out: Path, seed: int) -> No
         [
             str(gridmap), "simulate", str(world.relative_to(root)), str(path.relative_to(root)),
             "-o", str(out.relative_to(root)), "--robot", "p3at", "--seed", str(seed),
-            "--drift", "1", "--force", "--quiet",
+            "--drift", "1", "--force", "--quiet", *extra,
         ],
         check=True,
         cwd=root,
@@ -168,6 +170,9 @@ def main() -> None:
         if name == "corridor_loop":
             # the same run as an ARIA .2d log: it must build the same map as the CSV
             simulate(gridmap, world, path, HERE / f"{name}.2d", seed)
+            # and as MCAP, with gridmap's JSON channels and with standard ROS 2 messages
+            simulate(gridmap, world, path, HERE / f"{name}.mcap", seed)
+            simulate(gridmap, world, path, HERE / f"{name}_ros2.mcap", seed, "--encoding", "ros2")
 
 
 if __name__ == "__main__":

@@ -292,8 +292,8 @@ def test_bad_input_gives_one_error_line_and_no_output(
         # the command line is checked before the files it names
         "missing world and unknown robot": f"unknown robot 'r2': not a preset ({robots}) and "
         "no such file",
-        "not csv": f"{tmp_path / 'sim.txt'}: simulate writes CSV (.csv) or ARIA (.2d) logs; "
-        "name the output so or give --format",
+        "not csv": f"{tmp_path / 'sim.txt'}: cannot tell the log format from the name; end it "
+        "in one of csv (.csv), aria (.2d), mcap (.mcap) or give --format",
         "unknown robot": f"unknown robot 'r2': not a preset ({robots}) and no such file",
     }[case]
     if case == "missing world":

@@ -1,0 +1,109 @@
+"""Writer for a finished map as an MCAP file: one ``nav_msgs/msg/OccupancyGrid`` on ``/map``.
+
+ROS 2 CDR with the ``ros2`` profile, so Foxglove and RViz (through ``ros2 bag play``) show it.
+Cell values are what ``map_server``'s loader gives for a raw map and what its saver inverts:
+round(100 p) (half to even, as the raw image) for a probability p, and -1 for a cell no reading
+touched. ``data`` is row-major with row 0 at ``info.origin`` (the bottom of the map, the
+image's last row), as OccupancyGrid defines it.
+"""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+from mcap.writer import CompressionType, Writer
+from mcap_ros2._dynamic import serialize_dynamic
+
+from gridmap_cli.atomic import atomic_output
+from gridmap_cli.errors import GridmapError, OutputExistsError, UsageError
+from gridmap_cli.grid import OccupancyMap
+from gridmap_cli.writers.mcap_log import LIBRARY, qos_profiles_yaml
+from gridmap_cli.writers.ros2_msgdefs import message_definition
+
+MAP_SCHEMA = "nav_msgs/msg/OccupancyGrid"
+MAP_TOPIC = "/map"
+MAP_FRAME = "map"
+
+
+def check_map_mcap_output(path: Path, force: bool) -> None:
+    """Refuse an output that is a directory, or exists without ``force``; call before any work."""
+    if path.is_dir():
+        raise UsageError(f"{path} is a directory")
+    if path.exists() and not force:
+        raise OutputExistsError(path)
+
+
+def occupancy_values(prob: npt.NDArray[np.float64]) -> npt.NDArray[np.int8]:
+    """OccupancyGrid cell values of a probability map, same shape (height, width), row 0 bottom:
+    round(100 p) with halves to even, -1 for NaN (unknown)."""
+    prob = np.asarray(prob, dtype=np.float64)
+    unknown = np.isnan(prob)
+    values = np.rint(100.0 * np.where(unknown, 0.0, prob)).astype(np.int8)
+    values[unknown] = -1
+    return values
+
+
+def _with_cells(empty: bytes, omap: OccupancyMap) -> bytes:
+    """The CDR of an OccupancyGrid whose ``data`` was encoded empty, with the cells filled in.
+
+    ``data`` is the message's last field: a uint32 count then one byte per cell, so the count 0
+    at the end of ``empty`` is replaced by the real one and the cells appended. The generic
+    encoder would take seconds for a few million cells, one Python object each.
+    """
+    if empty[-4:] != b"\0\0\0\0":
+        raise AssertionError("an OccupancyGrid encoded with empty data must end in a zero count")
+    cells = occupancy_values(omap.prob).ravel()
+    return empty[:-4] + struct.pack("<I", cells.size) + cells.tobytes()
+
+
+def write_map_mcap(
+    path: Path, omap: OccupancyMap, *, stamp_ns: int = 0, force: bool = False
+) -> Path:
+    """Write ``omap`` as an MCAP holding one OccupancyGrid stamped ``stamp_ns`` (integer ns).
+
+    ``info.origin`` is the lower-left corner of cell (0, 0) with identity orientation;
+    ``info.resolution`` is the cell size (float32 in the message). Written atomically.
+    """
+    check_map_mcap_output(path, force)
+    spec = omap.spec
+    if omap.prob.shape != spec.shape:
+        raise ValueError(f"probability array of shape {omap.prob.shape} for a grid of {spec.shape}")
+    sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
+    stamp = {"sec": sec, "nanosec": nanosec}
+    message = {
+        "header": {"stamp": stamp, "frame_id": MAP_FRAME},
+        "info": {
+            "map_load_time": stamp,
+            "resolution": float(spec.resolution_m),
+            "width": spec.width,
+            "height": spec.height,
+            "origin": {
+                "position": {"x": float(spec.origin_x_m), "y": float(spec.origin_y_m), "z": 0.0},
+                "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+            },
+        },
+        "data": [],
+    }
+    text = message_definition(MAP_SCHEMA)
+    data = _with_cells(serialize_dynamic(MAP_SCHEMA, text)[MAP_SCHEMA](message), omap)
+    try:
+        with atomic_output(path) as tmp, open(tmp, "wb") as handle:
+            writer = Writer(
+                handle, compression=CompressionType.ZSTD, enable_crcs=True, enable_data_crcs=True
+            )
+            writer.start(profile="ros2", library=LIBRARY)
+            schema_id = writer.register_schema(MAP_SCHEMA, "ros2msg", text.encode("utf-8"))
+            channel_id = writer.register_channel(
+                MAP_TOPIC,
+                "cdr",
+                schema_id,
+                metadata={"offered_qos_profiles": qos_profiles_yaml(1, "transient_local")},
+            )
+            writer.add_message(channel_id, int(stamp_ns), data, int(stamp_ns))
+            writer.finish()  # type: ignore[no-untyped-call]
+    except OSError as exc:
+        raise GridmapError(f"{path}: cannot write the map: {exc.strerror or exc}") from exc
+    return path

@@ -1,0 +1,198 @@
+"""`gridmap convert` and `gridmap simulate -o run.mcap`: formats chosen by name or flag, what a
+format cannot hold refused with one error line, nothing written on error.
+
+MCAP files are checked here only through the ``mcap`` library (counts, encodings); their
+content is checked message by message in tests/writers/test_mcap_log.py.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+from gridmap_cli.readers import format_names
+from gridmap_cli.readers.aria_log import read_aria_log
+from gridmap_cli.readers.csv_log import read_csv_log
+from tests.helpers import names, run
+
+REPO = Path(__file__).resolve().parent.parent
+SAMPLES = REPO / "samples"
+
+
+def topic_counts(path: Path) -> tuple[str, dict[str, int]]:
+    """(profile, message count per topic) from the file's summary."""
+    with path.open("rb") as handle:
+        reader = make_reader(handle, validate_crcs=True)
+        summary = reader.get_summary()
+        assert summary is not None and summary.statistics is not None
+        topic = {c.id: c.topic for c in summary.channels.values()}
+        counts = {topic[k]: v for k, v in summary.statistics.channel_message_counts.items()}
+        return reader.get_header().profile, counts
+
+
+@pytest.mark.parametrize(
+    ("encoding", "sample"), [(None, "corridor_loop.mcap"), ("ros2", "corridor_loop_ros2.mcap")]
+)
+def test_csv_to_mcap_gives_the_sample_bytes(
+    encoding: str | None, sample: str, tmp_path: Path
+) -> None:
+    """The sample CSV converted is the MCAP sample `simulate` wrote, byte for byte."""
+    out = tmp_path / "run.mcap"
+    extra = ["--encoding", encoding] if encoding else []
+    code, stdout, err = run("convert", str(SAMPLES / "corridor_loop.csv"), str(out), *extra)
+    assert code == 0, err
+    assert stdout == ""
+    what = f"mcap ({encoding or 'json'})"
+    assert err == (f"gridmap: csv -> {what}: 1,468 poses, 23,488 readings, ground truth -> {out}\n")
+    # the CSV's layout key is not carried into other formats, so the bytes are simulate's
+    assert out.read_bytes() == (SAMPLES / sample).read_bytes()
+
+
+def test_mcap_counts() -> None:
+    profile, counts = topic_counts(SAMPLES / "corridor_loop.mcap")
+    assert profile == ""
+    assert counts == {"/sensors": 16, "/odom": 1468, "/ground_truth": 1468, "/range": 23488}
+    profile, counts = topic_counts(SAMPLES / "corridor_loop_ros2.mcap")
+    assert profile == "ros2"
+    assert counts == {
+        "/tf_static": 1,
+        "/odom": 1468,
+        "/tf": 1468,
+        "/ground_truth": 1468,
+        "/sonar": 23488,
+    }
+
+
+def test_csv_to_aria_and_back(tmp_path: Path) -> None:
+    aria = tmp_path / "run.2d"
+    code, _, err = run("convert", str(SAMPLES / "corridor_loop.csv"), str(aria), "-q")
+    assert code == 0 and err == ""
+    assert aria.read_bytes() == (SAMPLES / "corridor_loop.2d").read_bytes()
+    back = tmp_path / "back.csv"
+    code, _, err = run("convert", str(aria), str(back), "-q")
+    assert code == 0, err
+    original, again = read_csv_log(SAMPLES / "corridor_loop.csv"), read_csv_log(back)
+    for a, b in ((original.poses, again.poses), (original.truth, again.truth)):
+        assert a is not None and b is not None
+        assert (a.stamp_ns == b.stamp_ns).all() and (a.x_m == b.x_m).all()
+        assert (a.theta_rad == b.theta_rad).all()
+    assert (original.readings.range_m == again.readings.range_m).all()
+    assert read_aria_log(aria).sensor_names == original.sensor_names
+
+
+def test_format_flag_overrides_the_name(tmp_path: Path) -> None:
+    out = tmp_path / "run.log"
+    code, _, err = run(
+        "convert", str(SAMPLES / "corridor_loop.csv"), str(out), "--format", "mcap", "-q"
+    )
+    assert code == 0, err
+    assert out.read_bytes()[:8] == b"\x89MCAP0\r\n"
+
+
+def test_simulate_writes_mcap(tmp_path: Path) -> None:
+    world = SAMPLES / "worlds" / "corridor_loop.yaml"
+    path = SAMPLES / "paths" / "corridor_loop.yaml"
+    out = tmp_path / "sim.out"
+    code, _, err = run(
+        "simulate", str(world), str(path), "-o", str(out), "--format", "mcap",
+        "--encoding", "ros2", "--duration", "2", "--quiet",
+    )  # fmt: skip
+    assert code == 0, err
+    profile, counts = topic_counts(out)
+    assert profile == "ros2"
+    # 2 s at 10 Hz: 20 stamps (0.0 .. 1.9), 16 sonars each
+    assert counts["/odom"] == counts["/tf"] == 20 and counts["/sonar"] == 20 * 16
+
+
+def test_mcap_input_goes_through_the_readers_registry(tmp_path: Path) -> None:
+    """MCAP as input needs an MCAP reader in the registry; until then it is an unknown format."""
+    out = tmp_path / "back.csv"
+    code, _, err = run("convert", str(SAMPLES / "corridor_loop.mcap"), str(out), "-q")
+    if "mcap" in format_names():
+        assert code == 0, err
+        assert read_csv_log(out).readings.range_m.tolist() == (
+            read_csv_log(SAMPLES / "corridor_loop.csv").readings.range_m.tolist()
+        )
+    else:
+        assert code == 2
+        assert err.startswith(f"Error: {SAMPLES / 'corridor_loop.mcap'}: not a log format")
+        assert names(tmp_path) == set()
+
+
+def write_odd_robot_log(tmp_path: Path) -> Path:
+    """A CSV whose one sensor, 'front', is described by a robot YAML beside it."""
+    (tmp_path / "bot.yaml").write_text(
+        "gridmap-robot: 1\nname: bot\nsensors:\n"
+        "  - {name: front, x_m: 0.1, y_m: 0.0, yaw_deg: 0, beam_width_deg: 20, max_range_m: 3}\n"
+    )
+    log = tmp_path / "odd.csv"
+    log.write_text("# robot: bot.yaml\ntime,x,y,theta,front\n0.0,0,0,0,1.5\n0.1,0.1,0,0,3.0\n")
+    return log
+
+
+def test_geometry_comes_from_the_logs_robot(tmp_path: Path) -> None:
+    log = write_odd_robot_log(tmp_path)
+    out = tmp_path / "odd.mcap"
+    code, _, err = run("convert", str(log), str(out), "-q")
+    assert code == 0, err
+    assert topic_counts(out)[1] == {"/sensors": 1, "/odom": 2, "/range": 2}
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        "exists",
+        "unknown suffix",
+        "encoding for csv",
+        "missing input",
+        "aria cannot hold",
+        "no robot",
+    ],
+)
+def test_errors_are_one_line_and_leave_nothing(case: str, tmp_path: Path) -> None:
+    sample = str(SAMPLES / "corridor_loop.csv")
+    work = tmp_path / "work"
+    work.mkdir()
+    expected_code = 1
+    if case == "exists":
+        (work / "run.mcap").write_bytes(b"old")
+        args = [sample, str(work / "run.mcap")]
+        message = f"{work / 'run.mcap'} exists (use --force to overwrite)"
+    elif case == "unknown suffix":
+        args = [sample, str(work / "run.bag")]
+        expected_code = 2
+        message = (
+            f"{work / 'run.bag'}: cannot tell the log format from the name; end it in one of "
+            "csv (.csv), aria (.2d), mcap (.mcap) or give --format"
+        )
+    elif case == "encoding for csv":
+        args = [sample, str(work / "run.csv"), "--encoding", "ros2"]
+        expected_code = 2
+        message = "--encoding applies to MCAP output only, not csv"
+    elif case == "missing input":
+        args = [str(tmp_path / "nope.csv"), str(work / "run.mcap")]
+        message = f"{tmp_path / 'nope.csv'}: no such file"
+    elif case == "aria cannot hold":
+        log = write_odd_robot_log(tmp_path)
+        args = [str(log), str(work / "odd.2d")]
+        message = (
+            f"{work / 'odd.2d'}: cannot write as aria: the ARIA format cannot hold sensor "
+            "'front': sonar units are sonar0, sonar1, ... in order and laser beams "
+            "laser<N>_0, laser<N>_1, ..."
+        )
+    else:
+        log = tmp_path / "plain.csv"
+        log.write_text("time,x,y,theta,front\n0.0,0,0,0,1.5\n")
+        args = [str(log), str(work / "plain.mcap")]
+        message = (
+            f"{log}: the log does not describe sensor 'front'; give --robot "
+            "(a preset name, a robot YAML file or an ARIA .p file)"
+        )
+    before = names(work)
+    code, stdout, err = run("convert", *args)
+    assert code == expected_code
+    assert stdout == ""
+    assert err == f"Error: {message}\n"
+    assert names(work) == before
