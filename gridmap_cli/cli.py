@@ -7,6 +7,7 @@ errors become one ``Error: ...`` line: exit 1 for bad data or runtime failures, 
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import math
@@ -25,7 +26,9 @@ from gridmap_cli.calibrate import Calibration
 from gridmap_cli.calibrate import calibrate as calibrate_log
 from gridmap_cli.convert import output_writer, write_log, writer_names
 from gridmap_cli.errors import GridmapError, InputFileError, OutputExistsError, UsageError
+from gridmap_cli.models.error_aware import ErrorAwareParams
 from gridmap_cli.models.standard import StandardSonarParams
+from gridmap_cli.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
 from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.robot import RobotDescription, load_robot, preset_names
@@ -173,6 +176,27 @@ def _robot_from_log(log: Path, metadata: dict[str, str]) -> RobotDescription | N
     show_default=True,
     help="Map with the odometry, or with the log's global pose (ARIA robotGlobal, CSV true_*).",
 )
+@click.option(
+    "--odometry-error",
+    "odometry_file",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Error-aware mode: odometry-error YAML (what gridmap calibrate writes).",
+)
+@click.option(
+    "--odometry-coefficient",
+    "coefficients",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="Error-aware mode: set one f/g coefficient (docs/odometry-error.md names them), e.g. "
+    "range_m_per_m=0.01; overrides the file; repeatable.",
+)
+@click.option(
+    "--trust-length",
+    type=float,
+    default=ErrorAwareParams.trust_length_m,
+    show_default=True,
+    help="Error-aware mode: pose error (m) at which a reading counts half.",
+)
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -189,6 +213,9 @@ def build(
     free: float,
     no_echo_free: float,
     pose: str,
+    odometry_file: Path | None,
+    coefficients: tuple[str, ...],
+    trust_length: float,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -204,6 +231,9 @@ def build(
         sonar = StandardSonarParams(no_echo_free_m=no_echo_free)
     except ValueError as exc:
         raise UsageError(str(exc)) from exc
+    error_aware, odometry_error = _error_aware_options(
+        mode, odometry_file, coefficients, trust_length
+    )
     to_mcap = output.suffix.lower() == ".mcap"
     if to_mcap:
         source = click.get_current_context().get_parameter_source("map_mode")
@@ -221,7 +251,13 @@ def build(
     data = select_poses(fmt.read(log), pose)
     if robot_desc is None:
         robot_desc = _robot_from_log(log, data.metadata)
-    options = BuildOptions(resolution_m=resolution, mode=mode, sonar=sonar)
+    options = BuildOptions(
+        resolution_m=resolution,
+        mode=mode,
+        sonar=sonar,
+        error_aware=error_aware,
+        odometry_error=odometry_error,
+    )
     with _progress_bar(len(data.readings), quiet, "mapping") as bar:
         result = build_map(data, robot_desc, options, progress=bar.update)
     yaml_path: Path | None
@@ -241,6 +277,50 @@ def build(
         click.echo(json.dumps(summary, indent=2))
     if not quiet:
         click.echo(_summary_line(summary), err=True)
+
+
+def _error_aware_options(
+    mode: str, odometry_file: Path | None, coefficients: tuple[str, ...], trust_length: float
+) -> tuple[ErrorAwareParams, OdometryError | None]:
+    """The error-aware model's settings from build's flags (usage errors before any reading)."""
+    ctx = click.get_current_context()
+    trust_given = ctx.get_parameter_source("trust_length") != click.core.ParameterSource.DEFAULT
+    given = odometry_file is not None or bool(coefficients)
+    if mode != "error-aware":
+        if given or trust_given:
+            raise UsageError(
+                "--odometry-error, --odometry-coefficient and --trust-length apply to "
+                "--mode error-aware"
+            )
+        return ErrorAwareParams(), None
+    if not given:
+        raise UsageError(
+            "--mode error-aware needs the odometry error: --odometry-error FILE (gridmap "
+            "calibrate writes one) or --odometry-coefficient NAME=VALUE"
+        )
+    try:
+        params = ErrorAwareParams(trust_length_m=trust_length)
+    except ValueError as exc:
+        raise UsageError(f"--trust-length: {exc}") from exc
+    names = [f.name for f in dataclasses.fields(OdometryError)]
+    overrides: dict[str, float] = {}
+    for item in coefficients:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or name not in names:
+            raise UsageError(
+                f"--odometry-coefficient {item!r}: expected NAME=VALUE, NAME one of "
+                f"{', '.join(names)}"
+            )
+        try:
+            overrides[name] = float(text)
+        except ValueError:
+            raise UsageError(f"--odometry-coefficient {item!r}: {text!r} is not a number") from None
+    model = load_odometry_error(odometry_file) if odometry_file is not None else OdometryError()
+    try:
+        return params, dataclasses.replace(model, **overrides)
+    except ValueError as exc:
+        raise UsageError(f"--odometry-coefficient: {exc}") from exc
 
 
 def _summary(
