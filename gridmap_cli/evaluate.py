@@ -30,6 +30,7 @@ from gridmap_cli.mapfile import load_map, stored_probability
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.sim.world import World
+from gridmap_cli.sync import interpolate_pose
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -127,8 +128,6 @@ def odometry_frame_in_world(log: RangeLog) -> Pose:
     k = int(np.searchsorted(odo.stamp_ns, truth.stamp_ns[0], side="left"))
     if k >= len(odo):
         raise EvaluationError(f"{log.source}: the odometry and the ground truth never overlap")
-    from gridmap_cli.sync import interpolate_pose
-
     tx, ty, tth, _ = interpolate_pose(truth, odo.stamp_ns[k : k + 1])
     ix, iy, ith = inverse(odo.x_m[k], odo.y_m[k], odo.theta_rad[k])
     x, y, th = compose(tx[0], ty[0], tth[0], ix, iy, ith)
@@ -289,11 +288,12 @@ def evaluate_map(
     n_true = int((region & walls).sum())
     precision = float((region & predicted & near_wall).sum() / n_pred) if n_pred else math.nan
     recall = float((region & walls & near_predicted).sum() / n_true) if n_true else math.nan
-    f1 = (
-        2 * precision * recall / (precision + recall)
-        if n_pred and n_true and precision + recall > 0
-        else (0.0 if n_pred and n_true else math.nan)
-    )
+    if not (n_pred and n_true):
+        f1 = math.nan
+    elif precision + recall == 0.0:
+        f1 = 0.0
+    else:
+        f1 = 2 * precision * recall / (precision + recall)
     return Evaluation(
         cells=n,
         occupied_cells=n_true,
