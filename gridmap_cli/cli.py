@@ -579,6 +579,10 @@ def evaluate(
     recall and F1 within one cell, coverage. Unknown cells count as p = 0.5. With --log the
     region scored is the world cells the log's sensors could have sensed from the true path;
     without it, the whole world map.
+
+    A map built from odometry is in the odometry frame, which starts at the log's first true
+    pose: --log places it in the world. A map built with --pose global is in the world frame
+    already: give --frame world.
     """
     from gridmap_cli import evaluate as ev
     from gridmap_cli.sync import sensors_for_log
