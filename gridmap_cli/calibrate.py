@@ -238,6 +238,9 @@ def fit(
         coef = [next(it) if turn_ok else 0.0, next(it) if drift_ok else 0.0]
     sigma_h = math.sqrt(float(np.sum(r_h**2)) / total_turned) if turn_ok else 0.0
 
+    # rounding noise of an error-free log (1e-17) is no error: write it as 0
+    scale, sigma_d, sigma_h = _clean(scale), _clean(sigma_d), _clean(sigma_h)
+    coef = [_clean(c) for c in coef]
     model = OdometryError(
         range_m_per_m=abs(scale),
         range_m_per_sqrt_m=sigma_d,
@@ -265,6 +268,10 @@ def fit(
         window_m=window_m,
         window_rad=window_rad,
     )
+
+
+def _clean(x: float) -> float:
+    return 0.0 if abs(x) < 1e-12 else float(x)
 
 
 def calibrate(

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from gridmap_cli.calibrate import CalibrationError, calibrate
-from gridmap_cli.odometry_error import load_odometry_error
+from gridmap_cli.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import load_robot
@@ -190,3 +190,11 @@ def test_bad_options_are_usage_errors(tmp_path: Path, args: list[str], message: 
 def test_missing_log(tmp_path: Path) -> None:
     code, _, err = run("calibrate", str(tmp_path / "absent.csv"))
     assert code == 1 and err == f"Error: {tmp_path / 'absent.csv'}: no such file\n"
+
+
+def test_perfect_odometry_calibrates_to_exact_zeros(tmp_path: Path) -> None:
+    # rounding noise (1e-17) is written as 0, so the file says "no error" in so many words
+    line = straight_line(0.0)
+    save_csv_log(line, tmp_path / "line.csv")
+    assert calibrate(read_log(tmp_path / "line.csv")).model == OdometryError()
+    assert calibrate(spin_in_place(0.0)).model == OdometryError()
