@@ -153,15 +153,19 @@ class LogOddsAccumulator:
         )
 
     def add_observations(
-        self, row: npt.NDArray[np.int64], col0: npt.NDArray[np.int64], col1: npt.NDArray[np.int64]
+        self,
+        row: npt.NDArray[np.int64],
+        col0: npt.NDArray[np.int64],
+        col1: npt.NDArray[np.int64],
+        times: int = 1,
     ) -> None:
-        """Count one observation in every cell of each run; arrays shape (S,)."""
+        """Count ``times`` observations (-1 takes one back) in every cell of each run."""
         n = row.shape[0]
         if n == 0:
             return
         base = row * self._stride
-        self._counts += np.bincount(base + col0, minlength=self._counts.shape[0])
-        self._counts -= np.bincount(base + col1 + 1, minlength=self._counts.shape[0])
+        self._counts += times * np.bincount(base + col0, minlength=self._counts.shape[0])
+        self._counts -= times * np.bincount(base + col1 + 1, minlength=self._counts.shape[0])
 
     def log_odds(self) -> npt.NDArray[np.float64]:
         """Summed log-odds per cell, shape (height, width)."""
@@ -224,10 +228,15 @@ class FrequencyAccumulator:
         col0: npt.NDArray[np.int64],
         col1: npt.NDArray[np.int64],
         weight: npt.NDArray[np.float64],
+        times: int = 1,
     ) -> None:
-        """Add ``weight[k]`` of observation mass to every cell of run k (and count the look)."""
+        """Add ``weight[k]`` of observation mass to every cell of run k.
+
+        ``times``: looks counted in those cells (what makes a cell known); a ring is a disk's
+        runs with ``times=1`` less the inner disk's with a negative weight and ``times=-1``.
+        """
         self._looks.add_values(row, col0, col1, weight)
-        self._looks.add_observations(row, col0, col1)
+        self._looks.add_observations(row, col0, col1, times)
 
     def hits(self) -> npt.NDArray[np.float64]:
         """Hit mass per cell, shape (height, width)."""

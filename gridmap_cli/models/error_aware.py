@@ -63,15 +63,18 @@ class ErrorAwareParams:
 class SpreadEvidence:
     """Per-reading geometry and weights, shape (M,) each.
 
-    Every reading adds ``weight`` to the observation mass of the cells of its sector up to
-    ``look_m`` and ``weight * hit`` to the hit mass of the cells between ``free_m`` and
-    ``look_m``. No-echo readings have ``hit == 0`` and ``free_m == look_m``.
+    Every reading adds ``weight`` to the observation mass, and ``weight * hit`` to the hit mass,
+    of the cells of its wide wedge (``half_width_rad``) between ``free_m`` and ``look_m`` (the
+    echo ring); and ``weight`` to the observation mass of the cells of its narrow wedge
+    (``free_half_width_rad``) nearer than ``free_m`` (looked through). No-echo readings have
+    ``hit == 0`` and ``free_m == look_m``.
     """
 
     x_m: F64
     y_m: F64
     theta_rad: F64
     half_width_rad: F64
+    free_half_width_rad: F64
     free_m: F64
     look_m: F64
     hit: F64
@@ -119,11 +122,14 @@ class ErrorAwareSonarModel:
         weight = trust_l * trust_l / (trust_l * trust_l + f * f)
         free = np.where(echo, z - band, np.minimum(zmax, self.sonar.no_echo_free_m))
         look = np.where(echo, z + h, free)
+        # looked through whichever way the heading erred: the wedge narrowed by g
+        free_half = np.maximum(beam_half - g, 0.0)
         return SpreadEvidence(
             x_m=readings.x_m,
             y_m=readings.y_m,
             theta_rad=readings.theta_rad,
             half_width_rad=half_width,
+            free_half_width_rad=free_half,
             free_m=np.maximum(free, 0.0),
             look_m=look,
             hit=hit,
@@ -138,14 +144,18 @@ class ErrorAwareSonarModel:
     def accumulate(self, grid: FrequencyAccumulator, readings: SensorReadings) -> int:
         """Add the readings' counts to ``grid``; returns the number of cell updates."""
         ev = self.evidence(readings)
-        rows = sector_rows(grid.spec, ev.x_m, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m)
-        look = rows.spans(ev.look_m)
-        grid.add_looks(look.row, look.col0, look.col1, ev.weight[look.reading])
+        spec = grid.spec
+        wide = sector_rows(spec, ev.x_m, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m)
+        narrow = sector_rows(spec, ev.x_m, ev.y_m, ev.theta_rad, ev.free_half_width_rad, ev.free_m)
         mass = ev.weight * ev.hit
-        echo = mass[look.reading] > 0.0
-        grid.add_hits(look.row[echo], look.col0[echo], look.col1[echo], mass[look.reading][echo])
-        # take the hit mass back inside the free reach: hits only in the ring (free_m, look_m]
-        free = rows.spans(ev.free_m)
-        echo = mass[free.reading] > 0.0
-        grid.add_hits(free.row[echo], free.col0[echo], free.col1[echo], -mass[free.reading][echo])
-        return look.cells()
+        # the echo ring (free_m, look_m] of the wide wedge: looks and hits
+        outer = wide.spans(ev.look_m)
+        inner = wide.spans(ev.free_m)
+        grid.add_looks(outer.row, outer.col0, outer.col1, ev.weight[outer.reading])
+        grid.add_looks(inner.row, inner.col0, inner.col1, -ev.weight[inner.reading], times=-1)
+        grid.add_hits(outer.row, outer.col0, outer.col1, mass[outer.reading])
+        grid.add_hits(inner.row, inner.col0, inner.col1, -mass[inner.reading])
+        # looked through: the narrow wedge up to free_m, whichever way the pose erred
+        free = narrow.spans(ev.free_m)
+        grid.add_looks(free.row, free.col0, free.col1, ev.weight[free.reading])
+        return outer.cells()

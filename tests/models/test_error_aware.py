@@ -150,3 +150,29 @@ def test_model_needs_travel() -> None:
     bare = SensorReadings(r.stamp_ns, r.sensor, r.range_m, r.x_m, r.y_m, r.theta_rad, r.sensors)
     with pytest.raises(ValueError, match="distance driven"):
         model(Linear()).evidence(bare)
+
+
+def cell_at(distance_m: float, bearing_rad: float) -> tuple[int, int]:
+    col, row = SPEC.world_to_cell(
+        np.array([distance_m * math.cos(bearing_rad)]),
+        np.array([distance_m * math.sin(bearing_rad)]),
+    )
+    return int(row[0]), int(col[0])
+
+
+def test_bearing_spread_narrows_what_was_looked_through_and_widens_the_echo() -> None:
+    """Free space is claimed only where the beam went whichever way the heading erred (beta/2 -
+    g); the echo may have come from anywhere in beta/2 + g."""
+    r = readings([3.0], [0.0], [2.0])
+    edge = cell_at(1.5, math.radians(10.0))  # inside beta/2 = 12.5 deg, outside 12.5 - 5.7
+    wide_echo = cell_at(3.0, math.radians(16.0))  # outside beta/2, inside 12.5 + 5.7
+    sharp = grid_of(Linear(), r)
+    spread = grid_of(Linear(a_g=0.05), r)  # g = 0.1 rad = 5.7 deg
+    assert sharp.looks()[edge] == pytest.approx(1.0)
+    assert spread.observations()[edge] == 0 and spread.looks()[edge] == pytest.approx(0.0)
+    assert sharp.hits()[wide_echo] == pytest.approx(0.0)
+    assert 0.0 < spread.hits()[wide_echo] < 1.0
+    # a = (h / b) (beta/2 / sigma_theta), b = sqrt(h^2 + (k z)^2) with k z = 3 cm
+    h = StandardSonarParams().band_half_m(0.05)
+    a = h / math.hypot(h, 0.03) * math.radians(12.5) / (math.radians(12.5) + 0.1)
+    assert spread.hits()[wide_echo] == pytest.approx(spread.looks()[wide_echo] * a)
