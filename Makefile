@@ -48,5 +48,10 @@ bench: install
 samples: install
 	$(BIN)/python samples/make_samples.py
 
+# simulate, build every mapping mode, evaluate against ground truth; writes docs/experiments.md
+# and docs/images/experiments.png (needs matplotlib, in the dev extra)
+experiment: dev
+	$(BIN)/python bench/experiment.py
+
 clean:
 	rm -rf $(VENV) out build *.egg-info .pytest_cache .ruff_cache .mypy_cache bench/.cache

@@ -133,6 +133,28 @@ def main() -> None:
     )
     print(f"    write PNG+YAML  {t3 - t2:8.2f} s")
 
+    # the error-aware mode on the same log, with the simulator's drift-1 error as its f and g
+    drift1 = {
+        "range_m_per_m": 0.01,
+        "range_m_per_sqrt_m": 0.01,
+        "bearing_rad_per_rad": 0.02,
+        "bearing_rad_per_sqrt_rad": 0.02,
+        "heading_drift_rad_per_m": 0.00349,
+    }
+    coefficients = [a for k, v in drift1.items() for a in ("--odometry-coefficient", f"{k}={v}")]
+    cmd = one_core(
+        [
+            *gridmap(), "build", str(log), "-o", str(CACHE / "bench_map_ea.png"), "--force",
+            "--quiet", "--json", "--mode", "error-aware", *coefficients,
+        ]
+    )  # fmt: skip
+    wall, peak_mib, stdout = run_measured(cmd)
+    summary = json.loads(stdout)
+    print(f"gridmap build, error-aware mode (drift-1 coefficients), {pinned}")
+    print(f"  wall time         {wall:8.2f} s")
+    print(f"  readings/s        {summary['readings']['used'] / wall:12,.0f}")
+    print(f"  peak memory       {peak_mib:8d} MiB")
+
 
 if __name__ == "__main__":
     main()

@@ -7,6 +7,7 @@ errors become one ``Error: ...`` line: exit 1 for bad data or runtime failures, 
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import math
@@ -21,9 +22,14 @@ import numpy as np
 from tqdm import tqdm
 
 from gridmap_cli import __version__
+from gridmap_cli.calibrate import Calibration
+from gridmap_cli.calibrate import calibrate as calibrate_log
 from gridmap_cli.convert import output_writer, write_log, writer_names
 from gridmap_cli.errors import GridmapError, InputFileError, OutputExistsError, UsageError
+from gridmap_cli.evaluate import Evaluation
+from gridmap_cli.models.error_aware import ErrorAwareParams
 from gridmap_cli.models.standard import StandardSonarParams
+from gridmap_cli.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
 from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.readers.options import ReadOptions
@@ -216,6 +222,27 @@ def _read_options(
     help="Map with the odometry, or with the log's global pose (ARIA robotGlobal, CSV true_*).",
 )
 @_topic_options
+@click.option(
+    "--odometry-error",
+    "odometry_file",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Error-aware mode: odometry-error YAML (what gridmap calibrate writes).",
+)
+@click.option(
+    "--odometry-coefficient",
+    "coefficients",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="Error-aware mode: set one f/g coefficient (docs/odometry-error.md names them), e.g. "
+    "range_m_per_m=0.01; overrides the file; repeatable.",
+)
+@click.option(
+    "--trust-length",
+    type=float,
+    default=ErrorAwareParams.trust_length_m,
+    show_default=True,
+    help="Error-aware mode: pose error (m) at which a reading counts half.",
+)
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -236,6 +263,9 @@ def build(
     range_topics: tuple[str, ...],
     odom_frame: str | None,
     base_frame: str | None,
+    odometry_file: Path | None,
+    coefficients: tuple[str, ...],
+    trust_length: float,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -251,6 +281,9 @@ def build(
         sonar = StandardSonarParams(no_echo_free_m=no_echo_free)
     except ValueError as exc:
         raise UsageError(str(exc)) from exc
+    error_aware, odometry_error = _error_aware_options(
+        mode, odometry_file, coefficients, trust_length
+    )
     to_mcap = output.suffix.lower() == ".mcap"
     if to_mcap:
         source = click.get_current_context().get_parameter_source("map_mode")
@@ -271,7 +304,13 @@ def build(
     data = select_poses(fmt.read(log, read_options), pose)
     if robot_desc is None:
         robot_desc = _robot_from_log(log, data.metadata)
-    options = BuildOptions(resolution_m=resolution, mode=mode, sonar=sonar)
+    options = BuildOptions(
+        resolution_m=resolution,
+        mode=mode,
+        sonar=sonar,
+        error_aware=error_aware,
+        odometry_error=odometry_error,
+    )
     with _progress_bar(len(data.readings), quiet, "mapping") as bar:
         result = build_map(data, robot_desc, options, progress=bar.update)
     yaml_path: Path | None
@@ -291,6 +330,50 @@ def build(
         click.echo(json.dumps(summary, indent=2))
     if not quiet:
         click.echo(_summary_line(summary), err=True)
+
+
+def _error_aware_options(
+    mode: str, odometry_file: Path | None, coefficients: tuple[str, ...], trust_length: float
+) -> tuple[ErrorAwareParams, OdometryError | None]:
+    """The error-aware model's settings from build's flags (usage errors before any reading)."""
+    ctx = click.get_current_context()
+    trust_given = ctx.get_parameter_source("trust_length") != click.core.ParameterSource.DEFAULT
+    given = odometry_file is not None or bool(coefficients)
+    if mode != "error-aware":
+        if given or trust_given:
+            raise UsageError(
+                "--odometry-error, --odometry-coefficient and --trust-length apply to "
+                "--mode error-aware"
+            )
+        return ErrorAwareParams(), None
+    if not given:
+        raise UsageError(
+            "--mode error-aware needs the odometry error: --odometry-error FILE (gridmap "
+            "calibrate writes one) or --odometry-coefficient NAME=VALUE"
+        )
+    try:
+        params = ErrorAwareParams(trust_length_m=trust_length)
+    except ValueError as exc:
+        raise UsageError(f"--trust-length: {exc}") from exc
+    names = [f.name for f in dataclasses.fields(OdometryError)]
+    overrides: dict[str, float] = {}
+    for item in coefficients:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or name not in names:
+            raise UsageError(
+                f"--odometry-coefficient {item!r}: expected NAME=VALUE, NAME one of "
+                f"{', '.join(names)}"
+            )
+        try:
+            overrides[name] = float(text)
+        except ValueError:
+            raise UsageError(f"--odometry-coefficient {item!r}: {text!r} is not a number") from None
+    model = load_odometry_error(odometry_file) if odometry_file is not None else OdometryError()
+    try:
+        return params, dataclasses.replace(model, **overrides)
+    except ValueError as exc:
+        raise UsageError(f"--odometry-coefficient: {exc}") from exc
 
 
 def _summary(
@@ -483,6 +566,143 @@ def simulate(
 
 @cli.command()
 @click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Odometry-error YAML to write (what build takes); default: print only.",
+)
+@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@click.option(
+    "--window",
+    "window_m",
+    type=float,
+    default=1.0,
+    show_default=True,
+    help="Metres of travel per comparison window.",
+)
+@click.option(
+    "--window-turn",
+    "window_deg",
+    type=float,
+    default=90.0,
+    show_default=True,
+    help="Degrees of turning that also close a window (for turns on the spot).",
+)
+@click.option(
+    "--sonar-error",
+    type=float,
+    default=0.01,
+    show_default=True,
+    help="The sonar's relative range error k to write into the file (0.01 = 1 %).",
+)
+@click.option("--force", is_flag=True, help="Overwrite an existing output.")
+@click.option("--json", "as_json", is_flag=True, help="Print the figures as JSON on stdout.")
+@_handle_errors
+def calibrate(
+    log: Path,
+    output: Path | None,
+    log_format: str | None,
+    window_m: float,
+    window_deg: float,
+    sonar_error: float,
+    force: bool,
+    as_json: bool,
+) -> None:
+    """Estimate the odometry-error coefficients of LOG against its ground truth.
+
+    LOG must carry ground truth (CSV true_x/true_y/true_theta, ARIA robotGlobal). Odometry and
+    truth are compared over consecutive windows of travel; see docs/odometry-error.md.
+    """
+    from gridmap_cli.odometry_error import save_odometry_error
+
+    if not (window_m > 0.0 and math.isfinite(window_m)):
+        raise UsageError(f"--window must be a positive number of metres, got {window_m}")
+    if not (window_deg > 0.0 and math.isfinite(window_deg)):
+        raise UsageError(f"--window-turn must be a positive number of degrees, got {window_deg}")
+    if not (sonar_error >= 0.0 and math.isfinite(sonar_error)):
+        raise UsageError(f"--sonar-error must be a finite number >= 0, got {sonar_error}")
+    if output is not None:
+        if output.exists() and not force:
+            raise OutputExistsError(output)
+        _check_output_folder(output)
+    if not log.is_file():
+        raise InputFileError(log, "no such file" if not log.exists() else "not a regular file")
+    data = resolve_format(log, log_format).read(log)
+    result = calibrate_log(data, window_m, math.radians(window_deg), sonar_error)
+    if output is not None:
+        save_odometry_error(
+            result.model,
+            output,
+            comments=[
+                f"gridmap {__version__} calibrate {log.name}: {result.windows} windows of "
+                f"{window_m:g} m or {window_deg:g} deg, {result.driven_m:.1f} m driven, "
+                f"{math.degrees(result.turned_rad):.0f} deg turned",
+            ],
+        )
+    if as_json:
+        doc = {"log": str(log), "output": str(output) if output else None, **result.as_dict()}
+        click.echo(json.dumps(doc, indent=2))
+    else:
+        click.echo(_calibration_table(str(log), result, output))
+
+
+def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
+    m = c.model
+
+    def maybe(ok: bool, text: str) -> str:
+        return text if ok else "not estimated"
+
+    rows = [
+        (
+            "distance scale error",
+            maybe(c.distance_estimated, f"{100 * c.scale_error:+.2f} % of distance"),
+            f"range_m_per_m: {m.range_m_per_m:.4g}",
+        ),
+        (
+            "distance random walk",
+            maybe(c.distance_estimated, f"{100 * m.range_m_per_sqrt_m:.2f} cm after 1 m"),
+            f"range_m_per_sqrt_m: {m.range_m_per_sqrt_m:.4g}",
+        ),
+        (
+            "turn scale error",
+            maybe(c.turn_estimated, f"{100 * c.turn_scale_error:+.2f} % of rotation"),
+            f"bearing_rad_per_rad: {m.bearing_rad_per_rad:.4g}",
+        ),
+        (
+            "turn random walk",
+            maybe(
+                c.turn_estimated,
+                f"{math.degrees(m.bearing_rad_per_sqrt_rad):.2f} deg after 1 rad",
+            ),
+            f"bearing_rad_per_sqrt_rad: {m.bearing_rad_per_sqrt_rad:.4g}",
+        ),
+        (
+            "heading drift",
+            maybe(c.drift_estimated, f"{math.degrees(c.heading_drift_rad_per_m):+.3f} deg/m"),
+            f"heading_drift_rad_per_m: {m.heading_drift_rad_per_m:.4g}",
+        ),
+    ]
+    lines = [
+        f"{log}: {c.windows} windows ({c.driving_windows} of {c.window_m:g} m, "
+        f"{c.turning_windows} of {math.degrees(c.window_rad):g} deg turning), "
+        f"{c.driven_m:.1f} m driven, {math.degrees(c.turned_rad):.0f} deg turned",
+        "",
+        f"{'':22s} {'odometry vs truth':24s} file",
+    ]
+    lines += [f"{a:22s} {b:24s} {f}" for a, b, f in rows]
+    lines += [
+        "",
+        f"residual per window (rms, systematic terms removed): distance "
+        f"{100 * c.distance_residual_m:.2f} cm, heading "
+        f"{math.degrees(c.heading_residual_rad):.3f} deg",
+        f"wrote {output}" if output is not None else "(give -o FILE to write these)",
+    ]
+    return "\n".join(lines)
+
+
+@cli.command()
+@click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
 @click.argument("output", type=click.Path(path_type=Path, dir_okay=False))
 @click.option(
     "--format",
@@ -542,6 +762,191 @@ def convert(
             f"{', ground truth' if data.truth is not None else ''} -> {output}",
             err=True,
         )
+
+
+@cli.command()
+@click.argument("map_yaml", metavar="MAP.yaml", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "--truth",
+    "truth_yaml",
+    required=True,
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Ground-truth world map (map_server YAML, e.g. samples/worlds/*.yaml).",
+)
+@click.option(
+    "--log",
+    "log_path",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="The log the map was built from (with ground truth): places the odometry frame in the "
+    "world and limits the scores to the cells its sensors could have sensed.",
+)
+@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@click.option(
+    "--robot",
+    help="Robot preset, YAML or ARIA .p file for the sensors of --log; default: its '# robot:'.",
+)
+@click.option(
+    "--frame",
+    type=click.Choice(["odometry", "world"]),
+    default="odometry",
+    show_default=True,
+    help="Frame of the map: odometry (built from odometry: the frame starts at the log's first "
+    "true pose, needs --log) or world (built with --pose global).",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print the scores as JSON on stdout.")
+@click.option(
+    "--plot",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Write a PNG: the map with the true walls, and a reliability diagram (needs matplotlib).",
+)
+@click.option("--force", is_flag=True, help="Overwrite an existing --plot output.")
+@_handle_errors
+def evaluate(
+    map_yaml: Path,
+    truth_yaml: Path,
+    log_path: Path | None,
+    log_format: str | None,
+    robot: str | None,
+    frame: str,
+    as_json: bool,
+    plot: Path | None,
+    force: bool,
+) -> None:
+    """Score the map MAP.yaml against the ground-truth world of --truth.
+
+    Scores (docs/evaluation.md): NLL and Brier score of the true occupancy under the map's
+    probabilities, reliability table and expected calibration error, occupied-cell precision,
+    recall and F1 within one cell, coverage. Unknown cells count as p = 0.5. With --log the
+    region scored is the world cells the log's sensors could have sensed from the true path;
+    without it, the whole world map.
+
+    A map built from odometry is in the odometry frame, which starts at the log's first true
+    pose: --log places it in the world. A map built with --pose global is in the world frame
+    already: give --frame world.
+    """
+    from gridmap_cli import evaluate as ev
+    from gridmap_cli.sync import sensors_for_log
+
+    for given, what in ((map_yaml, "MAP"), (truth_yaml, "--truth")):
+        if given.suffix.lower() not in (".yaml", ".yml"):
+            raise UsageError(
+                f"{given}: {what} must be a map's YAML file (the image is named inside it)"
+            )
+    if frame == "odometry" and log_path is None:
+        raise UsageError(
+            "a map in the odometry frame needs --log (its first true pose places the frame in "
+            "the world); give --log, or --frame world for a map built with --pose global"
+        )
+    if plot is not None:
+        from gridmap_cli.evaluate_plot import check_plotting
+
+        check_plotting()
+        if plot.suffix.lower() != ".png":
+            raise UsageError(f"{plot}: --plot writes a PNG; name it .png")
+        if plot.exists() and not force:
+            raise OutputExistsError(plot)
+        _check_output_folder(plot)
+    robot_desc = load_robot(robot) if robot else None
+    for given in (map_yaml, truth_yaml, *([log_path] if log_path else [])):
+        if not given.is_file():
+            raise InputFileError(given, "no such file" if not given.exists() else "not a file")
+    truth = ev.load_truth(truth_yaml)
+    pmap = ev.load_probability_map(map_yaml)
+    map_to_world = (0.0, 0.0, 0.0)
+    region = None
+    if log_path is not None:
+        data = resolve_format(log_path, log_format).read(log_path)
+        if data.truth is None:
+            raise InputFileError(
+                log_path,
+                "the log has no ground truth (CSV true_x, true_y, true_theta columns or ARIA "
+                "robotGlobal: lines); evaluate needs the true path",
+            )
+        if robot_desc is None:
+            robot_desc = _robot_from_log(log_path, data.metadata)
+        sensors = sensors_for_log(data, robot_desc)
+        if frame == "odometry":
+            map_to_world = ev.odometry_frame_in_world(data)
+        region = ev.sensed_region(truth.world, data.truth, sensors)
+    result = ev.evaluate_map(pmap, truth.walls, truth.spec, region, map_to_world)
+    if plot is not None:
+        from gridmap_cli.evaluate_plot import plot_evaluation
+
+        plot_evaluation(
+            plot,
+            result,
+            ev.map_in_world(pmap, truth.spec, map_to_world),
+            truth.walls,
+            region if region is not None else np.ones(truth.spec.shape, dtype=bool),
+            truth.spec,
+            title=f"{map_yaml.name} vs {truth_yaml.name}",
+        )
+    if as_json:
+        doc = {
+            "map": str(map_yaml),
+            "truth": str(truth_yaml),
+            "log": str(log_path) if log_path else None,
+            "frame": frame,
+            "map_to_world": list(map_to_world),
+            "region": "sensed from the true path" if log_path else "whole world",
+            **result.as_dict(),
+        }
+        click.echo(json.dumps(_nan_to_none(doc), indent=2, allow_nan=False))
+    else:
+        click.echo(_evaluation_table(map_yaml, truth_yaml, log_path, map_to_world, result))
+    if plot is not None:
+        click.echo(f"gridmap: plot written to {plot}", err=True)
+
+
+def _nan_to_none(value: Any) -> Any:
+    """JSON has no NaN: undefined scores (an empty bin, no occupied cell) become null."""
+    if isinstance(value, float) and math.isnan(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _nan_to_none(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_nan_to_none(v) for v in value]
+    return value
+
+
+def _evaluation_table(
+    map_yaml: Path,
+    truth_yaml: Path,
+    log_path: Path | None,
+    map_to_world: tuple[float, float, float],
+    e: Evaluation,
+) -> str:
+    x, y, th = map_to_world
+    where = (
+        f"{e.cells:,} cells the sensors of {log_path.name} could have sensed"
+        if log_path
+        else f"all {e.cells:,} cells of the world"
+    )
+
+    def num(v: float, fmt: str) -> str:
+        return "n/a" if math.isnan(v) else format(v, fmt)
+
+    lines = [
+        f"{map_yaml} against {truth_yaml}",
+        f"map frame in the world: x {x:.3f} m, y {y:.3f} m, theta {math.degrees(th):.2f} deg",
+        f"scored over {where} ({e.occupied_cells:,} truly occupied)",
+        "",
+        f"NLL (nats per cell)   {e.nll:.4f}",
+        f"Brier score           {e.brier:.4f}",
+        f"ECE (10 bins)         {e.ece:.4f}",
+        f"occupied (p >= {e.occupied_thresh:g}), one cell of tolerance: precision "
+        f"{num(e.precision, '.3f')}, recall {num(e.recall, '.3f')}, F1 {num(e.f1, '.3f')} "
+        f"({e.predicted_occupied:,} cells called occupied)",
+        f"coverage              {e.coverage:.3f} of the region known",
+        "",
+        "reliability   cells   mean p   occupied",
+    ]
+    for b in e.reliability:
+        lines.append(
+            f"{b.lower:.1f}-{b.upper:.1f}  {b.count:8,d}   {num(b.mean_predicted, '6.3f'):>6s}"
+            f"   {num(b.observed_frequency, '6.3f'):>8s}"
+        )
+    return "\n".join(lines)
 
 
 def main() -> None:

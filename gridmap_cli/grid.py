@@ -153,15 +153,19 @@ class LogOddsAccumulator:
         )
 
     def add_observations(
-        self, row: npt.NDArray[np.int64], col0: npt.NDArray[np.int64], col1: npt.NDArray[np.int64]
+        self,
+        row: npt.NDArray[np.int64],
+        col0: npt.NDArray[np.int64],
+        col1: npt.NDArray[np.int64],
+        times: int = 1,
     ) -> None:
-        """Count one observation in every cell of each run; arrays shape (S,)."""
+        """Count ``times`` observations (-1 takes one back) in every cell of each run."""
         n = row.shape[0]
         if n == 0:
             return
         base = row * self._stride
-        self._counts += np.bincount(base + col0, minlength=self._counts.shape[0])
-        self._counts -= np.bincount(base + col1 + 1, minlength=self._counts.shape[0])
+        self._counts += times * np.bincount(base + col0, minlength=self._counts.shape[0])
+        self._counts -= times * np.bincount(base + col1 + 1, minlength=self._counts.shape[0])
 
     def log_odds(self) -> npt.NDArray[np.float64]:
         """Summed log-odds per cell, shape (height, width)."""
@@ -183,5 +187,82 @@ class LogOddsAccumulator:
         lo, hi = logodds(clamp_p[0]), logodds(clamp_p[1])
         clamped = np.clip(self.log_odds(), lo, hi)
         prob = 1.0 - 1.0 / (1.0 + np.exp(clamped))
+        prob[self.observations() == 0] = np.nan
+        return OccupancyMap(self.spec, prob)
+
+
+#: Prior pseudo-counts (occupied, free) of the frequency map: a cell starts at p = 0.5 with the
+#: weight of one reading (Jeffreys' Beta(1/2, 1/2) prior); docs/sensor-model.md says why.
+DEFAULT_PRIOR_COUNTS = (0.5, 0.5)
+
+
+class FrequencyAccumulator:
+    """Per-cell weighted counts of echoes ("hits") and of looks ("observations").
+
+    A reading adds a weight ``w`` to the observation mass of every cell its beam reached and
+    ``w * a`` to the hit mass of the cells its echo may have come from. The finished map is the
+    posterior mean of a Beta prior updated by those counts: ``(hits + alpha) / (observations +
+    alpha + beta)``. Unlike a log-odds sum, a thousand repeats of one reading do not make a cell
+    more certain than the frequency they agree on; they only outweigh the prior. Sums are kept in
+    the same per-row difference arrays as :class:`LogOddsAccumulator`, so order does not matter.
+    """
+
+    def __init__(self, spec: GridSpec) -> None:
+        self.spec = spec
+        self._hits = LogOddsAccumulator(spec)
+        self._looks = LogOddsAccumulator(spec)
+
+    def add_hits(
+        self,
+        row: npt.NDArray[np.int64],
+        col0: npt.NDArray[np.int64],
+        col1: npt.NDArray[np.int64],
+        weight: npt.NDArray[np.float64],
+    ) -> None:
+        """Add ``weight[k]`` of hit mass to every cell of run k."""
+        self._hits.add_values(row, col0, col1, weight)
+
+    def add_looks(
+        self,
+        row: npt.NDArray[np.int64],
+        col0: npt.NDArray[np.int64],
+        col1: npt.NDArray[np.int64],
+        weight: npt.NDArray[np.float64],
+        times: int = 1,
+    ) -> None:
+        """Add ``weight[k]`` of observation mass to every cell of run k.
+
+        ``times``: looks counted in those cells (what makes a cell known); a ring is a disk's
+        runs with ``times=1`` less the inner disk's with a negative weight and ``times=-1``.
+        """
+        self._looks.add_values(row, col0, col1, weight)
+        self._looks.add_observations(row, col0, col1, times)
+
+    def hits(self) -> npt.NDArray[np.float64]:
+        """Hit mass per cell, shape (height, width)."""
+        return self._hits.log_odds()
+
+    def looks(self) -> npt.NDArray[np.float64]:
+        """Observation mass per cell, shape (height, width)."""
+        return self._looks.log_odds()
+
+    def observations(self) -> npt.NDArray[np.int64]:
+        """Number of readings that reached each cell, shape (height, width)."""
+        return self._looks.observations()
+
+    def occupancy_map(
+        self, prior_counts: tuple[float, float] = DEFAULT_PRIOR_COUNTS
+    ) -> OccupancyMap:
+        """Posterior-mean probabilities; cells no reading reached are NaN (unknown).
+
+        Raises ValueError unless both prior counts are positive.
+        """
+        alpha, beta = prior_counts
+        if not (alpha > 0.0 and beta > 0.0 and math.isfinite(alpha + beta)):
+            raise ValueError("prior counts must be positive numbers")
+        # the difference-array sums can leave -1e-17 where a ring was added and taken away
+        hits = np.maximum(self.hits(), 0.0)
+        looks = np.maximum(self.looks(), hits)
+        prob = (hits + alpha) / (looks + alpha + beta)
         prob[self.observations() == 0] = np.nan
         return OccupancyMap(self.spec, prob)

@@ -322,3 +322,21 @@ def _round_half_away(x: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     ax = np.abs(x)
     whole = np.floor(ax)
     return np.asarray(np.sign(x) * (whole + (ax - whole >= 0.5)), dtype=np.float64)
+
+
+def stored_probability(loaded: LoadedMap) -> npt.NDArray[np.float64]:
+    """The occupancy probability a map file states for each cell; NaN where unknown.
+
+    Shape (height, width), row 0 at the bottom. A ``scale`` map stores p itself: p = (255 - g) /
+    255 (g / 255 with ``negate``) from each pixel's grey, read again from the image, with any
+    pixel not fully opaque unknown (as Nav2 reads it). ``trinary`` and ``raw`` maps state only
+    what the loader makes of them: :meth:`LoadedMap.probability` (trinary: 0 or 1).
+    """
+    if loaded.mode != "scale":
+        return loaded.probability()
+    colour, alpha = _read_image(loaded.image_path)
+    grey = colour.astype(np.float64).mean(axis=2)
+    p = grey / 255.0 if loaded.negate else (255.0 - grey) / 255.0
+    if alpha is not None:
+        p[alpha < 255] = np.nan
+    return np.ascontiguousarray(p[::-1])

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -17,17 +17,20 @@ from gridmap_cli.errors import GridmapError, NoDataError
 from gridmap_cli.grid import (
     DEFAULT_CLAMP_P,
     DEFAULT_MAX_CELLS,
+    DEFAULT_PRIOR_COUNTS,
+    FrequencyAccumulator,
     GridSpec,
     LogOddsAccumulator,
     OccupancyMap,
 )
+from gridmap_cli.models.error_aware import ErrorAwareParams, ErrorAwareSonarModel, OdometrySpread
 from gridmap_cli.models.ray import RayModel, RayParams
 from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
 from gridmap_cli.records import RangeLog, span_text
 from gridmap_cli.robot import RobotDescription
 from gridmap_cli.sync import SensorReadings, SyncStats, synchronise
 
-MAPPING_MODES = ("standard",)
+MAPPING_MODES = ("standard", "error-aware")
 
 
 @dataclass(frozen=True)
@@ -39,6 +42,9 @@ class BuildOptions:
     sonar: StandardSonarParams = field(default_factory=StandardSonarParams)
     ray: RayParams = field(default_factory=RayParams)
     clamp_p: tuple[float, float] = DEFAULT_CLAMP_P
+    error_aware: ErrorAwareParams = field(default_factory=ErrorAwareParams)
+    odometry_error: OdometrySpread | None = None
+    prior_counts: tuple[float, float] = DEFAULT_PRIOR_COUNTS
     margin_m: float = 0.2
     max_cells: int = DEFAULT_MAX_CELLS
     batch_size: int = 20_000
@@ -64,12 +70,17 @@ class SensorModel(Protocol):
         """Box (xmin, ymin, xmax, ymax), metres, holding every cell the readings can touch."""
         ...
 
-    def accumulate(self, grid: LogOddsAccumulator, readings: SensorReadings) -> int:
-        """Add the readings' evidence to ``grid``; returns the number of cell updates."""
+    def accumulate(self, grid: Any, readings: SensorReadings) -> int:
+        """Add the readings' evidence to ``grid``; returns the number of cell updates.
+
+        ``grid`` is the accumulator of the mode: :class:`LogOddsAccumulator` (standard) or
+        :class:`FrequencyAccumulator` (error-aware).
+        """
         ...
 
 
 def _select(readings: SensorReadings, sl: slice | npt.NDArray[np.bool_]) -> SensorReadings:
+    travel = len(readings.distance_m) == len(readings)
     return SensorReadings(
         stamp_ns=readings.stamp_ns[sl],
         sensor=readings.sensor[sl],
@@ -78,6 +89,8 @@ def _select(readings: SensorReadings, sl: slice | npt.NDArray[np.bool_]) -> Sens
         y_m=readings.y_m[sl],
         theta_rad=readings.theta_rad[sl],
         sensors=readings.sensors,
+        distance_m=readings.distance_m[sl] if travel else readings.distance_m,
+        rotation_rad=readings.rotation_rad[sl] if travel else readings.rotation_rad,
     )
 
 
@@ -105,7 +118,8 @@ def build_map(
     spec = GridSpec.covering(
         xmin, ymin, xmax, ymax, options.resolution_m, options.margin_m, options.max_cells
     )
-    grid = LogOddsAccumulator(spec)
+    grid: LogOddsAccumulator | FrequencyAccumulator
+    grid = LogOddsAccumulator(spec) if options.mode == "standard" else FrequencyAccumulator(spec)
     updates = 0
     for model, part in parts:
         for start in range(0, len(part), options.batch_size):
@@ -113,7 +127,11 @@ def build_map(
             updates += model.accumulate(grid, batch)
             if progress is not None:
                 progress(len(batch))
-    return BuildResult(map=grid.occupancy_map(options.clamp_p), sync=stats, cell_updates=updates)
+    if isinstance(grid, FrequencyAccumulator):
+        omap = grid.occupancy_map(options.prior_counts)
+    else:
+        omap = grid.occupancy_map(options.clamp_p)
+    return BuildResult(map=omap, sync=stats, cell_updates=updates)
 
 
 def _by_model(
@@ -126,11 +144,32 @@ def _by_model(
     """
     narrow = np.array([s.kind == "laser" or s.beam_width_rad <= 0.0 for s in readings.sensors])
     is_ray = narrow[readings.sensor]
+    if options.mode == "error-aware":
+        return [(_error_aware_model(readings, is_ray, options), readings)]
     parts: list[tuple[SensorModel, SensorReadings]] = [
         (RayModel(options.ray, options.resolution_m), _select(readings, is_ray)),
         (StandardSonarModel(options.sonar, options.resolution_m), _select(readings, ~is_ray)),
     ]
     return [(model, part) for model, part in parts if len(part) > 0]
+
+
+def _error_aware_model(
+    readings: SensorReadings, is_ray: npt.NDArray[np.bool_], options: BuildOptions
+) -> ErrorAwareSonarModel:
+    if is_ray.any():
+        lasers = sorted({readings.sensors[i].name for i in np.unique(readings.sensor[is_ray])})
+        raise GridmapError(
+            f"error-aware mode models sonar cones; {int(is_ray.sum())} readings come from "
+            f"narrow-beam sensors ({', '.join(lasers[:3])}{' ...' if len(lasers) > 3 else ''}): "
+            "build this log with --mode standard"
+        )
+    if options.odometry_error is None:
+        raise GridmapError(
+            "error-aware mode needs the odometry error model (gridmap calibrate writes one)"
+        )
+    return ErrorAwareSonarModel(
+        options.sonar, options.error_aware, options.odometry_error, options.resolution_m
+    )
 
 
 def _why_empty(log: RangeLog, stats: SyncStats) -> str:

@@ -9,13 +9,14 @@ robot does not describe are counted and dropped, never silently mapped.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, wrap_angle
+from gridmap_cli.odometry_error import travelled
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription
 
@@ -27,6 +28,9 @@ class SensorReadings:
     ``x_m``, ``y_m``, ``theta_rad``: sensor position and beam axis direction (odometry frame).
     ``range_m``: the measured range, capped at the sensor's maximum (== maximum: no echo).
     ``sensor``: index into ``sensors``.
+    ``distance_m``, ``rotation_rad``: how far the pose track had driven and how much it had turned
+    (sum of absolute heading changes) from its start to each reading: what the odometry error
+    grows with. Zero-length arrays mean "not computed" (models that need them say so).
     """
 
     stamp_ns: npt.NDArray[np.int64]
@@ -36,6 +40,8 @@ class SensorReadings:
     y_m: npt.NDArray[np.float64]
     theta_rad: npt.NDArray[np.float64]
     sensors: tuple[RangeSensor, ...]
+    distance_m: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    rotation_rad: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
 
     def __len__(self) -> int:
         return int(self.stamp_ns.shape[0])
@@ -145,6 +151,9 @@ def synchronise(log: RangeLog, robot: RobotDescription | None) -> tuple[SensorRe
     my = np.asarray([s.y_m for s in sensors], dtype=np.float64)[idx]
     myaw = np.asarray([s.yaw_rad for s in sensors], dtype=np.float64)[idx]
     sx, sy, sth = compose(x[keep], y[keep], theta[keep], mx, my, myaw)
+    dist, rot = travelled(log.poses)
+    stamps = r.stamp_ns[keep].astype(np.float64)
+    track_t = log.poses.stamp_ns.astype(np.float64)
     readings = SensorReadings(
         stamp_ns=r.stamp_ns[keep],
         sensor=idx,
@@ -153,6 +162,8 @@ def synchronise(log: RangeLog, robot: RobotDescription | None) -> tuple[SensorRe
         y_m=sy,
         theta_rad=sth,
         sensors=sensors,
+        distance_m=np.interp(stamps, track_t, dist),
+        rotation_rad=np.interp(stamps, track_t, rot),
     )
     stats = SyncStats(
         total=len(r),

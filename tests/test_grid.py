@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gridmap_cli.errors import MapSizeError
-from gridmap_cli.grid import GridSpec
+from gridmap_cli.grid import FrequencyAccumulator, GridSpec
 
 # Map-sized values: coordinates within 100 km, cells from 1 mm to 10 m.
 coords = st.floats(min_value=-1e5, max_value=1e5, allow_nan=False)
@@ -124,3 +124,21 @@ def test_covering_a_single_point_gives_one_cell() -> None:
     assert (spec.width, spec.height) == (1, 1)
     col, row = spec.world_to_cell(np.array([2.0]), np.array([3.0]))
     assert (int(col[0]), int(row[0])) == (0, 0)
+
+
+def test_frequency_map_is_the_beta_posterior_mean() -> None:
+    """Cell 0: 2 hits in 3 looks -> (2 + 0.5) / (3 + 1) = 0.625; cell 1: 0 in 1 -> 0.25."""
+    spec = GridSpec(0.0, 0.0, 1.0, 3, 1)
+    acc = FrequencyAccumulator(spec)
+    r = np.zeros(1, dtype=np.int64)
+    for _ in range(3):
+        acc.add_looks(r, r, r, np.ones(1))
+    acc.add_looks(r, r + 1, r + 1, np.ones(1))
+    acc.add_hits(r, r, r, np.full(1, 2.0))
+    prob = acc.occupancy_map().prob
+    assert prob[0, 0] == pytest.approx(0.625)
+    assert prob[0, 1] == pytest.approx(0.25)
+    assert np.isnan(prob[0, 2])
+    assert acc.occupancy_map((1.0, 3.0)).prob[0, 0] == pytest.approx(3.0 / 7.0)
+    with pytest.raises(ValueError, match="prior counts"):
+        acc.occupancy_map((0.0, 1.0))

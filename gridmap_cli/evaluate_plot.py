@@ -1,0 +1,109 @@
+"""The picture of an evaluation: the map in the world with the true walls over it, and a
+reliability diagram. matplotlib is an optional extra (``pip install 'gridmap-cli[plot]'``)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from gridmap_cli.atomic import atomic_output
+from gridmap_cli.errors import GridmapError
+from gridmap_cli.evaluate import Evaluation
+from gridmap_cli.grid import GridSpec
+
+
+class PlotUnavailableError(GridmapError):
+    """matplotlib is not installed."""
+
+
+def check_plotting() -> None:
+    """Raise :class:`PlotUnavailableError` unless matplotlib can be imported."""
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise PlotUnavailableError(
+            "--plot needs matplotlib, an optional extra: pip install 'gridmap-cli[plot]'"
+        ) from None
+
+
+def plot_evaluation(
+    path: Path,
+    evaluation: Evaluation,
+    p_world: npt.NDArray[np.float64],
+    walls: npt.NDArray[np.bool_],
+    region: npt.NDArray[np.bool_],
+    world: GridSpec,
+    title: str = "",
+) -> None:
+    """Write a PNG: left the map's probabilities on the world grid (grey = 1 - p, unknown pale
+    blue) with the true walls in red and the scored region's edge in green; right the
+    reliability diagram. Arrays shape ``world.shape``, row 0 at the bottom."""
+    check_plotting()
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from scipy import ndimage
+
+    rgb = np.repeat((1.0 - np.nan_to_num(p_world, nan=0.0))[:, :, None], 3, axis=2)
+    rgb[np.isnan(p_world)] = (0.85, 0.9, 1.0)
+    edge = region & ~ndimage.binary_erosion(region)
+    rgb[edge & ~walls] = (0.2, 0.7, 0.2)
+    overlay = np.zeros((*walls.shape, 4))
+    overlay[walls] = (0.9, 0.1, 0.1, 0.55)
+    extent = (
+        world.origin_x_m,
+        world.origin_x_m + world.width * world.resolution_m,
+        world.origin_y_m,
+        world.origin_y_m + world.height * world.resolution_m,
+    )
+    aspect = world.width / max(world.height, 1)
+    fig, (ax_map, ax_rel) = plt.subplots(
+        1, 2, figsize=(5.0 * aspect + 5.0, 5.6), gridspec_kw={"width_ratios": [aspect, 1.0]}
+    )
+    ax_map.imshow(rgb, origin="lower", extent=extent, interpolation="nearest")
+    ax_map.imshow(overlay, origin="lower", extent=extent, interpolation="nearest")
+    ax_map.set_xlabel("x (m, world)")
+    ax_map.set_ylabel("y (m, world)")
+    e = evaluation
+    ax_map.set_title(
+        f"{title}\nNLL {e.nll:.3f}  Brier {e.brier:.3f}  ECE {e.ece:.3f}  F1 {e.f1:.2f}  "
+        f"coverage {e.coverage:.2f}".strip(),
+        fontsize=9,
+    )
+    used = [b for b in e.reliability if b.count]
+    centres = [(b.lower + b.upper) / 2 for b in e.reliability]
+    ax_rel.plot([0, 1], [0, 1], color="0.6", linestyle="--", linewidth=1, label="calibrated")
+    ax_rel.plot(
+        [b.mean_predicted for b in used],
+        [b.observed_frequency for b in used],
+        marker="o",
+        color="tab:blue",
+        label="map",
+    )
+    ax_rel.set_xlim(0, 1)
+    ax_rel.set_ylim(0, 1)
+    ax_rel.set_xlabel("predicted p (bin mean)")
+    ax_rel.set_ylabel("observed frequency of occupied")
+    ax_rel.set_title(f"reliability (ECE {e.ece:.3f})", fontsize=9)
+    counts = ax_rel.twinx()
+    counts.bar(
+        centres,
+        [max(b.count, 0) for b in e.reliability],
+        width=0.09,
+        color="tab:orange",
+        alpha=0.3,
+        log=True,
+    )
+    counts.set_ylabel("cells per bin (log)")
+    counts.set_ylim(0.8, max(10.0, 10 ** math.ceil(math.log10(max(e.cells, 1)))))
+    ax_rel.set_zorder(counts.get_zorder() + 1)
+    ax_rel.patch.set_visible(False)
+    ax_rel.legend(loc="upper left", fontsize=8)
+    fig.tight_layout()
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, dpi=100, format="png")
+    plt.close(fig)

@@ -1,0 +1,161 @@
+"""The error-aware sonar model: the seed paper's eq. 10-12, made into per-cell counts.
+
+Each reading's range and bearing spread grow with the odometry error accumulated since the log
+started (eq. 11, 12)::
+
+    sigma_z     = k * z + f(d)            range spread, metres
+    sigma_theta = beta / 2 + g(d, phi)    bearing spread (half-width), radians
+
+where ``d`` and ``phi`` are the distance driven and the rotation turned so far. The reading is
+then spread over the cells it may have come from, keeping its total evidence constant, and
+weighed by how well its pose is known. Cells hold weighted counts of echoes and looks
+(:class:`~gridmap_cli.grid.FrequencyAccumulator`), so redundant readings refine a frequency
+instead of piling up log-odds. docs/sensor-model.md derives every step and gives the defaults.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from gridmap_cli.grid import FrequencyAccumulator
+from gridmap_cli.models.sector import F64, sector_bounds, sector_rows
+from gridmap_cli.models.standard import StandardSonarParams
+from gridmap_cli.sync import SensorReadings
+
+
+class OdometrySpread(Protocol):
+    """What the model needs of an odometry-error model (eq. 11 and 12)."""
+
+    @property
+    def sonar_relative_error(self) -> float:
+        """k of eq. 11: the sonar's own relative range error (0.01 for the Polaroid 6500)."""
+        ...
+
+    def f(self, distance_m: F64) -> F64:
+        """Range spread (metres) after driving ``distance_m``."""
+        ...
+
+    def g(self, distance_m: F64, rotation_rad: F64) -> F64:
+        """Bearing spread (radians) after driving ``distance_m`` and turning ``rotation_rad``."""
+        ...
+
+
+@dataclass(frozen=True)
+class ErrorAwareParams:
+    """Parameters of the error-aware model beyond the odometry error; see docs/sensor-model.md.
+
+    ``trust_length_m``: the pose error at which a reading counts half as much as one taken with a
+    perfectly known pose (weight ``L^2 / (L^2 + f^2)``).
+    """
+
+    trust_length_m: float = 0.3
+
+    def __post_init__(self) -> None:
+        if not (self.trust_length_m > 0 and math.isfinite(self.trust_length_m)):
+            raise ValueError("the trust length must be a positive number of metres")
+
+
+@dataclass(frozen=True)
+class SpreadEvidence:
+    """Per-reading geometry and weights, shape (M,) each.
+
+    Every reading adds ``weight`` to the observation mass, and ``weight * hit`` to the hit mass,
+    of the cells of its wide wedge (``half_width_rad``) between ``free_m`` and ``look_m`` (the
+    echo ring); and ``weight`` to the observation mass of the cells of its narrow wedge
+    (``free_half_width_rad``) nearer than ``free_m`` (looked through). No-echo readings have
+    ``hit == 0`` and ``free_m == look_m``.
+    """
+
+    x_m: F64
+    y_m: F64
+    theta_rad: F64
+    half_width_rad: F64
+    free_half_width_rad: F64
+    free_m: F64
+    look_m: F64
+    hit: F64
+    weight: F64
+
+
+class ErrorAwareSonarModel:
+    """The error-aware model over batches of synchronised readings."""
+
+    name = "error-aware"
+
+    def __init__(
+        self,
+        sonar: StandardSonarParams,
+        params: ErrorAwareParams,
+        odometry: OdometrySpread,
+        resolution_m: float,
+    ) -> None:
+        self.sonar = sonar
+        self.params = params
+        self.odometry = odometry
+        self.resolution_m = resolution_m
+
+    def evidence(self, readings: SensorReadings) -> SpreadEvidence:
+        """Spread, sector and weights of each reading (docs/sensor-model.md, "Error-aware")."""
+        if len(readings.distance_m) != len(readings):
+            raise ValueError("the error-aware model needs the distance driven for each reading")
+        z = readings.range_m
+        zmax = readings.per_sensor("max_range_m")
+        beam_half = 0.5 * readings.per_sensor("beam_width_rad")
+        echo = z < zmax
+        f = np.asarray(self.odometry.f(readings.distance_m), dtype=np.float64)
+        g = np.asarray(
+            self.odometry.g(readings.distance_m, readings.rotation_rad), dtype=np.float64
+        )
+        h = self.sonar.band_half_m(self.resolution_m)
+        sigma_z = self.odometry.sonar_relative_error * z + f  # eq. 11
+        half_width = np.minimum(beam_half + g, 0.5 * math.pi - 1e-9)  # eq. 12, kept convex
+        # the obstacle band (half-thickness h) blurred by the range spread
+        band = np.sqrt(h * h + sigma_z * sigma_z)
+        # one echo's worth of hit mass spread over a band `band/h` times deeper and a wedge
+        # `half_width/beam_half` times wider: the evidence a reading carries stays constant
+        hit = np.where(echo, (h / band) * (beam_half / half_width), 0.0)
+        trust_l = self.params.trust_length_m
+        weight = trust_l * trust_l / (trust_l * trust_l + f * f)
+        free = np.where(echo, z - band, np.minimum(zmax, self.sonar.no_echo_free_m))
+        look = np.where(echo, z + h, free)
+        # looked through whichever way the heading erred: the wedge narrowed by g
+        free_half = np.maximum(beam_half - g, 0.0)
+        return SpreadEvidence(
+            x_m=readings.x_m,
+            y_m=readings.y_m,
+            theta_rad=readings.theta_rad,
+            half_width_rad=half_width,
+            free_half_width_rad=free_half,
+            free_m=np.maximum(free, 0.0),
+            look_m=look,
+            hit=hit,
+            weight=weight,
+        )
+
+    def bounds(self, readings: SensorReadings) -> tuple[float, float, float, float]:
+        """Box holding every cell any reading can touch."""
+        ev = self.evidence(readings)
+        return sector_bounds(ev.x_m, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m)
+
+    def accumulate(self, grid: FrequencyAccumulator, readings: SensorReadings) -> int:
+        """Add the readings' counts to ``grid``; returns the number of cell updates."""
+        ev = self.evidence(readings)
+        spec = grid.spec
+        wide = sector_rows(spec, ev.x_m, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m)
+        narrow = sector_rows(spec, ev.x_m, ev.y_m, ev.theta_rad, ev.free_half_width_rad, ev.free_m)
+        mass = ev.weight * ev.hit
+        # the echo ring (free_m, look_m] of the wide wedge: looks and hits
+        outer = wide.spans(ev.look_m)
+        inner = wide.spans(ev.free_m)
+        grid.add_looks(outer.row, outer.col0, outer.col1, ev.weight[outer.reading])
+        grid.add_looks(inner.row, inner.col0, inner.col1, -ev.weight[inner.reading], times=-1)
+        grid.add_hits(outer.row, outer.col0, outer.col1, mass[outer.reading])
+        grid.add_hits(inner.row, inner.col0, inner.col1, -mass[inner.reading])
+        # looked through: the narrow wedge up to free_m, whichever way the pose erred
+        free = narrow.spans(ev.free_m)
+        grid.add_looks(free.row, free.col0, free.col1, ev.weight[free.reading])
+        return outer.cells()

@@ -1,0 +1,200 @@
+"""calibrate: logs whose odometry error is known exactly, a simulated one, and bad input."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gridmap_cli.calibrate import CalibrationError, calibrate
+from gridmap_cli.odometry_error import OdometryError, load_odometry_error
+from gridmap_cli.readers import read_log
+from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
+from gridmap_cli.robot import load_robot
+from gridmap_cli.sim.odometry import OdometryErrorModel
+from gridmap_cli.writers.aria_log import save_aria_log
+from gridmap_cli.writers.csv_log import save_csv_log
+from tests.helpers import names, run
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+SONAR0 = load_robot("p3dx").sensors[:1]
+
+
+def make_log(
+    truth: list[tuple[float, float, float]], odometry: list[tuple[float, float, float]]
+) -> RangeLog:
+    """A log at 10 Hz with the given poses and one 2 m sonar0 reading per pose."""
+    n = len(truth)
+    stamps = np.arange(n, dtype=np.int64) * 100_000_000
+    return RangeLog(
+        source="test",
+        poses=PoseTrack.from_rows(stamps, odometry),
+        readings=RangeReadings(stamps.copy(), np.zeros(n, np.int32), np.full(n, 2.0)),
+        sensor_names=("sonar0",),
+        truth=PoseTrack.from_rows(stamps, truth),
+        metadata={"robot": "p3dx"},
+    )
+
+
+def straight_line(scale: float, metres: float = 10.0) -> RangeLog:
+    """Driving 4 cm per step along the world's y axis from (3, 1); odometry scaled by 1 + scale.
+
+    The truth starts at heading 90 deg, the odometry at 0: each window is compared in its own
+    start frame, so the two frames need not agree.
+    """
+    steps = round(metres / 0.04)
+    truth = [(3.0, 1.0 + 0.04 * k, math.pi / 2) for k in range(steps + 1)]
+    odometry = [(0.04 * k * (1.0 + scale), 0.0, 0.0) for k in range(steps + 1)]
+    return make_log(truth, odometry)
+
+
+def spin_in_place(turn_scale: float, turns: float = 3.1) -> RangeLog:
+    """Turning on the spot 3 degrees per step; the odometry reports (1 + turn_scale) of each."""
+    steps = round(turns * 120)
+    step = math.radians(3.0)
+    truth = [(1.0, 2.0, math.remainder(k * step, math.tau)) for k in range(steps + 1)]
+    reported = step * (1.0 + turn_scale)
+    odo = [(0.0, 0.0, math.remainder(k * reported, math.tau)) for k in range(steps + 1)]
+    return make_log(truth, odo)
+
+
+def test_straight_line_with_a_two_percent_scale_error() -> None:
+    # every 1 m window: odometry says 1.02 m, so e_d = 0.02 * 1 m exactly; no rotation at all
+    c = calibrate(straight_line(0.02))
+    assert c.windows == 10 and c.driving_windows == 10
+    assert c.scale_error == pytest.approx(0.02, abs=1e-9)
+    assert c.model.range_m_per_m == pytest.approx(0.02, abs=1e-9)
+    assert c.model.range_m_per_sqrt_m == pytest.approx(0.0, abs=1e-7)
+    assert c.model.heading_drift_rad_per_m == 0.0 and c.drift_estimated
+    assert c.model.bearing_rad_per_rad == 0.0 and c.model.bearing_rad_per_sqrt_rad == 0.0
+    assert not c.turn_estimated  # nothing turned: the turn terms cannot be known
+
+
+def test_under_reporting_odometry_gives_the_same_spread() -> None:
+    c = calibrate(straight_line(-0.03))
+    assert c.scale_error == pytest.approx(-0.03, abs=1e-9)
+    assert c.model.range_m_per_m == pytest.approx(0.03, abs=1e-9)
+
+
+def test_spin_in_place_with_a_three_percent_turn_scale_error() -> None:
+    # 3.1 turns = 12 complete windows of 90 deg; each reports 92.7 deg: e_h = 0.03 * pi / 2
+    c = calibrate(spin_in_place(0.03))
+    assert c.windows == 12 and c.turning_windows == 12
+    assert c.turn_scale_error == pytest.approx(0.03, abs=1e-9)
+    assert c.model.bearing_rad_per_rad == pytest.approx(0.03, abs=1e-9)
+    assert c.model.bearing_rad_per_sqrt_rad == pytest.approx(0.0, abs=1e-7)
+    assert not c.distance_estimated and c.model.range_m_per_m == 0.0
+
+
+def test_heading_drift_per_metre() -> None:
+    # a straight line in truth, an arc in odometry: heading grows 0.004 rad per metre
+    steps = 250
+    truth = [(0.04 * k, 0.0, 0.0) for k in range(steps + 1)]
+    odo = [(0.04 * k, 0.0, 0.004 * 0.04 * k) for k in range(steps + 1)]
+    c = calibrate(make_log(truth, odo))
+    assert c.heading_drift_rad_per_m == pytest.approx(0.004, abs=1e-9)
+
+
+def test_the_same_log_as_csv_and_aria(tmp_path: Path) -> None:
+    log = straight_line(0.02)
+    save_csv_log(log, tmp_path / "line.csv")
+    save_aria_log(log, SONAR0, tmp_path / "line.2d")
+    from_csv = calibrate(read_log(tmp_path / "line.csv"))
+    from_aria = calibrate(read_log(tmp_path / "line.2d"))
+    assert from_csv.model.range_m_per_m == pytest.approx(0.02, abs=1e-9)
+    # ARIA stores poses in whole millimetres: the 1.02 m windows come back to within 1 mm
+    assert from_aria.model.range_m_per_m == pytest.approx(0.02, abs=1e-3)
+    assert from_aria.windows == from_csv.windows
+
+
+def test_a_simulated_drift_1_log_finds_the_simulators_errors() -> None:
+    # samples/corridor_loop.csv is `gridmap simulate --drift 1` (tests/test_samples.py checks
+    # that); one 56 m lap with 3 corners. Found: scale 0.0078, distance walk 0.0093, turn scale
+    # 0.0124, turn walk 0.0117, drift 0.00338 rad/m against the simulator's 0.01, 0.01, 0.02,
+    # 0.02, 0.00349. Three corners say little about turning, so allow a factor of two.
+    c = calibrate(read_log(SAMPLES / "corridor_loop.csv"))
+    sim = OdometryErrorModel()
+    pairs = [
+        (c.model.range_m_per_m, sim.scale_error),
+        (c.model.range_m_per_sqrt_m, sim.sigma_dist_per_sqrt_m),
+        (c.model.bearing_rad_per_rad, sim.turn_scale_error),
+        (c.model.bearing_rad_per_sqrt_rad, sim.sigma_turn_per_sqrt_rad),
+        (c.model.heading_drift_rad_per_m, sim.heading_drift_rad_per_m),
+    ]
+    for found, true in pairs:
+        assert true / 2 < found < true * 2, (found, true)
+    assert c.heading_drift_rad_per_m == pytest.approx(sim.heading_drift_rad_per_m, rel=0.1)
+
+
+def test_log_without_truth_is_refused(tmp_path: Path) -> None:
+    log = straight_line(0.02)
+    no_truth = RangeLog(log.source, log.poses, log.readings, log.sensor_names, metadata={})
+    with pytest.raises(CalibrationError, match="the log has no ground truth"):
+        calibrate(no_truth)
+    save_csv_log(no_truth, tmp_path / "plain.csv")
+    out = tmp_path / "odo.yaml"
+    code, _, err = run("calibrate", str(tmp_path / "plain.csv"), "-o", str(out))
+    assert code == 1
+    assert err.startswith(f"Error: {tmp_path / 'plain.csv'}: the log has no ground truth")
+    assert names(tmp_path) == {"plain.csv"}
+
+
+def test_too_little_travel(tmp_path: Path) -> None:
+    save_csv_log(straight_line(0.02, metres=2.6), tmp_path / "short.csv")
+    code, _, err = run("calibrate", str(tmp_path / "short.csv"), "-o", str(tmp_path / "o.yaml"))
+    assert code == 1
+    assert "too little travel to calibrate: the truth drives 2.60 m and turns 0 deg" in err
+    assert "2 complete windows of 1 m or 90 deg; need at least 3" in err
+    assert names(tmp_path) == {"short.csv"}
+
+
+def test_cli_writes_the_yaml_build_takes(tmp_path: Path) -> None:
+    save_csv_log(straight_line(0.02), tmp_path / "line.csv")
+    out = tmp_path / "odo.yaml"
+    code, stdout, _ = run("calibrate", str(tmp_path / "line.csv"), "-o", str(out))
+    assert code == 0, stdout
+    assert "distance scale error   +2.00 % of distance" in stdout
+    assert "turn scale error       not estimated" in stdout
+    model = load_odometry_error(out)
+    assert model.range_m_per_m == pytest.approx(0.02, abs=1e-9)
+    assert model.sonar_relative_error == 0.01
+    assert out.read_text().startswith("# gridmap ")
+    code, _, err = run("calibrate", str(tmp_path / "line.csv"), "-o", str(out))
+    assert code == 1 and "exists (use --force to overwrite)" in err
+    code, stdout, _ = run(
+        "calibrate", str(tmp_path / "line.csv"), "--json", "--window", "2", "--sonar-error", "0"
+    )
+    doc = json.loads(stdout)
+    assert doc["windows"]["total"] == 5 and doc["output"] is None
+    assert doc["coefficients"]["sonar_relative_error"] == 0.0
+    assert doc["signed"]["scale_error"] == pytest.approx(0.02, abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--window", "0"], "--window must be a positive number of metres, got 0.0"),
+        (["--window-turn", "nan"], "--window-turn must be a positive number of degrees"),
+        (["--sonar-error", "-1"], "--sonar-error must be a finite number >= 0"),
+    ],
+)
+def test_bad_options_are_usage_errors(tmp_path: Path, args: list[str], message: str) -> None:
+    save_csv_log(straight_line(0.02), tmp_path / "line.csv")
+    code, _, err = run("calibrate", str(tmp_path / "line.csv"), *args)
+    assert code == 2 and message in err
+
+
+def test_missing_log(tmp_path: Path) -> None:
+    code, _, err = run("calibrate", str(tmp_path / "absent.csv"))
+    assert code == 1 and err == f"Error: {tmp_path / 'absent.csv'}: no such file\n"
+
+
+def test_perfect_odometry_calibrates_to_exact_zeros(tmp_path: Path) -> None:
+    # rounding noise (1e-17) is written as 0, so the file says "no error" in so many words
+    line = straight_line(0.0)
+    save_csv_log(line, tmp_path / "line.csv")
+    assert calibrate(read_log(tmp_path / "line.csv")).model == OdometryError()
+    assert calibrate(spin_in_place(0.0)).model == OdometryError()

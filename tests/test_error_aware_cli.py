@@ -1,0 +1,115 @@
+"""`gridmap build --mode error-aware` as a user meets it: flags, errors, and what the map shows."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gridmap_cli.mapfile import load_map
+from tests.helpers import names, run
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+LOG = SAMPLES / "corridor_loop.csv"  # drift 1: odometry off by metres by the end of the loop
+
+
+def build(tmp_path: Path, name: str, *extra: str) -> np.ndarray:
+    out = tmp_path / f"{name}.png"
+    code, _, stderr = run("build", str(LOG), "-o", str(out), "--map-mode", "scale", *extra)
+    assert code == 0, stderr
+    return load_map(out.with_suffix(".yaml")).probability()
+
+
+def test_error_aware_build_from_a_calibrated_file(tmp_path: Path) -> None:
+    cal = tmp_path / "odometry.yaml"
+    code, _, stderr = run("calibrate", str(LOG), "-o", str(cal))
+    assert code == 0, stderr
+    aware = build(tmp_path, "aware", "--mode", "error-aware", "--odometry-error", str(cal))
+    sonar_only = build(
+        tmp_path, "sonar", "--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=0"
+    )
+    standard = build(tmp_path, "standard")
+    # the odometry terms spread late echoes: far fewer cells are drawn occupied
+    assert np.count_nonzero(aware >= 0.65) < 0.5 * np.count_nonzero(sonar_only >= 0.65)
+    assert np.count_nonzero(aware >= 0.65) < 0.5 * np.count_nonzero(standard >= 0.65)
+
+
+def test_coefficients_from_flags_override_the_file(tmp_path: Path) -> None:
+    cal = tmp_path / "odometry.yaml"
+    cal.write_text("gridmap-odometry-error: 1\nrange_m_per_m: 0.0\n")
+    plain = build(tmp_path, "plain", "--mode", "error-aware", "--odometry-error", str(cal))
+    spread = build(
+        tmp_path,
+        "spread",
+        "--mode",
+        "error-aware",
+        "--odometry-error",
+        str(cal),
+        "--odometry-coefficient",
+        "range_m_per_m=0.05",
+    )
+    assert np.nanmax(spread) < np.nanmax(plain)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--mode", "error-aware"], "needs the odometry error"),
+        (["--odometry-coefficient", "range_m_per_m=0.01"], "apply to --mode error-aware"),
+        (["--trust-length", "0.5"], "apply to --mode error-aware"),
+        (["--mode", "error-aware", "--odometry-coefficient", "speed=1"], "NAME one of"),
+        (["--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=x"], "not a number"),
+        (["--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=-1"], ">= 0"),
+        (
+            [
+                "--mode",
+                "error-aware",
+                "--odometry-coefficient",
+                "range_m_per_m=0",
+                "--trust-length",
+                "0",
+            ],
+            "--trust-length",
+        ),
+    ],
+)
+def test_bad_error_aware_flags_are_usage_errors(
+    tmp_path: Path, args: list[str], message: str
+) -> None:
+    code, _, stderr = run("build", str(LOG), "-o", str(tmp_path / "m.png"), *args)
+    assert code == 2
+    assert message in stderr
+    assert names(tmp_path) == set()
+
+
+def test_bad_odometry_file_names_it_and_writes_nothing(tmp_path: Path) -> None:
+    cal = tmp_path / "odometry.yaml"
+    cal.write_text("gridmap-odometry-error: 1\nrange_m_per_m: lots\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    code, _, stderr = run(
+        "build", str(LOG), "-o", str(out / "m.png"), "--mode", "error-aware",
+        "--odometry-error", str(cal),
+    )  # fmt: skip
+    assert code == 1
+    assert "odometry.yaml" in stderr and "range_m_per_m" in stderr
+    assert names(out) == set()
+
+
+def test_error_aware_refuses_laser_logs(tmp_path: Path) -> None:
+    log = tmp_path / "laser.2d"
+    code, _, stderr = run(
+        "simulate", str(SAMPLES / "worlds" / "office.yaml"), str(SAMPLES / "paths" / "office.yaml"),
+        "--robot", "p3at-lms200", "--duration", "3", "-o", str(log),
+    )  # fmt: skip
+    assert code == 0, stderr
+    out = tmp_path / "out"
+    out.mkdir()
+    code, _, stderr = run(
+        "build", str(log), "-o", str(out / "m.png"), "--robot", "p3at-lms200",
+        "--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=0.01",
+    )  # fmt: skip
+    assert code == 1
+    assert "narrow-beam" in stderr and "--mode standard" in stderr
+    assert names(out) == set()

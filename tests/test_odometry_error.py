@@ -1,0 +1,167 @@
+"""The odometry-error model: f and g by hand, travelled distance and rotation, the YAML file."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from gridmap_cli.errors import InputFileError
+from gridmap_cli.odometry_error import (
+    OdometryError,
+    load_odometry_error,
+    odometry_error_yaml,
+    save_odometry_error,
+    travelled,
+    travelled_at,
+)
+from gridmap_cli.records import PoseTrack
+
+MODEL = OdometryError(
+    range_m_per_m=0.02,
+    range_m_per_sqrt_m=0.01,
+    bearing_rad_per_rad=0.03,
+    bearing_rad_per_sqrt_rad=0.02,
+    heading_drift_rad_per_m=0.005,
+    sonar_relative_error=0.01,
+)
+
+
+def test_f_and_g_by_hand() -> None:
+    # f(4) = 0.02 * 4 + 0.01 * 2 = 0.10; g(4, 1) = 0.03 + 0.02 + 0.005 * 4 = 0.07
+    assert MODEL.f(4.0) == pytest.approx(0.10)
+    assert MODEL.g(4.0, 1.0) == pytest.approx(0.07)
+    np.testing.assert_allclose(MODEL.f([0.0, 1.0, 9.0]), [0.0, 0.03, 0.21])
+    assert MODEL.g(np.zeros((2, 3)), 0.0).shape == (2, 3)
+    # eq. 11 and 12: sigma_z = k z + f, sigma_theta = beta / 2 + g
+    assert MODEL.sigma_range(3.0, 4.0) == pytest.approx(0.03 + 0.10)
+    assert MODEL.sigma_bearing(math.radians(25), 4.0, 1.0) == pytest.approx(
+        math.radians(12.5) + 0.07
+    )
+
+
+def test_spreads_never_shrink_with_travel() -> None:
+    d = np.linspace(0.0, 100.0, 101)
+    assert np.all(np.diff(MODEL.f(d)) > 0)
+    assert np.all(np.diff(MODEL.g(d, d / 10)) > 0)
+
+
+def test_the_default_model_is_the_sonar_alone() -> None:
+    m = OdometryError()
+    assert m.sonar_relative_error == 0.01
+    assert m.f(100.0) == 0.0 and m.g(100.0, 30.0) == 0.0
+
+
+@pytest.mark.parametrize("bad", [-0.1, math.inf, math.nan])
+def test_coefficients_must_be_finite_and_non_negative(bad: float) -> None:
+    with pytest.raises(ValueError, match="range_m_per_m must be a finite number >= 0"):
+        OdometryError(range_m_per_m=bad)
+
+
+def test_travelled_sums_steps_and_absolute_turns() -> None:
+    # 1 m east, turn +90 deg in place, 2 m north, turn -90 deg (across no wrap), 0.5 m east;
+    # then a turn from 179 deg to -179 deg is 2 deg, not 358
+    xs = [0, 1, 1, 1, 1, 1.5, 1.5]
+    ys = [0, 0, 0, 2, 2, 2, 2]
+    ths = [0, 0, 90, 90, 0, 0, 0]
+    rows = [(x, y, math.radians(t)) for x, y, t in zip(xs, ys, ths, strict=True)]
+    track = PoseTrack.from_rows(np.arange(7, dtype=np.int64), rows)
+    d, r = travelled(track)
+    np.testing.assert_allclose(d, [0, 1, 1, 3, 3, 3.5, 3.5])
+    np.testing.assert_allclose(r, np.radians([0, 0, 90, 90, 180, 180, 180]))
+    wrap = PoseTrack.from_rows(
+        np.arange(2, dtype=np.int64), [(0, 0, math.radians(179)), (0, 0, math.radians(-179))]
+    )
+    assert travelled(wrap)[1][-1] == pytest.approx(math.radians(2))
+    d_at, r_at = travelled_at(track, np.asarray([0, 1, 2], dtype=np.int64))
+    np.testing.assert_allclose(d_at, [0, 1, 1])
+    np.testing.assert_allclose(r_at, [0, 0, math.pi / 2])
+    half = travelled_at(track, np.asarray([-5, 99], dtype=np.int64))
+    np.testing.assert_allclose(half[0], [0.0, 3.5])
+
+
+@given(st.lists(st.floats(-math.pi + 0.01, math.pi - 0.01), min_size=1, max_size=20))
+def test_rotation_is_the_sum_of_absolute_increments(turns: list[float]) -> None:
+    theta = np.concatenate([[0.0], np.cumsum(turns)])
+    track = PoseTrack(
+        stamp_ns=np.arange(theta.shape[0], dtype=np.int64),
+        x_m=np.zeros_like(theta),
+        y_m=np.zeros_like(theta),
+        theta_rad=(theta + math.pi) % (2 * math.pi) - math.pi,
+    )
+    assert travelled(track)[1][-1] == pytest.approx(float(np.sum(np.abs(turns))), abs=1e-9)
+
+
+def test_yaml_round_trip(tmp_path: Path) -> None:
+    path = tmp_path / "odo.yaml"
+    tiny = OdometryError(heading_drift_rad_per_m=1e-5, range_m_per_m=0.1 + 0.2)
+    save_odometry_error(tiny, path, comments=["from a test"])
+    text = path.read_text()
+    assert text.startswith("# from a test\ngridmap-odometry-error: 1\n")
+    assert "heading_drift_rad_per_m: 1.0e-05" in text  # PyYAML reads '1e-05' as a string
+    assert load_odometry_error(path) == tiny
+    assert [p.name for p in tmp_path.iterdir()] == ["odo.yaml"]
+
+
+def test_missing_keys_take_their_defaults(tmp_path: Path) -> None:
+    path = tmp_path / "odo.yaml"
+    path.write_text("gridmap-odometry-error: 1\nrange_m_per_m: 0.02\nbearing_rad_per_rad: 3e-2\n")
+    assert load_odometry_error(path) == OdometryError(range_m_per_m=0.02, bearing_rad_per_rad=0.03)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("range_m_per_m: 0.02\n", "odo.yaml: missing 'gridmap-odometry-error: 1'"),
+        ("gridmap-odometry-error: 2\n", "odo.yaml:1: unsupported gridmap-odometry-error version 2"),
+        (
+            "gridmap-odometry-error: 1\nrange_per_m: 0.02\n",
+            "odo.yaml:2: unknown key 'range_per_m' (known: range_m_per_m,",
+        ),
+        (
+            "gridmap-odometry-error: 1\n\nrange_m_per_m: -0.02\n",
+            "odo.yaml:3: range_m_per_m must be a finite number >= 0, got -0.02",
+        ),
+        (
+            "gridmap-odometry-error: 1\nbearing_rad_per_rad: .nan\n",
+            "odo.yaml:2: bearing_rad_per_rad must be a finite number >= 0",
+        ),
+        (
+            "gridmap-odometry-error: 1\nsonar_relative_error: .inf\n",
+            "odo.yaml:2: sonar_relative_error must be a finite number >= 0",
+        ),
+        (
+            "gridmap-odometry-error: 1\nsonar_relative_error: one percent\n",
+            "odo.yaml:2: sonar_relative_error must be a number, got 'one percent'",
+        ),
+        ("gridmap-odometry-error: 1\nrange_m_per_m: [1\n", "odo.yaml:3: not valid YAML"),
+        ("- 1\n- 2\n", "odo.yaml: expected a mapping"),
+    ],
+)
+def test_bad_files_name_file_and_line(tmp_path: Path, text: str, message: str) -> None:
+    path = tmp_path / "odo.yaml"
+    path.write_text(text)
+    with pytest.raises(InputFileError) as info:
+        load_odometry_error(path)
+    assert str(info.value).startswith(str(tmp_path / message))
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(InputFileError, match="no such file"):
+        load_odometry_error(tmp_path / "absent.yaml")
+
+
+def test_yaml_text_is_what_the_docs_show() -> None:
+    assert odometry_error_yaml(OdometryError()) == (
+        "gridmap-odometry-error: 1\n"
+        "range_m_per_m: 0.0\n"
+        "range_m_per_sqrt_m: 0.0\n"
+        "bearing_rad_per_rad: 0.0\n"
+        "bearing_rad_per_sqrt_rad: 0.0\n"
+        "heading_drift_rad_per_m: 0.0\n"
+        "sonar_relative_error: 0.01\n"
+    )
