@@ -40,6 +40,8 @@ FloatArray = npt.NDArray[np.float64]
 
 DEFAULT_WINDOW_M = 1.0
 DEFAULT_WINDOW_RAD = math.pi / 2
+#: A window's budget counts as used up within this much (metres or radians) of it.
+BUDGET_TOLERANCE = 1e-9
 #: Fewer complete windows than this cannot separate a systematic error from a random one.
 MIN_WINDOWS = 3
 #: Turning less than this in all (truth) leaves the turn terms unestimated: a quarter turn.
@@ -174,9 +176,11 @@ def compare_windows(
     i = 0
     n = dist.shape[0]
     while i < n - 1:
-        # first pose at which either budget is used up
-        j_d = int(np.searchsorted(dist, dist[i] + window_m, side="left"))
-        j_r = int(np.searchsorted(rot, rot[i] + window_rad, side="left"))
+        # first pose at which either budget is used up, to within rounding: a 90-degree corner
+        # must close a 90-degree window whether its increments sum to pi/2 or to 1 ulp less
+        # (the same run read from CSV and from ROS 2 quaternions differs by that much)
+        j_d = int(np.searchsorted(dist, dist[i] + window_m - BUDGET_TOLERANCE, side="left"))
+        j_r = int(np.searchsorted(rot, rot[i] + window_rad - BUDGET_TOLERANCE, side="left"))
         j = min(j_d, j_r)
         if j >= n:
             break
@@ -220,13 +224,13 @@ def fit(
     total_driven = float(driven.sum())
     total_turned = float(np.abs(turned).sum())
 
-    distance_ok = bool(float(np.sum(disp**2)) > 0.0 and total_driven >= window_m)
+    distance_ok = bool(float(np.sum(disp**2)) > 0.0 and total_driven >= window_m - BUDGET_TOLERANCE)
     scale = float(np.sum(windows.distance_error_m * disp) / np.sum(disp**2)) if distance_ok else 0.0
     r_d = windows.distance_error_m - scale * disp
     sigma_d = math.sqrt(float(np.sum(r_d**2)) / total_driven) if distance_ok else 0.0
 
     turn_ok = total_turned >= MIN_ROTATION_RAD
-    drift_ok = total_driven >= window_m
+    drift_ok = total_driven >= window_m - BUDGET_TOLERANCE
     columns = [c for c, ok in ((turned, turn_ok), (driven, drift_ok)) if ok]
     coef = [0.0, 0.0]
     r_h = windows.heading_error_rad
@@ -259,8 +263,8 @@ def fit(
         drift_estimated=drift_ok,
         windows=len(windows),
         # a window "drives" when it ended on its distance budget, "turns" otherwise
-        driving_windows=int(np.count_nonzero(driven >= window_m)),
-        turning_windows=int(np.count_nonzero(driven < window_m)),
+        driving_windows=int(np.count_nonzero(driven >= window_m - BUDGET_TOLERANCE)),
+        turning_windows=int(np.count_nonzero(driven < window_m - BUDGET_TOLERANCE)),
         driven_m=total_driven,
         turned_rad=total_turned,
         distance_residual_m=float(np.sqrt(np.mean(r_d**2))),

@@ -126,7 +126,7 @@ def test_a_simulated_drift_1_log_finds_the_simulators_errors() -> None:
     ]
     for found, true in pairs:
         assert true / 2 < found < true * 2, (found, true)
-    assert c.heading_drift_rad_per_m == pytest.approx(sim.heading_drift_rad_per_m, rel=0.1)
+    assert c.heading_drift_rad_per_m == pytest.approx(sim.heading_drift_rad_per_m, rel=0.15)
 
 
 def test_log_without_truth_is_refused(tmp_path: Path) -> None:
@@ -198,3 +198,11 @@ def test_perfect_odometry_calibrates_to_exact_zeros(tmp_path: Path) -> None:
     save_csv_log(line, tmp_path / "line.csv")
     assert calibrate(read_log(tmp_path / "line.csv")).model == OdometryError()
     assert calibrate(spin_in_place(0.0)).model == OdometryError()
+
+
+def test_same_run_from_csv_and_ros2_mcap_calibrates_the_same() -> None:
+    """Quaternions round headings by an ulp; window budgets must not depend on that."""
+    samples = Path(__file__).resolve().parents[1] / "samples"
+    csv = calibrate(read_log(samples / "corridor_loop.csv")).model.as_dict()
+    ros2 = calibrate(read_log(samples / "corridor_loop_ros2.mcap")).model.as_dict()
+    assert ros2 == pytest.approx(csv, rel=1e-6, abs=1e-12)
