@@ -33,15 +33,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-import yaml
 from PIL import Image, UnidentifiedImageError
 
 from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.grid import GridSpec
+from gridmap_cli.yamlfile import read_yaml_mapping
 
 LOADER_FLAVOURS = ("ros1", "nav2-humble", "nav2-jazzy")
 DEFAULT_FLAVOUR = "nav2-jazzy"
@@ -102,7 +101,9 @@ def load_map(yaml_path: Path, flavour: str = DEFAULT_FLAVOUR) -> LoadedMap:
     if flavour not in LOADER_FLAVOURS:
         raise UsageError(f"unknown map loader '{flavour}' (known: {', '.join(LOADER_FLAVOURS)})")
     yaml_path = Path(yaml_path)
-    doc, lines = _read_yaml(yaml_path)
+    doc, lines = read_yaml_mapping(
+        yaml_path, "a map YAML", "not a map YAML: expected a mapping of keys to values"
+    )
 
     def fail(key: str, detail: str) -> InputFileError:
         return InputFileError(yaml_path, detail, line=lines.get(key))
@@ -161,34 +162,6 @@ def load_map(yaml_path: Path, flavour: str = DEFAULT_FLAVOUR) -> LoadedMap:
         free_thresh=free_thresh,
         origin_yaw_rad=yaw,
     )
-
-
-def _read_yaml(path: Path) -> tuple[dict[str, Any], dict[str, int]]:
-    """The YAML mapping and the 1-based line of each top-level key's value."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputFileError(path, "no such file") from None
-    except IsADirectoryError:
-        raise InputFileError(path, "is a directory, not a map YAML") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputFileError(path, f"cannot read: {exc}") from exc
-    try:
-        doc = yaml.safe_load(text)
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = mark.line + 1 if mark is not None else None
-        problem = getattr(exc, "problem", None) or str(exc)
-        raise InputFileError(path, f"not valid YAML: {problem}", line=line) from exc
-    if not isinstance(doc, dict):
-        raise InputFileError(path, "not a map YAML: expected a mapping of keys to values")
-    lines: dict[str, int] = {}
-    if isinstance(root, yaml.MappingNode):
-        for key_node, value_node in root.value:
-            if isinstance(key_node.value, str):
-                lines[key_node.value] = value_node.start_mark.line + 1
-    return doc, lines
 
 
 def _number(value: object) -> float | None:

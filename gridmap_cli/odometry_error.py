@@ -24,13 +24,13 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-import yaml
 
 from gridmap_cli.atomic import atomic_output
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.records import PoseTrack
 from gridmap_cli.writers.map_image import _yaml_float
+from gridmap_cli.yamlfile import read_yaml_mapping
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -158,29 +158,11 @@ def load_odometry_error(path: Path) -> OdometryError:
     and values that are not finite numbers >= 0.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputFileError(path, "no such file") from None
-    except IsADirectoryError:
-        raise InputFileError(path, "is a directory, not an odometry-error file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputFileError(path, f"cannot read: {exc}") from exc
-    try:
-        doc = yaml.safe_load(text)
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = mark.line + 1 if mark is not None else None
-        problem = getattr(exc, "problem", None) or str(exc)
-        raise InputFileError(path, f"not valid YAML: {problem}", line=line) from exc
-    if not isinstance(doc, dict):
-        raise InputFileError(path, f"expected a mapping with '{FORMAT_KEY}: {FORMAT_VERSION}'")
-    lines: dict[str, int] = {}
-    if isinstance(root, yaml.MappingNode):
-        for key_node, _ in root.value:
-            if isinstance(key_node.value, str):
-                lines[key_node.value] = key_node.start_mark.line + 1
+    doc, lines = read_yaml_mapping(
+        path,
+        "an odometry-error file",
+        f"expected a mapping with '{FORMAT_KEY}: {FORMAT_VERSION}'",
+    )
     version = doc.get(FORMAT_KEY)
     if FORMAT_KEY not in doc:
         raise InputFileError(path, f"missing '{FORMAT_KEY}: {FORMAT_VERSION}' (format version)")
