@@ -44,7 +44,8 @@ format: dev
 bench: install
 	$(BIN)/python bench/bench_build.py
 
-# regenerate the bundled worlds, paths and simulated logs in samples/
+# regenerate the bundled worlds, paths and simulated logs in samples/ (then `make goldens` if
+# the corridor_loop run changed on purpose)
 samples: install
 	$(BIN)/python samples/make_samples.py
 
