@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 DEMO_OUT := out/demo
 
-.PHONY: install dev demo test lint format bench samples experiment clean
+.PHONY: install dev demo test lint format bench samples goldens experiment clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -26,7 +26,7 @@ dev: $(VENV)/.installed-dev
 
 demo: install
 	@mkdir -p $(DEMO_OUT)
-	$(BIN)/gridmap build samples/corridor_loop.csv -o $(DEMO_OUT)/corridor_loop.png --force
+	$(BIN)/gridmap build samples/corridor_loop.mcap -o $(DEMO_OUT)/corridor_loop.png --force
 	@echo "demo map written to $(DEMO_OUT)/corridor_loop.png and $(DEMO_OUT)/corridor_loop.yaml"
 
 test: dev
@@ -44,7 +44,8 @@ format: dev
 bench: install
 	$(BIN)/python bench/bench_build.py
 
-# regenerate the bundled worlds, paths and simulated logs in samples/
+# regenerate the bundled worlds, paths and simulated logs in samples/ (then `make goldens` if
+# the corridor_loop run changed on purpose)
 samples: install
 	$(BIN)/python samples/make_samples.py
 
@@ -52,6 +53,11 @@ samples: install
 # and docs/images/experiments.png (needs matplotlib, in the dev extra)
 experiment: dev
 	$(BIN)/python bench/experiment.py
+
+# regenerate samples/golden/ (the conformance test's expected dump and map checksums, and the
+# trinary map) from samples/corridor_loop.csv; only when a change to them is intended
+goldens: install
+	$(BIN)/python -m tests.golden
 
 clean:
 	rm -rf $(VENV) out build *.egg-info .pytest_cache .ruff_cache .mypy_cache bench/.cache

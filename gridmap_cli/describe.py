@@ -194,9 +194,15 @@ def _log_part(
     readings: dict[str, Any] | None = None
     if len(r):
         span = int(r.stamp_ns.max() - r.stamp_ns.min())
-        inside = 0
+        valid = np.zeros(len(r), dtype=bool)
         if len(log.poses):
-            inside = int(np.count_nonzero(interpolate_pose(log.poses, r.stamp_ns)[3]))
+            valid = interpolate_pose(log.poses, r.stamp_ns)[3]
+        inside = int(np.count_nonzero(valid))
+        below_min: int | None = None  # as build's sync counts them; None: a sensor is unknown
+        described = [own.get(n) or theirs.get(n) for n in log.sensor_names]
+        if all(s is not None for s in described):
+            min_r = np.asarray([s.min_range_m for s in described if s is not None])
+            below_min = int(np.count_nonzero(valid & (r.range_m < min_r[r.sensor])))
         readings = {
             "count": len(r),
             "start_ns": int(r.stamp_ns.min()),
@@ -205,6 +211,7 @@ def _log_part(
             "rate_hz": round(len(r) / (span / 1e9), 3) if span > 0 else None,
             "no_echo": sum(s["no_echo"] for s in sensors),
             "during_odometry": inside,
+            "below_min_range": below_min,
         }
     return {
         "odometry": _track_part(log.poses),
@@ -235,11 +242,13 @@ def _build_part(
         ranges = list(plan.range_topics)
         truth = plan.truth_topic
         frames: dict[str, Any] = {"odom": plan.odom_frame, "base": mcap.base_frame}
+        odom_topic = plan.odom_topic
     elif fmt.name == "csv":
         odometry = "columns time, x, y, theta"
         ranges = [f"{len(log.sensor_names)} sensor columns: {' '.join(_ends(log.sensor_names))}"]
         truth = "columns true_x, true_y, true_theta" if log.truth is not None else None
         frames = {}
+        odom_topic = None
     else:
         odometry = "robot: lines (encoder pose)"
         lasers = [n for n in log.sensor_names if n.startswith("laser")]
@@ -251,11 +260,13 @@ def _build_part(
             ranges.append(f"sick/scan lines ({len(lasers)} laser beams)")
         truth = "robotGlobal: lines" if log.truth is not None else None
         frames = {}
+        odom_topic = None
+    mounted = {s.name for s in log.sensors or () if not math.isnan(s.x_m)}
+    described_by_log = bool(log.sensor_names) and mounted >= set(log.sensor_names)
     unknown = [
         n
         for n in log.sensor_names
-        if n not in {s.name for s in log.sensors or () if not math.isnan(s.x_m)}
-        and (robot is None or n not in robot.by_name())
+        if n not in mounted and (robot is None or n not in robot.by_name())
     ]
     if problem is None and unknown:
         problem = (
@@ -268,11 +279,14 @@ def _build_part(
             problem = "no odometry during the range readings (recorded at different times?)"
     return {
         "odometry": odometry,
+        "odometry_topic": odom_topic,
         "frames": frames,
         "ranges": ranges,
         "truth": truth,
         "sensors": len(log.sensor_names),
-        "robot": None if robot is None else {"name": robot.name, "from": robot_source},
+        "robot": None
+        if robot is None
+        else {"name": robot.name, "from": robot_source, "needed": not described_by_log},
         "ready": problem is None,
         "problem": problem,
     }
@@ -302,6 +316,25 @@ def _hz(value: float | None) -> str:
     return f"{value:,.0f} Hz" if value >= 100 else f"{value:.3g} Hz"
 
 
+def _metres(value: float) -> str:
+    """A length to the millimetre, without trailing zeros (4.335, 0.15, 80)."""
+    return f"{round(value, 3):g}"
+
+
+def _range_text(sensor: dict[str, Any]) -> str:
+    if "max_range_m" not in sensor:
+        return "?"
+    return f"{_metres(sensor['min_range_m'])}-{_metres(sensor['max_range_m'])}"
+
+
+def _unused(channel: dict[str, Any], build: dict[str, Any]) -> str:
+    """'-', with the reason when a TF channel is left unread (odometry from a pose topic)."""
+    tf_types = ("tf2_msgs/TFMessage", "tf2_msgs/msg/TFMessage", "tf/tfMessage")
+    if channel["type"] in tf_types and build.get("odometry_topic"):
+        return f"- (odometry is {build['odometry_topic']})"
+    return "-"
+
+
 def _pose_text(pose: list[float]) -> str:
     return f"({pose[0]:.3f} m, {pose[1]:.3f} m, {math.degrees(pose[2]):.1f} deg)"
 
@@ -320,7 +353,8 @@ def render_text(d: dict[str, Any]) -> str:
     head = f"{d['file']}: {d['format'].upper()} log, {size_text}"
     mcap = d.get("mcap")
     if mcap is not None:
-        head += f"; profile '{mcap['profile'] or 'none'}', written by {mcap['library'] or '?'}"
+        profile = f"profile '{mcap['profile']}'" if mcap["profile"] else "no profile"
+        head += f"; {profile}, written by {mcap['library'] or '?'}"
     lines.append(head)
     if mcap is not None:
         lt = mcap["log_time"]
@@ -337,7 +371,8 @@ def render_text(d: dict[str, Any]) -> str:
         rows = [["topic", "type", "encoding", "messages", "rate", "gridmap uses it as"]]
         for c in mcap["channels"]:
             rows.append([c["topic"], c["type"] or "(no schema)", c["message_encoding"],
-                         _n(c["messages"]), _hz(c["rate_hz"]), c["used_as"] or "-"])  # fmt: skip
+                         _n(c["messages"]), _hz(c["rate_hz"]),
+                         c["used_as"] or _unused(c, d["build"])])  # fmt: skip
         lines += _table(rows)
         if mcap["tf"]:
             pairs = [f"{t['parent']} -> {t['child']} ({_n(t['transforms'])})" for t in mcap["tf"]]
@@ -373,24 +408,38 @@ def render_text(d: dict[str, Any]) -> str:
         lines.append("Range readings: none")
     else:
         lines.append(
-            f"Range readings: {_n(readings['count'])} ({_n(readings['no_echo'])} no echo), "
+            f"Range readings: {_n(readings['count'])} ({_n(readings['no_echo'])} at maximum "
+            "range: no echo), "
             f"{span_text(readings['start_ns'], readings['end_ns'])}, {_hz(readings['rate_hz'])}"
         )
-        lines.append(f"  {_n(readings['during_odometry'])} of them during the odometry's time span")
+        during = f"  {_n(readings['during_odometry'])} of them during the odometry's time span"
+        below = readings.get("below_min_range")
+        if below:
+            mapped = readings["during_odometry"] - below
+            during += (
+                f", {_n(below)} of these below their sensor's minimum range: "
+                f"build maps {_n(mapped)}"
+            )
+        lines.append(during)
     lines += _sensor_lines(log["sensors"])
     if log["metadata"]:
         lines += ["", "Log header: " + ", ".join(f"{k}: {v}" for k, v in log["metadata"].items())]
     b = d["build"]
     lines += ["", "What build would use:"]
     lines.append(f"  odometry  {b['odometry'] or 'none'}")
-    if b["frames"]:
+    if b["frames"] and mcap is not None and (mcap["tf"] or mcap["static_frames"]):
         lines.append(f"  frames    odometry '{b['frames']['odom']}', base '{b['frames']['base']}'")
     lines.append(f"  ranges    {_some(b['ranges'], 6) or 'none'}")
     if b["truth"]:
         lines.append(f"  truth     {b['truth']} (with --pose global)")
     lines.append(f"  sensors   {b['sensors']}")
     robot = b["robot"]
-    lines.append(f"  robot     {robot['name'] + ' (' + robot['from'] + ')' if robot else 'none'}")
+    if robot is None:
+        lines.append("  robot     none")
+    else:
+        lines.append(f"  robot     {robot['name']} ({robot['from']})")
+        if not robot["needed"]:
+            lines[-1] += f"; not needed: the log describes all {b['sensors']} sensors"
     if b["ready"]:
         lines.append("  -> ready to build")
     else:
@@ -464,7 +513,7 @@ def _sensor_lines(sensors: list[dict[str, Any]]) -> list[str]:
             f"{m['y_m']:.3f}" if m else "?",
             _yaw_text(s),
             f"{s['beam_width_deg']:.1f}" if "beam_width_deg" in s else "?",
-            f"{s['min_range_m']:.3g}-{s['max_range_m']:.3g}" if "max_range_m" in s else "?",
+            _range_text(s),
             _n(s["readings"]),
             _n(s["no_echo"]),
             s["mounting_from"],

@@ -1,12 +1,14 @@
-"""The same simulated run stored as CSV and as ARIA .2d is the same data and the same map.
+"""The same simulated run stored in any format is the same data and the same map.
 
 Formats are containers, not models: whatever a log is stored in, gridmap must read back the same
 canonical records (after sync: the same readings with the same sensor poses) and write the same
-map bytes, in every map mode.
+map bytes, in every map mode. The goldens for samples/ live in samples/golden/ and change only
+through `make goldens` (tests/golden.py says what they hold).
 """
 
 from __future__ import annotations
 
+import shlex
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +17,8 @@ import pytest
 from gridmap_cli.mapfile import load_map
 from gridmap_cli.pipeline import BuildOptions, build_map
 from gridmap_cli.readers import read_log
-from gridmap_cli.robot import load_robot
+from gridmap_cli.records import RangeLog
+from gridmap_cli.robot import RobotDescription, load_robot
 from gridmap_cli.sim.path import parse_path_yaml
 from gridmap_cli.sim.simulate import simulate
 from gridmap_cli.sim.world import World
@@ -23,8 +26,31 @@ from gridmap_cli.sync import synchronise
 from gridmap_cli.writers.aria_log import save_aria_log
 from gridmap_cli.writers.csv_log import save_csv_log
 from gridmap_cli.writers.map_image import write_map
+from tests.golden import (
+    DUMP_HEAD,
+    DUMP_NAME,
+    GOLDEN,
+    HEAD_LINES,
+    REGENERATE,
+    RUN,
+    SAMPLE_LOGS,
+    canonical_dump,
+    log_robot,
+    map_outputs,
+    read_sums,
+    sha256,
+)
+from tests.helpers import run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+#: The format each sample is stored in, as `gridmap convert` names it (format, encoding).
+STORED_AS = {
+    "corridor_loop.csv": ("csv", None),
+    "corridor_loop.2d": ("aria", None),
+    "corridor_loop.mcap": ("mcap", "json"),
+    "corridor_loop_ros2.mcap": ("mcap", "ros2"),
+}
+SUFFIX = {"csv": ".csv", "aria": ".2d", "mcap": ".mcap"}
 PATH = "gridmap-path: 1\nwaypoints: [[2.0, 2.0], [12.0, 2.0], [20.0, 2.0], [20.0, 6.0]]\n"
 
 
@@ -75,3 +101,130 @@ def test_both_formats_build_byte_identical_maps(
         images.append((image.read_bytes(), yaml_path.read_text().replace(f"map{i}", "map")))
     assert images[0] == images[1]
     assert len(images[0][0]) > 1000  # a real map, not an empty file
+
+
+def first_difference(name: str, text: str, reference: str) -> str:
+    """Where ``text`` first departs from ``reference``, for an assertion message (the dumps run
+    to 1.7 MB: pytest's own diff of them would drown the point)."""
+    lines, ref = text.splitlines(), reference.splitlines()
+    for number, (a, b) in enumerate(zip(lines, ref, strict=False), start=1):
+        if a != b:
+            return f"{name}: dump line {number} is {a!r}, the CSV's is {b!r}"
+    return f"{name}: dump has {len(lines)} lines, the CSV's {len(ref)}"
+
+
+@pytest.fixture(scope="module")
+def samples_read() -> dict[str, tuple[RangeLog, RobotDescription | None]]:
+    """Each sample read through the registry, with the robot its robot line names (p3at)."""
+    out = {}
+    for name in SAMPLE_LOGS:
+        log = read_log(SAMPLES / name)
+        out[name] = (log, log_robot(log))
+    return out
+
+
+@pytest.fixture(scope="module")
+def dumps(samples_read: dict[str, tuple[RangeLog, RobotDescription | None]]) -> dict[str, str]:
+    return {name: canonical_dump(log, robot) for name, (log, robot) in samples_read.items()}
+
+
+@pytest.fixture(scope="module")
+def maps(
+    samples_read: dict[str, tuple[RangeLog, RobotDescription | None]],
+    tmp_path_factory: pytest.TempPathFactory,
+) -> dict[str, dict[str, bytes]]:
+    out = {}
+    for name, (log, robot) in samples_read.items():
+        out[name] = map_outputs(log, robot, tmp_path_factory.mktemp(name.replace(".", "_")))
+    return out
+
+
+def test_every_format_gives_the_same_canonical_dump(dumps: dict[str, str]) -> None:
+    reference = dumps[SAMPLE_LOGS[0]]
+    for name, dump in dumps.items():
+        same = dump == reference
+        assert same, first_difference(name, dump, reference)
+    # what the dump holds: 16 sonars, both tracks, every reading the sync kept
+    lines = reference.splitlines()
+    assert lines[1] == "sensors 16"
+    assert lines[18] == "sync total 23488 used 23460 outside_odometry 0 below_min_range 28"
+    assert lines[19] == "poses 1468  # stamp_ns x_m y_m theta_rad"
+    assert lines[19 + 1469] == "truth 1468  # stamp_ns x_m y_m theta_rad"
+    assert len(lines) == 1 + 17 + 1 + 2 * 1469 + 1 + 23460
+
+
+def test_the_canonical_dump_is_the_golden_one(dumps: dict[str, str]) -> None:
+    dump = dumps[SAMPLE_LOGS[0]]
+    head = "".join(dump.splitlines(keepends=True)[:HEAD_LINES])
+    golden_head = DUMP_HEAD.read_text(encoding="utf-8")
+    assert head == golden_head, f"the dump's head differs from {DUMP_HEAD.name}: {REGENERATE}"
+    assert sha256(dump.encode()) == read_sums()[DUMP_NAME], (
+        f"the canonical dump differs from its golden SHA-256 (head unchanged): {REGENERATE}"
+    )
+
+
+def test_the_goldens_cover_every_map_output(maps: dict[str, dict[str, bytes]]) -> None:
+    outputs = set(maps[SAMPLE_LOGS[0]])
+    assert set(read_sums()) == {DUMP_NAME} | outputs
+    assert outputs >= {"map.pgm", "map.yaml", "trinary.png", "scale.png", "raw.png", "map.mcap"}
+
+
+@pytest.mark.parametrize(
+    "output", ["map.pgm", "map.yaml", "trinary.png", "scale.png", "raw.png", "map.mcap"]
+)
+def test_every_format_builds_the_golden_map(maps: dict[str, dict[str, bytes]], output: str) -> None:
+    golden = read_sums()[output]
+    for name in SAMPLE_LOGS:
+        assert maps[name][output] == maps[SAMPLE_LOGS[0]][output], f"{name}: {output} differs"
+    assert sha256(maps[SAMPLE_LOGS[0]][output]) == golden, (
+        f"{output} built from the samples differs from its golden SHA-256: {REGENERATE}"
+    )
+    assert len(maps[SAMPLE_LOGS[0]][output]) > (100 if output.endswith(".yaml") else 1000)
+
+
+def readme_first_example() -> list[str]:
+    """The first command of the README's Use section, split into words."""
+    text = (SAMPLES.parent / "README.md").read_text(encoding="utf-8")
+    block = text.split("\n## Use\n", 1)[1].split("```sh\n", 1)[1]
+    return shlex.split(block.splitlines()[0].split("#", 1)[0])
+
+
+def test_the_readme_command_writes_the_golden_map(tmp_path: Path) -> None:
+    """`gridmap build samples/corridor_loop.mcap -o map.png`, the README's first example."""
+    words = readme_first_example()
+    assert words == ["gridmap", "build", "samples/corridor_loop.mcap", "-o", "map.png"]
+    out = tmp_path / f"{RUN}.png"
+    code, _, err = run("build", str(SAMPLES.parent / words[2]), "-o", str(out), "-q")
+    assert code == 0, err
+    assert out.read_bytes() == (GOLDEN / f"{RUN}.png").read_bytes(), REGENERATE
+    yaml_text = out.with_suffix(".yaml").read_text(encoding="utf-8")
+    assert yaml_text == (GOLDEN / f"{RUN}.yaml").read_text(encoding="utf-8"), REGENERATE
+    assert yaml_text.startswith(f"image: {RUN}.png\nmode: trinary\nresolution: 0.05\n")
+
+
+def test_the_cli_writes_the_golden_mcap_map(tmp_path: Path) -> None:
+    out = tmp_path / "map.mcap"
+    code, _, err = run("build", str(SAMPLES / "corridor_loop.csv"), "-o", str(out), "-q")
+    assert code == 0, err
+    assert sha256(out.read_bytes()) == read_sums()["map.mcap"], REGENERATE
+
+
+@pytest.mark.parametrize("source", SAMPLE_LOGS)
+def test_convert_to_every_other_format_keeps_the_dump(
+    source: str, tmp_path: Path, dumps: dict[str, str]
+) -> None:
+    """`gridmap convert` from each sample to each other format reads back to the golden dump."""
+    assert sorted(STORED_AS) == sorted(SAMPLE_LOGS)
+    reference = dumps[SAMPLE_LOGS[0]]
+    assert sha256(reference.encode()) == read_sums()[DUMP_NAME], REGENERATE
+    targets = [t for t in STORED_AS.values() if t != STORED_AS[source]]
+    assert len(targets) == 3
+    for fmt, encoding in targets:
+        out = tmp_path / f"to_{encoding or fmt}{SUFFIX[fmt]}"
+        extra = ["--encoding", encoding] if encoding else []
+        code, _, err = run("convert", str(SAMPLES / source), str(out), *extra, "-q")
+        assert code == 0, err
+        log = read_log(out)
+        dump = canonical_dump(log, log_robot(log))
+        same = dump == reference
+        assert same, first_difference(f"{source} -> {out.name}", dump, reference)

@@ -132,7 +132,7 @@ def test_csv_sample() -> None:
     assert {s["mounting_from"] for s in log["sensors"]} == {"robot"}
     build = d["build"]
     assert isinstance(build, dict)
-    assert build["robot"] == {"name": "p3at", "from": "the log's robot line"}
+    assert build["robot"] == {"name": "p3at", "from": "the log's robot line", "needed": True}
     assert build["truth"] == "columns true_x, true_y, true_theta"
     assert build["ready"] is True
 
@@ -160,6 +160,56 @@ def test_ros2_and_json_mcaps_are_ready(tmp_path: Path) -> None:
     assert "  truth     /ground_truth (with --pose global)" in out.splitlines()
     assert "Log header: robot: p3at, seed: 7" in out.splitlines()
     assert out.splitlines()[-1] == "  -> ready to build"
+
+
+def text_lines(path: Path) -> list[str]:
+    code, out, err = run("inspect", str(path))
+    assert code == 0, err
+    return out.splitlines()
+
+
+def test_ros2_sample_text_says_what_build_does_and_skips() -> None:
+    lines = text_lines(SAMPLES / "corridor_loop_ros2.mcap")
+    assert lines[0].endswith("MCAP log, 0.7 MB; profile 'ros2', written by gridmap-cli")
+    # /tf repeats /odom's poses: it is left unread, and the row says why
+    tf_row = next(line for line in lines if line.startswith("  /tf "))
+    assert tf_row.endswith("10 Hz   - (odometry is /odom)")
+    # 28 readings are below the sonars' 0.15 m: build maps the rest (its summary says 23,460)
+    assert (
+        "  23,488 of them during the odometry's time span, 28 of these below their sensor's "
+        "minimum range: build maps 23,460"
+    ) in lines
+    assert any(line.startswith("Range readings: 23,488 (8,539 at maximum range: no echo), ")
+               for line in lines)  # fmt: skip
+    # the P3-AT sonar reaches 4.335 m (ARIA's 4335 mm), not 4.33
+    assert next(line for line in lines if line.startswith("  sonar0 ")).split()[6] == "0.15-4.335"
+    assert "  frames    odometry 'odom', base 'base_link'" in lines
+    assert (
+        "  robot     p3at (the log's robot line); not needed: the log describes all 16 sensors"
+        in lines
+    )
+
+
+def test_json_sample_text_has_no_tf_frames_and_no_profile() -> None:
+    lines = text_lines(SAMPLES / "corridor_loop.mcap")
+    assert lines[0].endswith("MCAP log, 0.7 MB; no profile, written by gridmap-cli")
+    assert not any(line.startswith("  frames ") for line in lines)  # no TF in gridmap's channels
+    assert lines[-2].endswith("not needed: the log describes all 16 sensors")
+
+
+@pytest.mark.parametrize(
+    ("sample", "needed"),
+    [
+        ("corridor_loop.csv", True),
+        ("corridor_loop.2d", False),
+        ("corridor_loop.mcap", False),
+        ("corridor_loop_ros2.mcap", False),
+    ],
+)
+def test_every_sample_counts_what_sync_will_skip(sample: str, needed: bool) -> None:
+    d = inspect_json(str(SAMPLES / sample))
+    assert d["log"]["readings"]["below_min_range"] == 28
+    assert d["build"]["robot"]["needed"] is needed
 
 
 def test_broken_inputs_are_errors(tmp_path: Path) -> None:

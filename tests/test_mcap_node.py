@@ -2,7 +2,7 @@
 
 tests/node/validate_mcap.mjs reads each file with its indexed and its streaming reader (CRCs
 validated) and prints the message count per topic. Runs when ``node`` is on the PATH and the
-pinned packages are installed (``npm ci --prefix tests/node``, which ``.ci/run`` does when npm
+pinned packages are installed (``cd tests/node && npm ci``, which ``.ci/run`` does when npm
 exists); skipped otherwise.
 """
 
@@ -26,7 +26,7 @@ NODE = shutil.which("node")
 
 pytestmark = pytest.mark.skipif(
     NODE is None or not (NODE_DIR / "node_modules" / "@mcap" / "core").is_dir(),
-    reason="node or tests/node's packages absent (npm ci --prefix tests/node)",
+    reason="node or tests/node's packages absent (cd tests/node && npm ci)",
 )
 
 

@@ -22,6 +22,7 @@ states these rules for users.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from collections import Counter
@@ -628,7 +629,11 @@ def float32_decimal(values: npt.ArrayLike) -> npt.NDArray[np.float64]:
     return out
 
 
+@functools.lru_cache(maxsize=1 << 16)
 def _f32(value: float) -> float:
+    """One float32 field as its decimal. Cached: a sonar's limits and field of view repeat in
+    every message, and its ranges take few distinct values; decoding them one by one through
+    numpy was half the time of reading a ROS 2 recording."""
     return float(float32_decimal(value)[0])
 
 
