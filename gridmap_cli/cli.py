@@ -15,18 +15,15 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, ParamSpec, TypeVar
+from typing import TYPE_CHECKING, Any, ParamSpec, TypeVar
 
 import click
 import numpy as np
 from tqdm import tqdm
 
 from gridmap_cli import __version__
-from gridmap_cli.calibrate import Calibration
-from gridmap_cli.calibrate import calibrate as calibrate_log
 from gridmap_cli.convert import output_writer, write_log, writer_names
 from gridmap_cli.errors import GridmapError, InputFileError, OutputExistsError, UsageError
-from gridmap_cli.evaluate import Evaluation
 from gridmap_cli.models.error_aware import ErrorAwareParams
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
@@ -38,6 +35,12 @@ from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers.map_image import MAP_MODES, check_map_outputs, write_map
 from gridmap_cli.writers.map_mcap import check_map_mcap_output, write_map_mcap
 from gridmap_cli.writers.mcap_log import ENCODINGS
+
+if TYPE_CHECKING:
+    # calibrate and evaluate pull in scipy.ndimage (0.3 s): imported by their commands only,
+    # so that `gridmap build` in a loop over many logs does not pay for them
+    from gridmap_cli.calibrate import Calibration
+    from gridmap_cli.evaluate import Evaluation
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -614,6 +617,7 @@ def calibrate(
     LOG must carry ground truth (CSV true_x/true_y/true_theta, ARIA robotGlobal). Odometry and
     truth are compared over consecutive windows of travel; see docs/odometry-error.md.
     """
+    from gridmap_cli.calibrate import calibrate as calibrate_log
     from gridmap_cli.odometry_error import save_odometry_error
 
     if not (window_m > 0.0 and math.isfinite(window_m)):
