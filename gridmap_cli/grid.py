@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -113,28 +114,59 @@ def logodds(p: float) -> float:
     return math.log(p / (1.0 - p))
 
 
-class LogOddsAccumulator:
-    """Sums log-odds evidence over runs of cells with a per-row difference array.
+class SpanSums:
+    """Sums of values over runs of cells, kept as a per-row difference array.
 
     A run ``[col0, col1]`` of row ``r`` with value ``v`` adds ``v`` at ``(r, col0)`` and ``-v`` at
     ``(r, col1 + 1)``; one cumulative sum along each row at the end gives every cell its total.
-    The cost of a reading is thus its number of rows, not its number of cells. Observation counts
+    The cost of a run is O(1), not its number of cells, and sums do not depend on order. Integer
+    sums (counts) are exact: the weights are whole numbers far below 2**53.
+    """
+
+    def __init__(self, spec: GridSpec, dtype: type[np.float64] | type[np.int64]) -> None:
+        self.spec = spec
+        self._stride = spec.width + 1
+        self._sums = np.zeros(spec.height * self._stride, dtype=dtype)
+
+    def add(
+        self,
+        row: npt.NDArray[np.int64],
+        col0: npt.NDArray[np.int64],
+        col1: npt.NDArray[np.int64],
+        value: npt.NDArray[np.float64] | npt.NDArray[np.int64],
+    ) -> None:
+        """Add ``value[k]`` to every cell of run k; all arrays shape (S,)."""
+        if row.shape[0] == 0:
+            return
+        base = row * self._stride
+        delta = np.bincount(
+            np.concatenate([base + col0, base + col1 + 1]),
+            weights=np.concatenate([value, -value]).astype(np.float64),
+            minlength=self._sums.shape[0],
+        )
+        if self._sums.dtype == np.int64:
+            self._sums += np.rint(delta).astype(np.int64)
+        else:
+            self._sums += delta
+
+    def total(self) -> npt.NDArray[Any]:
+        """The sum per cell, shape (height, width)."""
+        grid = self._sums.reshape(self.spec.height, self._stride)
+        return np.cumsum(grid, axis=1)[:, : self.spec.width]
+
+
+class LogOddsAccumulator:
+    """Sums log-odds evidence over runs of cells (:class:`SpanSums`).
+
+    The cost of a reading is its number of rows, not its number of cells. Observation counts
     (how many readings touched a cell) are kept the same way, in integers, so "never observed" is
     exact. Because log-odds updates are sums, the result does not depend on reading order.
     """
 
     def __init__(self, spec: GridSpec) -> None:
         self.spec = spec
-        self._stride = spec.width + 1
-        size = spec.height * self._stride
-        self._values = np.zeros(size, dtype=np.float64)
-        self._counts = np.zeros(size, dtype=np.int64)
-
-    def _edges(
-        self, row: npt.NDArray[np.int64], col0: npt.NDArray[np.int64], col1: npt.NDArray[np.int64]
-    ) -> npt.NDArray[np.int64]:
-        base = row * self._stride
-        return np.concatenate([base + col0, base + col1 + 1])
+        self._values = SpanSums(spec, np.float64)
+        self._counts = SpanSums(spec, np.int64)
 
     def add_values(
         self,
@@ -144,38 +176,21 @@ class LogOddsAccumulator:
         value: npt.NDArray[np.float64],
     ) -> None:
         """Add ``value[k]`` to every cell of run k; all arrays shape (S,)."""
-        if row.shape[0] == 0:
-            return
-        self._values += np.bincount(
-            self._edges(row, col0, col1),
-            weights=np.concatenate([value, -value]),
-            minlength=self._values.shape[0],
-        )
+        self._values.add(row, col0, col1, value)
 
     def add_observations(
-        self,
-        row: npt.NDArray[np.int64],
-        col0: npt.NDArray[np.int64],
-        col1: npt.NDArray[np.int64],
-        times: int = 1,
+        self, row: npt.NDArray[np.int64], col0: npt.NDArray[np.int64], col1: npt.NDArray[np.int64]
     ) -> None:
-        """Count ``times`` observations (-1 takes one back) in every cell of each run."""
-        n = row.shape[0]
-        if n == 0:
-            return
-        base = row * self._stride
-        self._counts += times * np.bincount(base + col0, minlength=self._counts.shape[0])
-        self._counts -= times * np.bincount(base + col1 + 1, minlength=self._counts.shape[0])
+        """Count one observation in every cell of each run; arrays shape (S,)."""
+        self._counts.add(row, col0, col1, np.ones(row.shape[0], dtype=np.int64))
 
     def log_odds(self) -> npt.NDArray[np.float64]:
         """Summed log-odds per cell, shape (height, width)."""
-        grid = self._values.reshape(self.spec.height, self._stride)
-        return np.cumsum(grid, axis=1)[:, : self.spec.width]
+        return self._values.total().astype(np.float64, copy=False)
 
     def observations(self) -> npt.NDArray[np.int64]:
         """Number of readings that touched each cell, shape (height, width)."""
-        grid = self._counts.reshape(self.spec.height, self._stride)
-        return np.cumsum(grid, axis=1)[:, : self.spec.width]
+        return self._counts.total().astype(np.int64, copy=False)
 
     def occupancy_map(self, clamp_p: tuple[float, float] = DEFAULT_CLAMP_P) -> OccupancyMap:
         """Probabilities from the log-odds clamped to ``clamp_p`` (min, max); never observed: NaN.
@@ -203,52 +218,45 @@ class FrequencyAccumulator:
     ``w * a`` to the hit mass of the cells its echo may have come from. The finished map is the
     posterior mean of a Beta prior updated by those counts: ``(hits + alpha) / (observations +
     alpha + beta)``. Unlike a log-odds sum, a thousand repeats of one reading do not make a cell
-    more certain than the frequency they agree on; they only outweigh the prior. Sums are kept in
-    the same per-row difference arrays as :class:`LogOddsAccumulator`, so order does not matter.
+    more certain than the frequency they agree on; they only outweigh the prior. The three sums
+    are :class:`SpanSums`, so order does not matter.
     """
 
     def __init__(self, spec: GridSpec) -> None:
         self.spec = spec
-        self._hits = LogOddsAccumulator(spec)
-        self._looks = LogOddsAccumulator(spec)
+        self._hits = SpanSums(spec, np.float64)
+        self._looks = SpanSums(spec, np.float64)
+        self._seen = SpanSums(spec, np.int64)
 
-    def add_hits(
+    def add(
         self,
         row: npt.NDArray[np.int64],
         col0: npt.NDArray[np.int64],
         col1: npt.NDArray[np.int64],
-        weight: npt.NDArray[np.float64],
+        look: npt.NDArray[np.float64],
+        hit: npt.NDArray[np.float64],
+        seen: npt.NDArray[np.int64],
     ) -> None:
-        """Add ``weight[k]`` of hit mass to every cell of run k."""
-        self._hits.add_values(row, col0, col1, weight)
+        """Add to every cell of run k ``look[k]`` of observation mass, ``hit[k]`` of hit mass
+        and ``seen[k]`` looks counted (what makes a cell known); all arrays shape (S,).
 
-    def add_looks(
-        self,
-        row: npt.NDArray[np.int64],
-        col0: npt.NDArray[np.int64],
-        col1: npt.NDArray[np.int64],
-        weight: npt.NDArray[np.float64],
-        times: int = 1,
-    ) -> None:
-        """Add ``weight[k]`` of observation mass to every cell of run k.
-
-        ``times``: looks counted in those cells (what makes a cell known); a ring is a disk's
-        runs with ``times=1`` less the inner disk's with a negative weight and ``times=-1``.
+        A ring is a disk's runs less the inner disk's, with every value negated.
         """
-        self._looks.add_values(row, col0, col1, weight)
-        self._looks.add_observations(row, col0, col1, times)
+        self._looks.add(row, col0, col1, look)
+        self._hits.add(row, col0, col1, hit)
+        self._seen.add(row, col0, col1, seen)
 
     def hits(self) -> npt.NDArray[np.float64]:
         """Hit mass per cell, shape (height, width)."""
-        return self._hits.log_odds()
+        return self._hits.total().astype(np.float64, copy=False)
 
     def looks(self) -> npt.NDArray[np.float64]:
         """Observation mass per cell, shape (height, width)."""
-        return self._looks.log_odds()
+        return self._looks.total().astype(np.float64, copy=False)
 
     def observations(self) -> npt.NDArray[np.int64]:
         """Number of readings that reached each cell, shape (height, width)."""
-        return self._looks.observations()
+        return self._seen.total().astype(np.int64, copy=False)
 
     def occupancy_map(
         self, prior_counts: tuple[float, float] = DEFAULT_PRIOR_COUNTS

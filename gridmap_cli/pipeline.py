@@ -80,7 +80,7 @@ class SensorModel(Protocol):
 
 
 def _select(readings: SensorReadings, sl: slice | npt.NDArray[np.bool_]) -> SensorReadings:
-    travel = len(readings.distance_m) == len(readings)
+    d, r = readings.distance_m, readings.rotation_rad
     return SensorReadings(
         stamp_ns=readings.stamp_ns[sl],
         sensor=readings.sensor[sl],
@@ -89,8 +89,8 @@ def _select(readings: SensorReadings, sl: slice | npt.NDArray[np.bool_]) -> Sens
         y_m=readings.y_m[sl],
         theta_rad=readings.theta_rad[sl],
         sensors=readings.sensors,
-        distance_m=readings.distance_m[sl] if travel else readings.distance_m,
-        rotation_rad=readings.rotation_rad[sl] if travel else readings.rotation_rad,
+        distance_m=None if d is None else d[sl],
+        rotation_rad=None if r is None else r[sl],
     )
 
 

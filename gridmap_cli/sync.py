@@ -9,14 +9,14 @@ robot does not describe are counted and dropped, never silently mapped.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, wrap_angle
-from gridmap_cli.odometry_error import travelled
+from gridmap_cli.odometry_error import travelled_at
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription
 
@@ -30,7 +30,7 @@ class SensorReadings:
     ``sensor``: index into ``sensors``.
     ``distance_m``, ``rotation_rad``: how far the pose track had driven and how much it had turned
     (sum of absolute heading changes) from its start to each reading: what the odometry error
-    grows with. Zero-length arrays mean "not computed" (models that need them say so).
+    grows with. None when not computed (hand-made batches in tests); models that need them say so.
     """
 
     stamp_ns: npt.NDArray[np.int64]
@@ -40,8 +40,8 @@ class SensorReadings:
     y_m: npt.NDArray[np.float64]
     theta_rad: npt.NDArray[np.float64]
     sensors: tuple[RangeSensor, ...]
-    distance_m: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    rotation_rad: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    distance_m: npt.NDArray[np.float64] | None = None
+    rotation_rad: npt.NDArray[np.float64] | None = None
 
     def __len__(self) -> int:
         return int(self.stamp_ns.shape[0])
@@ -151,9 +151,7 @@ def synchronise(log: RangeLog, robot: RobotDescription | None) -> tuple[SensorRe
     my = np.asarray([s.y_m for s in sensors], dtype=np.float64)[idx]
     myaw = np.asarray([s.yaw_rad for s in sensors], dtype=np.float64)[idx]
     sx, sy, sth = compose(x[keep], y[keep], theta[keep], mx, my, myaw)
-    dist, rot = travelled(log.poses)
-    stamps = r.stamp_ns[keep].astype(np.float64)
-    track_t = log.poses.stamp_ns.astype(np.float64)
+    distance, rotation = travelled_at(log.poses, r.stamp_ns[keep])
     readings = SensorReadings(
         stamp_ns=r.stamp_ns[keep],
         sensor=idx,
@@ -162,8 +160,8 @@ def synchronise(log: RangeLog, robot: RobotDescription | None) -> tuple[SensorRe
         y_m=sy,
         theta_rad=sth,
         sensors=sensors,
-        distance_m=np.interp(stamps, track_t, dist),
-        rotation_rad=np.interp(stamps, track_t, rot),
+        distance_m=distance,
+        rotation_rad=rotation,
     )
     stats = SyncStats(
         total=len(r),

@@ -131,10 +131,11 @@ def test_frequency_map_is_the_beta_posterior_mean() -> None:
     spec = GridSpec(0.0, 0.0, 1.0, 3, 1)
     acc = FrequencyAccumulator(spec)
     r = np.zeros(1, dtype=np.int64)
+    one, none = np.ones(1), np.zeros(1)
     for _ in range(3):
-        acc.add_looks(r, r, r, np.ones(1))
-    acc.add_looks(r, r + 1, r + 1, np.ones(1))
-    acc.add_hits(r, r, r, np.full(1, 2.0))
+        acc.add(r, r, r, look=one, hit=none, seen=np.ones(1, dtype=np.int64))
+    acc.add(r, r + 1, r + 1, look=one, hit=none, seen=np.ones(1, dtype=np.int64))
+    acc.add(r, r, r, look=none, hit=np.full(1, 2.0), seen=np.zeros(1, dtype=np.int64))
     prob = acc.occupancy_map().prob
     assert prob[0, 0] == pytest.approx(0.625)
     assert prob[0, 1] == pytest.approx(0.25)

@@ -100,16 +100,15 @@ class ErrorAwareSonarModel:
 
     def evidence(self, readings: SensorReadings) -> SpreadEvidence:
         """Spread, sector and weights of each reading (docs/sensor-model.md, "Error-aware")."""
-        if len(readings.distance_m) != len(readings):
+        d, phi = readings.distance_m, readings.rotation_rad
+        if d is None or phi is None:
             raise ValueError("the error-aware model needs the distance driven for each reading")
         z = readings.range_m
         zmax = readings.per_sensor("max_range_m")
         beam_half = 0.5 * readings.per_sensor("beam_width_rad")
         echo = z < zmax
-        f = np.asarray(self.odometry.f(readings.distance_m), dtype=np.float64)
-        g = np.asarray(
-            self.odometry.g(readings.distance_m, readings.rotation_rad), dtype=np.float64
-        )
+        f = np.asarray(self.odometry.f(d), dtype=np.float64)
+        g = np.asarray(self.odometry.g(d, phi), dtype=np.float64)
         h = self.sonar.band_half_m(self.resolution_m)
         sigma_z = self.odometry.sonar_relative_error * z + f  # eq. 11
         half_width = np.minimum(beam_half + g, 0.5 * math.pi - 1e-9)  # eq. 12, kept convex
@@ -148,14 +147,25 @@ class ErrorAwareSonarModel:
         wide = sector_rows(spec, ev.x_m, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m)
         narrow = sector_rows(spec, ev.x_m, ev.y_m, ev.theta_rad, ev.free_half_width_rad, ev.free_m)
         mass = ev.weight * ev.hit
-        # the echo ring (free_m, look_m] of the wide wedge: looks and hits
+        # the echo ring (free_m, look_m] of the wide wedge: the wide disk less its inner disk,
+        # looked at and maybe hit; and the narrow wedge up to free_m, looked through whichever
+        # way the pose erred. One call, so the grid is swept once per batch, not five times.
         outer = wide.spans(ev.look_m)
         inner = wide.spans(ev.free_m)
-        grid.add_looks(outer.row, outer.col0, outer.col1, ev.weight[outer.reading])
-        grid.add_looks(inner.row, inner.col0, inner.col1, -ev.weight[inner.reading], times=-1)
-        grid.add_hits(outer.row, outer.col0, outer.col1, mass[outer.reading])
-        grid.add_hits(inner.row, inner.col0, inner.col1, -mass[inner.reading])
-        # looked through: the narrow wedge up to free_m, whichever way the pose erred
         free = narrow.spans(ev.free_m)
-        grid.add_looks(free.row, free.col0, free.col1, ev.weight[free.reading])
+        k = (outer.reading, inner.reading, free.reading)
+        grid.add(
+            np.concatenate([outer.row, inner.row, free.row]),
+            np.concatenate([outer.col0, inner.col0, free.col0]),
+            np.concatenate([outer.col1, inner.col1, free.col1]),
+            look=np.concatenate([ev.weight[k[0]], -ev.weight[k[1]], ev.weight[k[2]]]),
+            hit=np.concatenate([mass[k[0]], -mass[k[1]], np.zeros(len(k[2]))]),
+            seen=np.concatenate(
+                [
+                    np.ones(len(k[0]), np.int64),
+                    -np.ones(len(k[1]), np.int64),
+                    np.ones(len(k[2]), np.int64),
+                ]
+            ),
+        )
         return outer.cells()
