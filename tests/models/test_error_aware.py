@@ -81,10 +81,11 @@ def test_bearing_spread_grows_with_rotation() -> None:
 
 
 def test_evidence_per_reading_is_bounded_by_its_spread() -> None:
-    """Spreading an echo over more cells leaves its total hit mass about the same.
+    """Spreading an echo in bearing leaves its total hit mass about the same.
 
     The hit mass summed over the grid (weight 1 when f = 0) stays within the discretisation
-    error of the first reading's, however wide the spread; no cell gets more than one hit.
+    error of the unspread reading's for wedges up to 2.4 times wider; no cell gets more than one
+    hit.
     """
     totals = []
     for a_g in (0.0, 0.1, 0.3):
@@ -95,6 +96,24 @@ def test_evidence_per_reading_is_bounded_by_its_spread() -> None:
         totals.append(hits.sum())
     # the ring of the unspread beam holds ~ (2h) * z * beta cells; spreading keeps that mass
     assert max(totals) / min(totals) < 1.15
+
+
+def test_range_spread_never_adds_to_the_echo() -> None:
+    """Spread in range, the echo's band is cut at z + h (the beam went no further): the part of
+    the spread beyond the measured range is dropped, so a reading's hit mass (divided by its
+    weight) falls as the spread grows and never exceeds the unspread reading's. For a 3 m echo
+    at least half survives a half-metre spread."""
+    trust = ErrorAwareParams().trust_length_m
+    unspread = grid_of(Linear(), readings([3.0], [30.0])).hits().sum()
+    shares = []
+    for a_f in (0.001, 0.0033, 0.0167, 0.05, 0.1):
+        f = a_f * 30.0
+        weight = trust**2 / (trust**2 + f**2)
+        total = grid_of(Linear(a_f=a_f), readings([3.0], [30.0], [1.0])).hits().sum()
+        shares.append(total / weight / unspread)
+    assert all(share <= 1.05 for share in shares)
+    assert shares == sorted(shares, reverse=True)
+    assert shares[2] > 0.5  # f = 0.5 m
 
 
 def test_wide_spread_leaves_no_cell_confidently_occupied() -> None:
