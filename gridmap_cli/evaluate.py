@@ -27,6 +27,7 @@ from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.grid import GridSpec, OccupancyMap
 from gridmap_cli.mapfile import load_map, stored_probability
+from gridmap_cli.metrics import world_cells
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.sim.world import World
@@ -236,15 +237,10 @@ def _set_cells(region: BoolArray, spec: GridSpec, x: FloatArray, y: FloatArray) 
 def map_in_world(pmap: ProbabilityMap, world: GridSpec, map_to_world: Pose) -> FloatArray:
     """The map's probability at each world cell's centre, shape ``world.shape``; NaN where the
     map does not know the cell or does not reach it. ``map_to_world``: the map frame's pose."""
-    rows, cols = np.indices(world.shape)
-    wx, wy = world.cell_center(cols, rows)
+    # the world grid seen from the map: the map cell under each world cell's centre
     ix, iy, ith = inverse(*(np.asarray(v, dtype=np.float64) for v in map_to_world))
-    mx, my, _ = compose(ix, iy, ith, wx, wy, 0.0)
-    col, row = pmap.spec.world_to_cell(mx, my)
-    inside = (col >= 0) & (row >= 0) & (col < pmap.spec.width) & (row < pmap.spec.height)
-    out = np.full(world.shape, np.nan)
-    out[inside] = pmap.prob[row[inside], col[inside]]
-    return out
+    row, col, inside = world_cells(world, pmap.spec, (float(ix), float(iy), float(ith)))
+    return np.where(inside, pmap.prob[row, col], np.nan)
 
 
 def evaluate_map(
