@@ -25,9 +25,10 @@ from scipy import ndimage
 
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
-from gridmap_cli.grid import GridSpec, OccupancyMap
+from gridmap_cli.grid import GridSpec, OccupancyMap, SpanSums
 from gridmap_cli.mapfile import load_map, stored_probability
 from gridmap_cli.metrics import world_cells
+from gridmap_cli.models.ray import RaySegments, row_runs
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.sim.world import World
@@ -156,8 +157,9 @@ def sensed_region(
     From true poses every ``step_m`` metres or ``step_rad`` radians of turning along the path
     (first and last included), each sensor casts rays in the world across its beam (rays no
     more than one cell apart at its maximum range; one ray for a beam width of 0) up to its
-    maximum range. Every cell a ray crosses counts, and so does the occupied cell it stops in.
-    The region depends on the world, the path and the sensors only.
+    maximum range. Every cell a ray crosses counts (an exact traversal,
+    :func:`~gridmap_cli.models.ray.row_runs`, corners it clips included), and so does the
+    occupied cell it stops in. The region depends on the world, the path and the sensors only.
     """
     if len(truth) == 0:
         raise EvaluationError("the true path is empty")
@@ -182,11 +184,11 @@ def sensed_region(
         reach.append(np.full(sx.shape[0] * offsets.shape[0], s.max_range_m))
     x0, y0 = np.concatenate(ox), np.concatenate(oy)
     a, rmax = np.concatenate(angle), np.concatenate(reach)
-    region = np.zeros(spec.shape, dtype=bool)
+    crossings = SpanSums(spec, np.int64)
     for lo in range(0, x0.shape[0], _RAYS_PER_CHUNK):
         sl = slice(lo, lo + _RAYS_PER_CHUNK)
-        _mark_rays(region, world, x0[sl], y0[sl], a[sl], rmax[sl])
-    return region
+        _mark_rays(crossings, world, x0[sl], y0[sl], a[sl], rmax[sl])
+    return np.asarray(crossings.total() > 0)
 
 
 def _path_samples(truth: PoseTrack, step_m: float, step_rad: float) -> npt.NDArray[np.int64]:
@@ -202,36 +204,31 @@ def _path_samples(truth: PoseTrack, step_m: float, step_rad: float) -> npt.NDArr
 
 
 def _mark_rays(
-    region: BoolArray,
+    region: SpanSums,
     world: World,
     x0: FloatArray,
     y0: FloatArray,
     angle: FloatArray,
     rmax: FloatArray,
 ) -> None:
-    """Set the cells of ``region`` that rays (shape (R,)) cross up to their first hit."""
-    spec = world.spec
-    res = spec.resolution_m
+    """Count in ``region`` the cells rays (shape (R,)) cross up to their first hit, and the
+    occupied cell each hit stops in."""
+    res = world.spec.resolution_m
     r, _ = world.cast(x0, y0, angle, rmax)
-    hit = r < rmax
-    # half-cell steps along each ray visit every cell it crosses but for corners it clips,
-    # which a neighbouring ray (at most one cell away) visits instead; each ray gets the steps
-    # its own range needs
-    h = 0.5 * res
-    counts = np.ceil(r / h).astype(np.int64) + 1
-    ray = np.repeat(np.arange(r.shape[0]), counts)
-    first = np.repeat(np.cumsum(counts) - counts, counts)
-    t = np.minimum((np.arange(ray.shape[0]) - first) * h, r[ray])
-    _set_cells(region, spec, x0[ray] + t * np.cos(angle[ray]), y0[ray] + t * np.sin(angle[ray]))
-    # the occupied cell a ray stops in: a hundredth of a cell past its boundary
-    th = r[hit] + 0.01 * res
-    _set_cells(region, spec, x0[hit] + th * np.cos(angle[hit]), y0[hit] + th * np.sin(angle[hit]))
-
-
-def _set_cells(region: BoolArray, spec: GridSpec, x: FloatArray, y: FloatArray) -> None:
-    col, row = spec.world_to_cell(x, y)
-    inside = (col >= 0) & (row >= 0) & (col < spec.width) & (row < spec.height)
-    region.reshape(-1)[row[inside] * spec.width + col[inside]] = True
+    # carried a hundredth of a cell past the boundary it hit, a ray ends inside the occupied
+    # cell it stops in, so its exact traversal takes that cell too
+    length = np.where(r < rmax, r + 0.01 * res, r)
+    runs = row_runs(
+        world.spec,
+        RaySegments(
+            x0_m=x0,
+            y0_m=y0,
+            x1_m=x0 + length * np.cos(angle),
+            y1_m=y0 + length * np.sin(angle),
+            echo=np.ones(r.shape[0], dtype=bool),  # a ray of length 0 still has its one cell
+        ),
+    )
+    region.add(runs.row, runs.col0, runs.col1, np.ones(runs.row.shape[0], dtype=np.int64))
 
 
 def map_in_world(pmap: ProbabilityMap, world: GridSpec, map_to_world: Pose) -> FloatArray:

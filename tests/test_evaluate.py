@@ -169,6 +169,18 @@ def test_sensed_region_by_hand() -> None:
     assert wedge[:, 4].all() and wedge[:, 7].all() and not wedge[:, 8:].any()
 
 
+def test_sensed_region_takes_the_corners_a_ray_clips() -> None:
+    # from (0.5, 0.5) at 35 degrees for 2.9 m in an empty world: the ray leaves cell (row 0,
+    # col 0) through x = 1 at y = 0.85 into (0, 1), enters row 1 at x = 1.21, crosses x = 2 at
+    # y = 1.55, enters row 2 at x = 2.64 and stops at (2.88, 2.16). Half-cell steps along it
+    # (t = 0.5, 1.0) would skip (0, 1).
+    world = World(np.zeros((5, 5), dtype=bool), GridSpec(0.0, 0.0, 1.0, 5, 5))
+    pose = PoseTrack.from_rows(np.zeros(1, dtype=np.int64), [(0.5, 0.5, math.radians(35.0))])
+    ray = RangeSensor("r", 0.0, 0.0, 0.0, 0.0, 0.0, 2.9, "laser")
+    region = sensed_region(world, pose, [ray])
+    assert [np.flatnonzero(row).tolist() for row in region] == [[0, 1], [1, 2], [2], [], []]
+
+
 def _write_world(folder: Path, walls: np.ndarray, spec: GridSpec) -> Path:
     write_map(folder / "world.pgm", OccupancyMap(spec, walls.astype(np.float64)), mode="trinary")
     return folder / "world.yaml"
