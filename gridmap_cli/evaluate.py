@@ -24,11 +24,12 @@ import numpy.typing as npt
 from scipy import ndimage
 
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.geometry import compose, inverse, wrap_angle
+from gridmap_cli.geometry import compose, inverse
 from gridmap_cli.grid import GridSpec, OccupancyMap, SpanSums
 from gridmap_cli.mapfile import load_map, stored_probability
 from gridmap_cli.metrics import world_cells
 from gridmap_cli.models.ray import RaySegments, row_runs
+from gridmap_cli.odometry_error import travelled
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.sim.world import World
@@ -193,8 +194,7 @@ def sensed_region(
 
 def _path_samples(truth: PoseTrack, step_m: float, step_rad: float) -> npt.NDArray[np.int64]:
     """Indices of the poses where the path crosses a multiple of step_m or of step_rad."""
-    dist = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(truth.x_m), np.diff(truth.y_m)))])
-    rot = np.concatenate([[0.0], np.cumsum(np.abs(wrap_angle(np.diff(truth.theta_rad))))])
+    dist, rot = travelled(truth)
     bucket_d = np.floor(dist / step_m)
     bucket_r = np.floor(rot / step_rad)
     change = np.ones(dist.shape[0], dtype=bool)
