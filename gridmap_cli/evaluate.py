@@ -26,7 +26,7 @@ from scipy import ndimage
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse
 from gridmap_cli.grid import GridSpec, OccupancyMap, SpanSums
-from gridmap_cli.mapfile import load_map, stored_probability
+from gridmap_cli.mapfile import load_map
 from gridmap_cli.metrics import world_cells
 from gridmap_cli.models.ray import RaySegments, row_runs
 from gridmap_cli.odometry_error import travelled
@@ -72,9 +72,9 @@ class ProbabilityMap:
 
 def load_probability_map(yaml_path: Path) -> ProbabilityMap:
     """A map_server map as the probabilities its file states (see
-    :func:`~gridmap_cli.mapfile.stored_probability`; scale maps keep theirs)."""
+    :meth:`~gridmap_cli.mapfile.LoadedMap.stored_probability`; scale maps keep theirs)."""
     loaded = load_map(yaml_path)
-    return ProbabilityMap(loaded.spec, stored_probability(loaded), loaded.occupied_thresh)
+    return ProbabilityMap(loaded.spec, loaded.stored_probability(), loaded.occupied_thresh)
 
 
 @dataclass(frozen=True)

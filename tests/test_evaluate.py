@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ from gridmap_cli.evaluate import (
     sensed_region,
 )
 from gridmap_cli.grid import GridSpec, OccupancyMap
+from gridmap_cli.mapfile import load_map
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.sim.world import World
@@ -215,6 +217,11 @@ def test_scale_maps_keep_their_probabilities(tmp_path: Path) -> None:
     # grey = round(255 (1 - p)): p comes back within half a grey level
     np.testing.assert_allclose(loaded.prob, PROB3, atol=0.5 / 255)
     assert np.isnan(loaded.prob[1, 1]) and loaded.occupied_thresh == 0.65
+    # without the pixels (a LoadedMap made by hand) only the loader's occupancy / 100 is known
+    full = load_map(tmp_path / "map.yaml")
+    np.testing.assert_array_equal(full.stored_probability(), loaded.prob)
+    bare = replace(full, pixels=None)
+    np.testing.assert_array_equal(bare.stored_probability(), full.probability())
 
 
 def test_cli_with_a_log_in_the_odometry_frame(tmp_path: Path) -> None:
