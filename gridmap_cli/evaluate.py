@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -98,7 +98,9 @@ class Evaluation:
     difference between p and the truth (0/1); ``ece``: expected calibration error over
     :data:`RELIABILITY_BINS` bins; ``precision``, ``recall``, ``f1``: occupied cells with one
     cell of tolerance; ``predicted_occupied``: region cells the map calls occupied;
-    ``coverage``: share of region cells the map knows.
+    ``coverage``: share of region cells the map knows. ``p_world``: the map's p on the world
+    grid as scored (:func:`map_in_world`: NaN unknown or outside, shape ``world.shape``), for
+    drawing; it is left out of :meth:`as_dict` and of equality.
     """
 
     cells: int
@@ -113,9 +115,13 @@ class Evaluation:
     predicted_occupied: int
     coverage: float
     occupied_thresh: float
+    p_world: FloatArray = field(repr=False, compare=False)
 
     def as_dict(self) -> dict[str, object]:
-        out = asdict(self)
+        """The scores as plain values (for JSON): every field but ``p_world``."""
+        out: dict[str, object] = {
+            f.name: getattr(self, f.name) for f in fields(self) if f.name != "p_world"
+        }
         out["reliability"] = [asdict(b) for b in self.reliability]
         return out
 
@@ -251,6 +257,7 @@ def evaluate_map(
 
     ``region``: world cells to score (same shape); None scores every world cell.
     ``map_to_world``: pose of the map's frame in the world (identity for world-frame maps).
+    The result also carries the map's p on the world grid (``p_world``), for drawing.
     Raises :class:`EvaluationError` for an empty region and ``ValueError`` for shapes that
     do not match.
     """
@@ -300,6 +307,7 @@ def evaluate_map(
         predicted_occupied=n_pred,
         coverage=float((region & known).sum() / n),
         occupied_thresh=pmap.occupied_thresh,
+        p_world=p_world,
     )
 
 

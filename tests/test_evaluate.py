@@ -20,6 +20,7 @@ from gridmap_cli.evaluate import (
     odometry_frame_in_world,
     sensed_region,
 )
+from gridmap_cli.evaluate_plot import UNKNOWN_RGB, map_rgb
 from gridmap_cli.grid import GridSpec, OccupancyMap
 from gridmap_cli.mapfile import load_map
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
@@ -125,6 +126,9 @@ def test_a_map_in_the_odometry_frame_scores_as_the_same_map_in_the_world_frame()
     np.testing.assert_array_equal(
         map_in_world(in_odometry, WORLD10, START), map_in_world(in_world, WORLD10, (0, 0, 0))
     )
+    # the evaluation carries the map on the world grid as scored, for drawing, not for JSON
+    np.testing.assert_array_equal(b.p_world, map_in_world(in_odometry, WORLD10, START))
+    assert "p_world" not in b.as_dict() and b.as_dict()["nll"] == b.nll
     # placed with the wrong pose it scores worse
     assert evaluate_map(in_odometry, WALLS10, WORLD10, map_to_world=(3.0, 2.0, 0.0)).nll > a.nll
 
@@ -264,6 +268,13 @@ def test_cli_plot(tmp_path: Path) -> None:
     assert (tmp_path / "eval.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     code, _, err = run(*args, "--plot", str(tmp_path / "eval.png"))
     assert code == 1 and "exists (use --force to overwrite)" in err
+
+
+def test_map_rgb_draws_one_minus_p_and_unknown_pale_blue() -> None:
+    rgb = map_rgb(np.array([[0.25, np.nan], [1.0, 0.0]]))
+    assert rgb.shape == (2, 2, 3)
+    assert rgb[0, 0].tolist() == [0.75] * 3 and rgb[0, 1].tolist() == list(UNKNOWN_RGB)
+    assert rgb[1, 0].tolist() == [0.0] * 3 and rgb[1, 1].tolist() == [1.0] * 3
 
 
 def test_plot_without_matplotlib_is_a_clear_error(

@@ -8,7 +8,12 @@ from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
+
+from gridmap_cli.evaluate import ProbabilityMap, Truth, evaluate_map
+from gridmap_cli.grid import GridSpec
+from gridmap_cli.sim.world import World
 
 SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "experiment.py"
 
@@ -43,3 +48,20 @@ def test_mean_and_spread_over_seeds(experiment: ModuleType) -> None:
     assert experiment.mean_sd([0.5, 0.7]) == "0.600 ± 0.141"
     assert experiment.mean_sd([0.5]) == "0.500"
     assert experiment.mean_sd([float("nan")]) == "n/a"
+
+
+def test_figure_draws_each_run_from_its_evaluation(experiment: ModuleType, tmp_path: Path) -> None:
+    # one world, one mode, two drift levels: the figure needs only the runs and the truths
+    walls = np.zeros((4, 6), dtype=bool)
+    walls[:, 5] = True
+    spec = GridSpec(0.0, 0.0, 1.0, 6, 4)
+    truth = Truth(spec, walls, World(walls, spec))
+    pmap = ProbabilityMap(spec, np.where(walls, 0.9, 0.1), 0.65)
+    e = evaluate_map(pmap, walls, spec)
+    runs = [
+        experiment.Run("w", d, 21, "standard", e, tmp_path / "absent.yaml", (0.0, 0.0, 0.0))
+        for d in (0.0, 1.0)
+    ]
+    out = tmp_path / "maps.png"
+    experiment.figure(runs, {"w": truth}, (0.0, 1.0), out)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
