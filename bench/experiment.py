@@ -48,6 +48,7 @@ from gridmap_cli.evaluate_plot import map_rgb
 from gridmap_cli.odometry_error import load_odometry_error
 from gridmap_cli.readers import read_log
 from gridmap_cli.robot import load_robot
+from gridmap_cli.sim.odometry import OdometryErrorModel
 from gridmap_cli.sync import sensors_for_log
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -322,9 +323,19 @@ def write_doc(
             f"{c['bearing_rad_per_rad']:.4f} | {c['bearing_rad_per_sqrt_rad']:.4f} | "
             f"{c['heading_drift_rad_per_m']:.5f} |"
         )
+    # the simulator's drift-1 terms, in the order of the table's columns
+    sim = OdometryErrorModel()
+    drift1 = (
+        sim.scale_error,
+        sim.sigma_dist_per_sqrt_m,
+        sim.turn_scale_error,
+        sim.sigma_turn_per_sqrt_rad,
+        sim.heading_drift_rad_per_m,
+    )
     lines += [
         "",
-        "(The simulator's drift-1 errors: 0.01, 0.01, 0.02, 0.02, 0.00349; drift 2 doubles them.)",
+        f"(The simulator's drift-1 errors: {', '.join(f'{v:.3g}' for v in drift1)}; drift 2 "
+        "doubles them.)",
     ]
     lines += claim_lines(runs, args.worlds, args.drifts)
     for world in args.worlds:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import importlib.util
 import sys
 from collections.abc import Iterator
@@ -13,6 +14,7 @@ import pytest
 
 from gridmap_cli.evaluate import ProbabilityMap, Truth, evaluate_map
 from gridmap_cli.grid import GridSpec
+from gridmap_cli.odometry_error import OdometryError
 from gridmap_cli.sim.world import World
 
 SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "experiment.py"
@@ -65,3 +67,16 @@ def test_figure_draws_each_run_from_its_evaluation(experiment: ModuleType, tmp_p
     out = tmp_path / "maps.png"
     experiment.figure(runs, {"w": truth}, (0.0, 1.0), out)
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_doc_states_the_simulators_drift_one_errors(
+    experiment: ModuleType, tmp_path: Path
+) -> None:
+    walls = np.zeros((4, 6), dtype=bool)
+    spec = GridSpec(0.0, 0.0, 1.0, 6, 4)
+    e = evaluate_map(ProbabilityMap(spec, np.full(spec.shape, 0.1), 0.65), walls, spec)
+    runs = [experiment.Run("w", 1.0, 21, "standard", e, tmp_path / "m.yaml", (0.0, 0.0, 0.0))]
+    args = argparse.Namespace(worlds=("w",), drifts=(1.0,), seeds=(21,))
+    doc = experiment.write_doc(runs, {"1": OdometryError().as_dict()}, args, 1.0, None)
+    # OdometryErrorModel's defaults in the table's column order; 0.2 deg/m of heading drift
+    assert "(The simulator's drift-1 errors: 0.01, 0.01, 0.02, 0.02, 0.00349; drift 2" in doc
