@@ -228,6 +228,24 @@ def test_scale_maps_keep_their_probabilities(tmp_path: Path) -> None:
     np.testing.assert_array_equal(bare.stored_probability(), full.probability())
 
 
+def test_a_map_built_in_memory_scores_as_the_same_map_written_and_loaded(tmp_path: Path) -> None:
+    # p on whole grey levels (k / 255), so the scale image stores it exactly; a corner unknown
+    rng = np.random.default_rng(7)
+    spec = GridSpec(-2.0, -7.0, 1.0, 10, 10)
+    prob = rng.integers(0, 256, spec.shape) / 255.0
+    prob[:2, :2] = np.nan
+    omap = OccupancyMap(spec, prob)
+    write_map(tmp_path / "map.png", omap, mode="scale", occupied_thresh=0.6, free_thresh=0.25)
+    in_memory = ProbabilityMap.from_occupancy_map(omap, 0.6)
+    loaded = load_probability_map(tmp_path / "map.yaml")
+    region = np.ones(WORLD10.shape, dtype=bool)
+    region[5:, :] = False
+    a = evaluate_map(in_memory, WALLS10, WORLD10, region, START)
+    b = evaluate_map(loaded, WALLS10, WORLD10, region, START)
+    assert a == b and b.occupied_thresh == 0.6 and 0.0 < b.coverage < 1.0
+    np.testing.assert_array_equal(a.p_world, b.p_world)
+
+
 def test_cli_with_a_log_in_the_odometry_frame(tmp_path: Path) -> None:
     world = _write_world(tmp_path, WALLS10, WORLD10)
     rng = np.random.default_rng(5)
