@@ -36,16 +36,19 @@ import numpy as np
 from gridmap_cli.cli import cli
 from gridmap_cli.evaluate import (
     Evaluation,
+    Pose,
+    Truth,
     evaluate_map,
     load_probability_map,
     load_truth,
-    map_in_world,
     odometry_frame_in_world,
     sensed_region,
 )
+from gridmap_cli.evaluate_plot import map_rgb
 from gridmap_cli.odometry_error import load_odometry_error
 from gridmap_cli.readers import read_log
 from gridmap_cli.robot import load_robot
+from gridmap_cli.sim.odometry import OdometryErrorModel
 from gridmap_cli.sync import sensors_for_log
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -89,12 +92,16 @@ def gridmap(*args: str) -> None:
 
 @dataclass(frozen=True)
 class Run:
+    """One map scored: ``evaluation.p_world`` is the map on the world grid, placed by
+    ``map_to_world`` (the run's odometry frame in the world)."""
+
     world: str
     drift: float
     seed: int
     mode: str
     evaluation: Evaluation
     map_yaml: Path
+    map_to_world: Pose
 
 
 def drift_name(drift: float) -> str:
@@ -125,9 +132,14 @@ def calibrate(out: Path, drift: float) -> Path:
     return yaml_path
 
 
+def load_truths(worlds: tuple[str, ...]) -> dict[str, Truth]:
+    """Each world's ground truth, by name, in the order given."""
+    return {w: load_truth(SAMPLES / "worlds" / f"{w}.yaml") for w in worlds}
+
+
 def run_all(
     out: Path,
-    worlds: tuple[str, ...],
+    truths: dict[str, Truth],
     drifts: tuple[float, ...],
     seeds: tuple[int, ...],
     modes: tuple[str, ...],
@@ -136,8 +148,7 @@ def run_all(
     calibrations = {d: calibrate(out, d) for d in drifts}
     robot = load_robot(ROBOT)
     runs: list[Run] = []
-    for world in worlds:
-        truth = load_truth(SAMPLES / "worlds" / f"{world}.yaml")
+    for world, truth in truths.items():
         for drift in drifts:
             for seed in seeds:
                 stem = f"{world}_drift{drift_name(drift)}_seed{seed}"
@@ -157,7 +168,7 @@ def run_all(
                     )  # fmt: skip
                     pmap = load_probability_map(image.with_suffix(".yaml"))
                     e = evaluate_map(pmap, truth.walls, truth.spec, region, start)
-                    runs.append(Run(world, drift, seed, mode, e, image.with_suffix(".yaml")))
+                    runs.append(Run(world, drift, seed, mode, e, image.with_suffix(".yaml"), start))
                     print(
                         f"{stem} {mode:12s} NLL {e.nll:.4f} Brier {e.brier:.4f} "
                         f"ECE {e.ece:.4f} F1 {e.f1:.3f} coverage {e.coverage:.3f}",
@@ -176,7 +187,9 @@ def mean_sd(values: list[float]) -> str:
     return f"{statistics.fmean(values):.3f} ± {statistics.stdev(values):.3f}"
 
 
-def figure(runs: list[Run], worlds: tuple[str, ...], drifts: tuple[float, ...], path: Path) -> None:
+def figure(
+    runs: list[Run], truths: dict[str, Truth], drifts: tuple[float, ...], path: Path
+) -> None:
     """Maps of the first seed on the world grid, true walls in red: rows world x mode,
     columns drift levels."""
     import matplotlib
@@ -186,24 +199,19 @@ def figure(runs: list[Run], worlds: tuple[str, ...], drifts: tuple[float, ...], 
 
     seed = min(r.seed for r in runs)
     modes = list(dict.fromkeys(r.mode for r in runs))
-    rows = [(w, m) for w in worlds for m in modes]
+    rows = [(w, m) for w in truths for m in modes]
     fig, axes = plt.subplots(
         len(rows), len(drifts), figsize=(3.6 * len(drifts), 2.6 * len(rows)), squeeze=False
     )
     for i, (world, mode) in enumerate(rows):
-        truth = load_truth(SAMPLES / "worlds" / f"{world}.yaml")
+        walls = truths[world].walls
         for j, drift in enumerate(drifts):
             ax = axes[i][j]
             run = next(
                 r for r in runs if (r.world, r.mode, r.drift, r.seed) == (world, mode, drift, seed)
             )
-            log = read_log(run.map_yaml.parent / f"{world}_drift{drift_name(drift)}_seed{seed}.csv")
-            p = map_in_world(
-                load_probability_map(run.map_yaml), truth.spec, odometry_frame_in_world(log)
-            )
-            rgb = np.repeat((1.0 - np.nan_to_num(p, nan=0.0))[:, :, None], 3, axis=2)
-            rgb[np.isnan(p)] = (0.85, 0.9, 1.0)
-            rgb[truth.walls] = 0.5 * rgb[truth.walls] + 0.5 * np.array([0.95, 0.1, 0.1])
+            rgb = map_rgb(run.evaluation.p_world)
+            rgb[walls] = 0.5 * rgb[walls] + 0.5 * np.array([0.95, 0.1, 0.1])
             ax.imshow(rgb, origin="lower", interpolation="nearest")
             ax.set_xticks([])
             ax.set_yticks([])
@@ -315,9 +323,19 @@ def write_doc(
             f"{c['bearing_rad_per_rad']:.4f} | {c['bearing_rad_per_sqrt_rad']:.4f} | "
             f"{c['heading_drift_rad_per_m']:.5f} |"
         )
+    # the simulator's drift-1 terms, in the order of the table's columns
+    sim = OdometryErrorModel()
+    drift1 = (
+        sim.scale_error,
+        sim.sigma_dist_per_sqrt_m,
+        sim.turn_scale_error,
+        sim.sigma_turn_per_sqrt_rad,
+        sim.heading_drift_rad_per_m,
+    )
     lines += [
         "",
-        "(The simulator's drift-1 errors: 0.01, 0.01, 0.02, 0.02, 0.00349; drift 2 doubles them.)",
+        f"(The simulator's drift-1 errors: {', '.join(f'{v:.3g}' for v in drift1)}; drift 2 "
+        "doubles them.)",
     ]
     lines += claim_lines(runs, args.worlds, args.drifts)
     for world in args.worlds:
@@ -367,11 +385,13 @@ def main(argv: list[str] | None = None) -> None:
     args.drifts = tuple(float(d) for d in args.drifts.split(","))
     args.seeds = tuple(int(s) for s in args.seeds.split(","))
     started = time.perf_counter()
-    runs, calibration = run_all(args.out, args.worlds, args.drifts, args.seeds, args.modes)
+    truths = load_truths(args.worlds)
+    runs, calibration = run_all(args.out, truths, args.drifts, args.seeds, args.modes)
     (args.out / "results.json").write_text(
         json.dumps(
             [
                 {"world": r.world, "drift": r.drift, "seed": r.seed, "mode": r.mode,
+                 "map": str(r.map_yaml), "map_to_world": list(r.map_to_world),
                  **r.evaluation.as_dict()}
                 for r in runs
             ],
@@ -381,7 +401,7 @@ def main(argv: list[str] | None = None) -> None:
     )  # fmt: skip
     if args.no_doc:
         return
-    figure(runs, args.worlds, args.drifts, args.image)
+    figure(runs, truths, args.drifts, args.image)
     seconds = time.perf_counter() - started
     args.doc.write_text(write_doc(runs, calibration, args, seconds, args.image))
     print(f"wrote {args.doc} and {args.image} in {seconds:.0f} s", file=sys.stderr)

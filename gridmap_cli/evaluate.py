@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -24,9 +24,12 @@ import numpy.typing as npt
 from scipy import ndimage
 
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.geometry import compose, inverse, wrap_angle
-from gridmap_cli.grid import GridSpec, OccupancyMap
-from gridmap_cli.mapfile import load_map, stored_probability
+from gridmap_cli.geometry import compose, inverse
+from gridmap_cli.grid import GridSpec, OccupancyMap, SpanSums
+from gridmap_cli.mapfile import load_map
+from gridmap_cli.metrics import world_cells
+from gridmap_cli.models.ray import RaySegments, row_runs
+from gridmap_cli.odometry_error import travelled
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.sim.world import World
@@ -69,9 +72,9 @@ class ProbabilityMap:
 
 def load_probability_map(yaml_path: Path) -> ProbabilityMap:
     """A map_server map as the probabilities its file states (see
-    :func:`~gridmap_cli.mapfile.stored_probability`; scale maps keep theirs)."""
+    :meth:`~gridmap_cli.mapfile.LoadedMap.stored_probability`; scale maps keep theirs)."""
     loaded = load_map(yaml_path)
-    return ProbabilityMap(loaded.spec, stored_probability(loaded), loaded.occupied_thresh)
+    return ProbabilityMap(loaded.spec, loaded.stored_probability(), loaded.occupied_thresh)
 
 
 @dataclass(frozen=True)
@@ -95,7 +98,9 @@ class Evaluation:
     difference between p and the truth (0/1); ``ece``: expected calibration error over
     :data:`RELIABILITY_BINS` bins; ``precision``, ``recall``, ``f1``: occupied cells with one
     cell of tolerance; ``predicted_occupied``: region cells the map calls occupied;
-    ``coverage``: share of region cells the map knows.
+    ``coverage``: share of region cells the map knows. ``p_world``: the map's p on the world
+    grid as scored (:func:`map_in_world`: NaN unknown or outside, shape ``world.shape``), for
+    drawing; it is left out of :meth:`as_dict` and of equality.
     """
 
     cells: int
@@ -110,9 +115,13 @@ class Evaluation:
     predicted_occupied: int
     coverage: float
     occupied_thresh: float
+    p_world: FloatArray = field(repr=False, compare=False)
 
     def as_dict(self) -> dict[str, object]:
-        out = asdict(self)
+        """The scores as plain values (for JSON): every field but ``p_world``."""
+        out: dict[str, object] = {
+            f.name: getattr(self, f.name) for f in fields(self) if f.name != "p_world"
+        }
         out["reliability"] = [asdict(b) for b in self.reliability]
         return out
 
@@ -155,8 +164,9 @@ def sensed_region(
     From true poses every ``step_m`` metres or ``step_rad`` radians of turning along the path
     (first and last included), each sensor casts rays in the world across its beam (rays no
     more than one cell apart at its maximum range; one ray for a beam width of 0) up to its
-    maximum range. Every cell a ray crosses counts, and so does the occupied cell it stops in.
-    The region depends on the world, the path and the sensors only.
+    maximum range. Every cell a ray crosses counts (an exact traversal,
+    :func:`~gridmap_cli.models.ray.row_runs`, corners it clips included), and so does the
+    occupied cell it stops in. The region depends on the world, the path and the sensors only.
     """
     if len(truth) == 0:
         raise EvaluationError("the true path is empty")
@@ -181,17 +191,16 @@ def sensed_region(
         reach.append(np.full(sx.shape[0] * offsets.shape[0], s.max_range_m))
     x0, y0 = np.concatenate(ox), np.concatenate(oy)
     a, rmax = np.concatenate(angle), np.concatenate(reach)
-    region = np.zeros(spec.shape, dtype=bool)
+    crossings = SpanSums(spec, np.int64)
     for lo in range(0, x0.shape[0], _RAYS_PER_CHUNK):
         sl = slice(lo, lo + _RAYS_PER_CHUNK)
-        _mark_rays(region, world, x0[sl], y0[sl], a[sl], rmax[sl])
-    return region
+        _mark_rays(crossings, world, x0[sl], y0[sl], a[sl], rmax[sl])
+    return np.asarray(crossings.total() > 0)
 
 
 def _path_samples(truth: PoseTrack, step_m: float, step_rad: float) -> npt.NDArray[np.int64]:
     """Indices of the poses where the path crosses a multiple of step_m or of step_rad."""
-    dist = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(truth.x_m), np.diff(truth.y_m)))])
-    rot = np.concatenate([[0.0], np.cumsum(np.abs(wrap_angle(np.diff(truth.theta_rad))))])
+    dist, rot = travelled(truth)
     bucket_d = np.floor(dist / step_m)
     bucket_r = np.floor(rot / step_rad)
     change = np.ones(dist.shape[0], dtype=bool)
@@ -201,50 +210,40 @@ def _path_samples(truth: PoseTrack, step_m: float, step_rad: float) -> npt.NDArr
 
 
 def _mark_rays(
-    region: BoolArray,
+    region: SpanSums,
     world: World,
     x0: FloatArray,
     y0: FloatArray,
     angle: FloatArray,
     rmax: FloatArray,
 ) -> None:
-    """Set the cells of ``region`` that rays (shape (R,)) cross up to their first hit."""
-    spec = world.spec
-    res = spec.resolution_m
+    """Count in ``region`` the cells rays (shape (R,)) cross up to their first hit, and the
+    occupied cell each hit stops in."""
+    res = world.spec.resolution_m
     r, _ = world.cast(x0, y0, angle, rmax)
-    hit = r < rmax
-    # half-cell steps along each ray visit every cell it crosses but for corners it clips,
-    # which a neighbouring ray (at most one cell away) visits instead; each ray gets the steps
-    # its own range needs
-    h = 0.5 * res
-    counts = np.ceil(r / h).astype(np.int64) + 1
-    ray = np.repeat(np.arange(r.shape[0]), counts)
-    first = np.repeat(np.cumsum(counts) - counts, counts)
-    t = np.minimum((np.arange(ray.shape[0]) - first) * h, r[ray])
-    _set_cells(region, spec, x0[ray] + t * np.cos(angle[ray]), y0[ray] + t * np.sin(angle[ray]))
-    # the occupied cell a ray stops in: a hundredth of a cell past its boundary
-    th = r[hit] + 0.01 * res
-    _set_cells(region, spec, x0[hit] + th * np.cos(angle[hit]), y0[hit] + th * np.sin(angle[hit]))
-
-
-def _set_cells(region: BoolArray, spec: GridSpec, x: FloatArray, y: FloatArray) -> None:
-    col, row = spec.world_to_cell(x, y)
-    inside = (col >= 0) & (row >= 0) & (col < spec.width) & (row < spec.height)
-    region.reshape(-1)[row[inside] * spec.width + col[inside]] = True
+    # carried a hundredth of a cell past the boundary it hit, a ray ends inside the occupied
+    # cell it stops in, so its exact traversal takes that cell too
+    length = np.where(r < rmax, r + 0.01 * res, r)
+    runs = row_runs(
+        world.spec,
+        RaySegments(
+            x0_m=x0,
+            y0_m=y0,
+            x1_m=x0 + length * np.cos(angle),
+            y1_m=y0 + length * np.sin(angle),
+            echo=np.ones(r.shape[0], dtype=bool),  # a ray of length 0 still has its one cell
+        ),
+    )
+    region.add(runs.row, runs.col0, runs.col1, np.ones(runs.row.shape[0], dtype=np.int64))
 
 
 def map_in_world(pmap: ProbabilityMap, world: GridSpec, map_to_world: Pose) -> FloatArray:
     """The map's probability at each world cell's centre, shape ``world.shape``; NaN where the
     map does not know the cell or does not reach it. ``map_to_world``: the map frame's pose."""
-    rows, cols = np.indices(world.shape)
-    wx, wy = world.cell_center(cols, rows)
+    # the world grid seen from the map: the map cell under each world cell's centre
     ix, iy, ith = inverse(*(np.asarray(v, dtype=np.float64) for v in map_to_world))
-    mx, my, _ = compose(ix, iy, ith, wx, wy, 0.0)
-    col, row = pmap.spec.world_to_cell(mx, my)
-    inside = (col >= 0) & (row >= 0) & (col < pmap.spec.width) & (row < pmap.spec.height)
-    out = np.full(world.shape, np.nan)
-    out[inside] = pmap.prob[row[inside], col[inside]]
-    return out
+    row, col, inside = world_cells(world, pmap.spec, (float(ix), float(iy), float(ith)))
+    return np.where(inside, pmap.prob[row, col], np.nan)
 
 
 def evaluate_map(
@@ -258,6 +257,7 @@ def evaluate_map(
 
     ``region``: world cells to score (same shape); None scores every world cell.
     ``map_to_world``: pose of the map's frame in the world (identity for world-frame maps).
+    The result also carries the map's p on the world grid (``p_world``), for drawing.
     Raises :class:`EvaluationError` for an empty region and ``ValueError`` for shapes that
     do not match.
     """
@@ -307,6 +307,7 @@ def evaluate_map(
         predicted_occupied=n_pred,
         coverage=float((region & known).sum() / n),
         occupied_thresh=pmap.occupied_thresh,
+        p_world=p_world,
     )
 
 

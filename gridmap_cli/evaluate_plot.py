@@ -29,6 +29,20 @@ def check_plotting() -> None:
         ) from None
 
 
+#: Colour of the cells a map does not know (or does not reach) in :func:`map_rgb`.
+UNKNOWN_RGB = (0.85, 0.9, 1.0)
+
+
+def map_rgb(p_world: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """A probability map as an image: grey = 1 - p (occupied is dark), NaN (unknown) pale blue.
+
+    ``p_world`` shape (H, W); returns RGB floats in [0, 1], shape (H, W, 3), rows as given.
+    """
+    rgb = np.repeat((1.0 - np.nan_to_num(p_world, nan=0.0))[:, :, None], 3, axis=2)
+    rgb[np.isnan(p_world)] = UNKNOWN_RGB
+    return rgb
+
+
 def plot_evaluation(
     path: Path,
     evaluation: Evaluation,
@@ -48,8 +62,7 @@ def plot_evaluation(
     import matplotlib.pyplot as plt
     from scipy import ndimage
 
-    rgb = np.repeat((1.0 - np.nan_to_num(p_world, nan=0.0))[:, :, None], 3, axis=2)
-    rgb[np.isnan(p_world)] = (0.85, 0.9, 1.0)
+    rgb = map_rgb(p_world)
     edge = region & ~ndimage.binary_erosion(region)
     rgb[edge & ~walls] = (0.2, 0.7, 0.2)
     overlay = np.zeros((*walls.shape, 4))

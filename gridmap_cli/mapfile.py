@@ -31,7 +31,7 @@ luminance, which differs only for coloured pixels); palette images are read by t
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -77,6 +77,11 @@ class LoadedMap:
     occupied_thresh: float
     free_thresh: float
     origin_yaw_rad: float = 0.0
+    #: The image's colour and alpha as read (top row first, see ``_read_image``); load_map keeps
+    #: them for scale maps, whose pixels state p itself (:meth:`stored_probability`).
+    pixels: tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint8] | None] | None = field(
+        default=None, repr=False, compare=False
+    )
 
     def occupied_mask(self, min_occupancy: int = DEFAULT_OCCUPIED_MIN) -> npt.NDArray[np.bool_]:
         """True where occupancy >= ``min_occupancy``; shape (height, width); unknown is False."""
@@ -87,6 +92,23 @@ class LoadedMap:
         prob = self.occupancy.astype(np.float64) / 100.0
         prob[self.occupancy < 0] = np.nan
         return prob
+
+    def stored_probability(self) -> npt.NDArray[np.float64]:
+        """The occupancy probability the map file states for each cell; NaN where unknown.
+
+        Shape (height, width), row 0 at the bottom. A ``scale`` map stores p itself: p = (255 -
+        g) / 255 (g / 255 with ``negate``) from each pixel's grey (the mean of its colour
+        channels, unrounded), with any pixel not fully opaque unknown (as Nav2 reads it).
+        ``trinary`` and ``raw`` maps state only what the loader makes of them:
+        :meth:`probability` (trinary: 0 or 1), as does a map made without its ``pixels``.
+        """
+        if self.mode != "scale" or self.pixels is None:
+            return self.probability()
+        colour, alpha = self.pixels
+        p = _grey_probability(colour.astype(np.float64).mean(axis=2), self.negate)
+        if alpha is not None:
+            p[alpha < 255] = np.nan
+        return np.ascontiguousarray(p[::-1])
 
 
 def load_map(yaml_path: Path, flavour: str = DEFAULT_FLAVOUR) -> LoadedMap:
@@ -161,6 +183,7 @@ def load_map(yaml_path: Path, flavour: str = DEFAULT_FLAVOUR) -> LoadedMap:
         occupied_thresh=occupied_thresh,
         free_thresh=free_thresh,
         origin_yaw_rad=yaw,
+        pixels=(colour, alpha) if mode == "scale" else None,
     )
 
 
@@ -262,7 +285,7 @@ def pixels_to_occupancy(
             raw = grey
         return np.where((raw >= 0) & (raw <= 100), raw, UNKNOWN).astype(np.int8)
 
-    p = grey / 255.0 if negate else (255.0 - grey) / 255.0
+    p = _grey_probability(grey, negate)
     if flavour == "nav2-jazzy":
         occupied, free = p >= occupied_thresh, p <= free_thresh
     else:
@@ -289,27 +312,14 @@ def pixels_to_occupancy(
     return out
 
 
+def _grey_probability(grey: npt.NDArray[np.float64], negate: bool) -> npt.NDArray[np.float64]:
+    """p of a grey value 0..255: dark is occupied, unless ``negate``."""
+    return grey / 255.0 if negate else (255.0 - grey) / 255.0
+
+
 def _round_half_away(x: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     """C's ``round``: halves away from zero (numpy's ``rint`` rounds them to even)."""
     # floor(|x| + 0.5) would round 0.49999999999999994 up, as the addition itself rounds
     ax = np.abs(x)
     whole = np.floor(ax)
     return np.asarray(np.sign(x) * (whole + (ax - whole >= 0.5)), dtype=np.float64)
-
-
-def stored_probability(loaded: LoadedMap) -> npt.NDArray[np.float64]:
-    """The occupancy probability a map file states for each cell; NaN where unknown.
-
-    Shape (height, width), row 0 at the bottom. A ``scale`` map stores p itself: p = (255 - g) /
-    255 (g / 255 with ``negate``) from each pixel's grey, read again from the image, with any
-    pixel not fully opaque unknown (as Nav2 reads it). ``trinary`` and ``raw`` maps state only
-    what the loader makes of them: :meth:`LoadedMap.probability` (trinary: 0 or 1).
-    """
-    if loaded.mode != "scale":
-        return loaded.probability()
-    colour, alpha = _read_image(loaded.image_path)
-    grey = colour.astype(np.float64).mean(axis=2)
-    p = grey / 255.0 if loaded.negate else (255.0 - grey) / 255.0
-    if alpha is not None:
-        p[alpha < 255] = np.nan
-    return np.ascontiguousarray(p[::-1])

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,9 @@ from gridmap_cli.evaluate import (
     odometry_frame_in_world,
     sensed_region,
 )
+from gridmap_cli.evaluate_plot import UNKNOWN_RGB, map_rgb
 from gridmap_cli.grid import GridSpec, OccupancyMap
+from gridmap_cli.mapfile import load_map
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.sim.world import World
@@ -123,6 +126,9 @@ def test_a_map_in_the_odometry_frame_scores_as_the_same_map_in_the_world_frame()
     np.testing.assert_array_equal(
         map_in_world(in_odometry, WORLD10, START), map_in_world(in_world, WORLD10, (0, 0, 0))
     )
+    # the evaluation carries the map on the world grid as scored, for drawing, not for JSON
+    np.testing.assert_array_equal(b.p_world, map_in_world(in_odometry, WORLD10, START))
+    assert "p_world" not in b.as_dict() and b.as_dict()["nll"] == b.nll
     # placed with the wrong pose it scores worse
     assert evaluate_map(in_odometry, WALLS10, WORLD10, map_to_world=(3.0, 2.0, 0.0)).nll > a.nll
 
@@ -169,6 +175,18 @@ def test_sensed_region_by_hand() -> None:
     assert wedge[:, 4].all() and wedge[:, 7].all() and not wedge[:, 8:].any()
 
 
+def test_sensed_region_takes_the_corners_a_ray_clips() -> None:
+    # from (0.5, 0.5) at 35 degrees for 2.9 m in an empty world: the ray leaves cell (row 0,
+    # col 0) through x = 1 at y = 0.85 into (0, 1), enters row 1 at x = 1.21, crosses x = 2 at
+    # y = 1.55, enters row 2 at x = 2.64 and stops at (2.88, 2.16). Half-cell steps along it
+    # (t = 0.5, 1.0) would skip (0, 1).
+    world = World(np.zeros((5, 5), dtype=bool), GridSpec(0.0, 0.0, 1.0, 5, 5))
+    pose = PoseTrack.from_rows(np.zeros(1, dtype=np.int64), [(0.5, 0.5, math.radians(35.0))])
+    ray = RangeSensor("r", 0.0, 0.0, 0.0, 0.0, 0.0, 2.9, "laser")
+    region = sensed_region(world, pose, [ray])
+    assert [np.flatnonzero(row).tolist() for row in region] == [[0, 1], [1, 2], [2], [], []]
+
+
 def _write_world(folder: Path, walls: np.ndarray, spec: GridSpec) -> Path:
     write_map(folder / "world.pgm", OccupancyMap(spec, walls.astype(np.float64)), mode="trinary")
     return folder / "world.yaml"
@@ -203,6 +221,29 @@ def test_scale_maps_keep_their_probabilities(tmp_path: Path) -> None:
     # grey = round(255 (1 - p)): p comes back within half a grey level
     np.testing.assert_allclose(loaded.prob, PROB3, atol=0.5 / 255)
     assert np.isnan(loaded.prob[1, 1]) and loaded.occupied_thresh == 0.65
+    # without the pixels (a LoadedMap made by hand) only the loader's occupancy / 100 is known
+    full = load_map(tmp_path / "map.yaml")
+    np.testing.assert_array_equal(full.stored_probability(), loaded.prob)
+    bare = replace(full, pixels=None)
+    np.testing.assert_array_equal(bare.stored_probability(), full.probability())
+
+
+def test_a_map_built_in_memory_scores_as_the_same_map_written_and_loaded(tmp_path: Path) -> None:
+    # p on whole grey levels (k / 255), so the scale image stores it exactly; a corner unknown
+    rng = np.random.default_rng(7)
+    spec = GridSpec(-2.0, -7.0, 1.0, 10, 10)
+    prob = rng.integers(0, 256, spec.shape) / 255.0
+    prob[:2, :2] = np.nan
+    omap = OccupancyMap(spec, prob)
+    write_map(tmp_path / "map.png", omap, mode="scale", occupied_thresh=0.6, free_thresh=0.25)
+    in_memory = ProbabilityMap.from_occupancy_map(omap, 0.6)
+    loaded = load_probability_map(tmp_path / "map.yaml")
+    region = np.ones(WORLD10.shape, dtype=bool)
+    region[5:, :] = False
+    a = evaluate_map(in_memory, WALLS10, WORLD10, region, START)
+    b = evaluate_map(loaded, WALLS10, WORLD10, region, START)
+    assert a == b and b.occupied_thresh == 0.6 and 0.0 < b.coverage < 1.0
+    np.testing.assert_array_equal(a.p_world, b.p_world)
 
 
 def test_cli_with_a_log_in_the_odometry_frame(tmp_path: Path) -> None:
@@ -245,6 +286,13 @@ def test_cli_plot(tmp_path: Path) -> None:
     assert (tmp_path / "eval.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     code, _, err = run(*args, "--plot", str(tmp_path / "eval.png"))
     assert code == 1 and "exists (use --force to overwrite)" in err
+
+
+def test_map_rgb_draws_one_minus_p_and_unknown_pale_blue() -> None:
+    rgb = map_rgb(np.array([[0.25, np.nan], [1.0, 0.0]]))
+    assert rgb.shape == (2, 2, 3)
+    assert rgb[0, 0].tolist() == [0.75] * 3 and rgb[0, 1].tolist() == list(UNKNOWN_RGB)
+    assert rgb[1, 0].tolist() == [0.0] * 3 and rgb[1, 1].tolist() == [1.0] * 3
 
 
 def test_plot_without_matplotlib_is_a_clear_error(
