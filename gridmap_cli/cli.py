@@ -879,7 +879,7 @@ def evaluate(
         plot_evaluation(
             plot,
             result,
-            ev.map_in_world(pmap, truth.spec, map_to_world),
+            result.p_world,
             truth.walls,
             region if region is not None else np.ones(truth.spec.shape, dtype=bool),
             truth.spec,
