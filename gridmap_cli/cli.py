@@ -879,7 +879,6 @@ def evaluate(
         plot_evaluation(
             plot,
             result,
-            result.p_world,
             truth.walls,
             region if region is not None else np.ones(truth.spec.shape, dtype=bool),
             truth.spec,

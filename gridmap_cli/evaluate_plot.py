@@ -46,7 +46,6 @@ def map_rgb(p_world: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
 def plot_evaluation(
     path: Path,
     evaluation: Evaluation,
-    p_world: npt.NDArray[np.float64],
     walls: npt.NDArray[np.bool_],
     region: npt.NDArray[np.bool_],
     world: GridSpec,
@@ -62,7 +61,7 @@ def plot_evaluation(
     import matplotlib.pyplot as plt
     from scipy import ndimage
 
-    rgb = map_rgb(p_world)
+    rgb = map_rgb(evaluation.p_world)
     edge = region & ~ndimage.binary_erosion(region)
     rgb[edge & ~walls] = (0.2, 0.7, 0.2)
     overlay = np.zeros((*walls.shape, 4))
