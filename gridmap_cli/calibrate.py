@@ -32,7 +32,7 @@ import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
-from gridmap_cli.odometry_error import DEFAULT_SONAR_RELATIVE_ERROR, OdometryError
+from gridmap_cli.odometry_error import DEFAULT_SONAR_RELATIVE_ERROR, OdometryError, travelled
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.sync import interpolate_pose
 
@@ -164,13 +164,10 @@ def compare_windows(
         raise ValueError(f"window must be a positive number of metres, got {window_m}")
     if not (window_rad > 0.0 and math.isfinite(window_rad)):
         raise ValueError(f"window turn must be a positive number of radians, got {window_rad}")
-    step = np.hypot(np.diff(truth.x_m), np.diff(truth.y_m))
-    true_turn = wrap_angle(np.diff(truth.theta_rad))
-    odo_turn = wrap_angle(np.diff(odometry.theta_rad))
-    dist = np.concatenate([[0.0], np.cumsum(step)])
-    rot = np.concatenate([[0.0], np.cumsum(np.abs(true_turn))])
-    signed_true = np.concatenate([[0.0], np.cumsum(true_turn)])
-    signed_odo = np.concatenate([[0.0], np.cumsum(odo_turn)])
+    dist, rot = travelled(truth)
+    # the heading error needs the signed rotation, which travelled() does not keep
+    signed_true = np.concatenate([[0.0], np.cumsum(wrap_angle(np.diff(truth.theta_rad)))])
+    signed_odo = np.concatenate([[0.0], np.cumsum(wrap_angle(np.diff(odometry.theta_rad)))])
     starts: list[int] = []
     ends: list[int] = []
     i = 0
@@ -292,11 +289,12 @@ def calibrate(
     odometry, truth = truth_at_odometry(log)
     windows = compare_windows(odometry, truth, window_m, window_rad)
     if len(windows) < MIN_WINDOWS:
-        step = np.hypot(np.diff(truth.x_m), np.diff(truth.y_m))
-        turn = np.abs(wrap_angle(np.diff(truth.theta_rad)))
+        dist, rot = travelled(truth)
+        # a truth that never overlaps the odometry is empty: it drives nothing
+        driven, turned = (float(dist[-1]), float(rot[-1])) if len(truth) else (0.0, 0.0)
         raise CalibrationError(
             f"{log.source}: too little travel to calibrate: the truth drives "
-            f"{float(step.sum()):.2f} m and turns {math.degrees(float(turn.sum())):.0f} deg, "
+            f"{driven:.2f} m and turns {math.degrees(turned):.0f} deg, "
             f"{len(windows)} complete window{'s' if len(windows) != 1 else ''} of "
             f"{window_m:g} m or {math.degrees(window_rad):g} deg; need at least {MIN_WINDOWS}"
         )

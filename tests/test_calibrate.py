@@ -206,3 +206,14 @@ def test_same_run_from_csv_and_ros2_mcap_calibrates_the_same() -> None:
     csv = calibrate(read_log(samples / "corridor_loop.csv")).model.as_dict()
     ros2 = calibrate(read_log(samples / "corridor_loop_ros2.mcap")).model.as_dict()
     assert ros2 == pytest.approx(csv, rel=1e-6, abs=1e-12)
+
+
+def test_truth_that_never_overlaps_the_odometry_drives_nothing() -> None:
+    log = straight_line(0.02)
+    later = PoseTrack(
+        log.poses.stamp_ns + 10**12, log.poses.x_m, log.poses.y_m, log.poses.theta_rad
+    )
+    apart = RangeLog(log.source, log.poses, log.readings, log.sensor_names, truth=later)
+    with pytest.raises(CalibrationError) as caught:
+        calibrate(apart)
+    assert "the truth drives 0.00 m and turns 0 deg, 0 complete windows" in str(caught.value)
