@@ -2,9 +2,9 @@
 
 The log is cut into consecutive windows of travel: a window ends as soon as the robot has driven
 ``window_m`` metres or turned ``window_rad`` radians (both measured on the truth) since it began.
-Over each window the odometry's relative motion is compared with the truth's, each in its own
-window-start frame, so the error a window shows is the error made within it, whatever the drift
-before it:
+Over each window the odometry's motion is compared with the truth's through what no frame changes
+(the length of the window's displacement, the sum of its turns), so the error a window shows is the
+error made within it, whatever the drift before it:
 
 * distance error ``e_d = |odometry displacement| - |true displacement|`` (metres);
 * heading error ``e_h = odometry rotation - true rotation`` (radians, signed sums of the wrapped
@@ -18,8 +18,7 @@ grows with what was driven (turned), so ``sigma_d**2 = sum(r_d**2) / sum(driven)
 residuals, non-negative by construction. The file gets the magnitudes: a spread has no sign.
 
 A term the log cannot show (no rotation in a straight-line log) is reported as not estimated
-and written as 0. Frames do not matter: each window is compared in its own start frame, so the
-odometry may start anywhere.
+and written as 0. Frames do not matter, so the odometry may start anywhere.
 """
 
 from __future__ import annotations
@@ -31,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.geometry import compose, inverse, wrap_angle
+from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.odometry_error import DEFAULT_SONAR_RELATIVE_ERROR, OdometryError, travelled
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.sync import interpolate_pose
@@ -186,26 +185,18 @@ def compare_windows(
         i = j
     s = np.asarray(starts, dtype=np.int64)
     e = np.asarray(ends, dtype=np.int64)
-    tx, ty, _ = _relative(truth, s, e)
-    ox, oy, _ = _relative(odometry, s, e)
-    true_disp = np.hypot(tx, ty)
+    # a length is the same in every frame: no need to move each window into its start frame
+    true_disp = np.hypot(truth.x_m[e] - truth.x_m[s], truth.y_m[e] - truth.y_m[s])
+    odo_disp = np.hypot(odometry.x_m[e] - odometry.x_m[s], odometry.y_m[e] - odometry.y_m[s])
     return Windows(
         start=s,
         end=e,
         driven_m=dist[e] - dist[s],
         turned_rad=signed_true[e] - signed_true[s],
         displacement_m=true_disp,
-        distance_error_m=np.hypot(ox, oy) - true_disp,
+        distance_error_m=odo_disp - true_disp,
         heading_error_rad=(signed_odo[e] - signed_odo[s]) - (signed_true[e] - signed_true[s]),
     )
-
-
-def _relative(
-    track: PoseTrack, start: npt.NDArray[np.int64], end: npt.NDArray[np.int64]
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Pose at ``end`` in the frame of the pose at ``start``, shape (W,) each."""
-    ix, iy, ith = inverse(track.x_m[start], track.y_m[start], track.theta_rad[start])
-    return compose(ix, iy, ith, track.x_m[end], track.y_m[end], track.theta_rad[end])
 
 
 def fit(
