@@ -53,23 +53,24 @@ class CalibrationError(GridmapError):
 
 @dataclass(frozen=True)
 class Windows:
-    """Per-window comparison of odometry and truth, shape (W,) each.
+    """Per-window comparison of odometry and truth, shape (W,) each, and the windows' budgets.
 
     ``driven_m``, ``turned_rad``: true path length and signed true rotation in the window;
     ``displacement_m``: length of the true relative translation; ``distance_error_m`` and
-    ``heading_error_rad``: odometry minus truth (see module docstring).
+    ``heading_error_rad``: odometry minus truth (see module docstring). ``window_m`` and
+    ``window_rad``: the distance and turn that close a window.
     """
 
-    start: npt.NDArray[np.int64]
-    end: npt.NDArray[np.int64]
     driven_m: FloatArray
     turned_rad: FloatArray
     displacement_m: FloatArray
     distance_error_m: FloatArray
     heading_error_rad: FloatArray
+    window_m: float
+    window_rad: float
 
     def __len__(self) -> int:
-        return int(self.start.shape[0])
+        return int(self.driven_m.shape[0])
 
 
 @dataclass(frozen=True)
@@ -92,13 +93,17 @@ class Calibration:
     drift_estimated: bool
     windows: int
     driving_windows: int
-    turning_windows: int
     driven_m: float
     turned_rad: float
     distance_residual_m: float
     heading_residual_rad: float
     window_m: float
     window_rad: float
+
+    @property
+    def turning_windows(self) -> int:
+        """Windows closed by their turn budget: all those that did not drive theirs."""
+        return self.windows - self.driving_windows
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -189,76 +194,74 @@ def compare_windows(
     true_disp = np.hypot(truth.x_m[e] - truth.x_m[s], truth.y_m[e] - truth.y_m[s])
     odo_disp = np.hypot(odometry.x_m[e] - odometry.x_m[s], odometry.y_m[e] - odometry.y_m[s])
     return Windows(
-        start=s,
-        end=e,
         driven_m=dist[e] - dist[s],
         turned_rad=signed_true[e] - signed_true[s],
         displacement_m=true_disp,
         distance_error_m=odo_disp - true_disp,
         heading_error_rad=(signed_odo[e] - signed_odo[s]) - (signed_true[e] - signed_true[s]),
+        window_m=window_m,
+        window_rad=window_rad,
     )
 
 
 def fit(
-    windows: Windows,
-    window_m: float = DEFAULT_WINDOW_M,
-    window_rad: float = DEFAULT_WINDOW_RAD,
-    sonar_relative_error: float = DEFAULT_SONAR_RELATIVE_ERROR,
+    windows: Windows, sonar_relative_error: float = DEFAULT_SONAR_RELATIVE_ERROR
 ) -> Calibration:
     """Fit the coefficients to compared windows (module docstring gives the estimators)."""
+    full_m = windows.window_m - BUDGET_TOLERANCE  # a window's distance budget, used up
     driven = windows.driven_m
     turned = windows.turned_rad
     disp = windows.displacement_m
     total_driven = float(driven.sum())
     total_turned = float(np.abs(turned).sum())
 
-    distance_ok = bool(float(np.sum(disp**2)) > 0.0 and total_driven >= window_m - BUDGET_TOLERANCE)
+    distance_ok = bool(float(np.sum(disp**2)) > 0.0 and total_driven >= full_m)
     scale = float(np.sum(windows.distance_error_m * disp) / np.sum(disp**2)) if distance_ok else 0.0
     r_d = windows.distance_error_m - scale * disp
     sigma_d = math.sqrt(float(np.sum(r_d**2)) / total_driven) if distance_ok else 0.0
 
     turn_ok = total_turned >= MIN_ROTATION_RAD
-    drift_ok = total_driven >= window_m - BUDGET_TOLERANCE
+    drift_ok = total_driven >= full_m
     columns = [c for c, ok in ((turned, turn_ok), (driven, drift_ok)) if ok]
-    coef = [0.0, 0.0]
+    turn_scale, drift = 0.0, 0.0
     r_h = windows.heading_error_rad
     if columns:
         design = np.column_stack(columns)
         solution, *_ = np.linalg.lstsq(design, windows.heading_error_rad, rcond=None)
         r_h = windows.heading_error_rad - design @ solution
-        it = iter(solution.tolist())
-        coef = [next(it) if turn_ok else 0.0, next(it) if drift_ok else 0.0]
+        # the turn column comes first, the drift column last, each only when estimated
+        turn_scale = float(solution[0]) if turn_ok else 0.0
+        drift = float(solution[-1]) if drift_ok else 0.0
     sigma_h = math.sqrt(float(np.sum(r_h**2)) / total_turned) if turn_ok else 0.0
 
     # rounding noise of an error-free log (1e-17) is no error: write it as 0
     scale, sigma_d, sigma_h = _clean(scale), _clean(sigma_d), _clean(sigma_h)
-    coef = [_clean(c) for c in coef]
+    turn_scale, drift = _clean(turn_scale), _clean(drift)
     model = OdometryError(
         range_m_per_m=abs(scale),
         range_m_per_sqrt_m=sigma_d,
-        bearing_rad_per_rad=abs(coef[0]),
+        bearing_rad_per_rad=abs(turn_scale),
         bearing_rad_per_sqrt_rad=sigma_h,
-        heading_drift_rad_per_m=abs(coef[1]),
+        heading_drift_rad_per_m=abs(drift),
         sonar_relative_error=sonar_relative_error,
     )
     return Calibration(
         model=model,
         scale_error=scale,
-        turn_scale_error=coef[0],
-        heading_drift_rad_per_m=coef[1],
+        turn_scale_error=turn_scale,
+        heading_drift_rad_per_m=drift,
         distance_estimated=distance_ok,
         turn_estimated=turn_ok,
         drift_estimated=drift_ok,
         windows=len(windows),
         # a window "drives" when it ended on its distance budget, "turns" otherwise
-        driving_windows=int(np.count_nonzero(driven >= window_m - BUDGET_TOLERANCE)),
-        turning_windows=int(np.count_nonzero(driven < window_m - BUDGET_TOLERANCE)),
+        driving_windows=int(np.count_nonzero(driven >= full_m)),
         driven_m=total_driven,
         turned_rad=total_turned,
         distance_residual_m=float(np.sqrt(np.mean(r_d**2))),
         heading_residual_rad=float(np.sqrt(np.mean(r_h**2))),
-        window_m=window_m,
-        window_rad=window_rad,
+        window_m=windows.window_m,
+        window_rad=windows.window_rad,
     )
 
 
@@ -289,4 +292,4 @@ def calibrate(
             f"{len(windows)} complete window{'s' if len(windows) != 1 else ''} of "
             f"{window_m:g} m or {math.degrees(window_rad):g} deg; need at least {MIN_WINDOWS}"
         )
-    return fit(windows, window_m, window_rad, sonar_relative_error)
+    return fit(windows, sonar_relative_error)
