@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -20,6 +21,7 @@ from gridmap_cli.odometry_error import (
     travelled_at,
 )
 from gridmap_cli.records import PoseTrack
+from gridmap_cli.yamlfile import format_float, number
 
 MODEL = OdometryError(
     range_m_per_m=0.02,
@@ -105,6 +107,37 @@ def test_yaml_round_trip(tmp_path: Path) -> None:
     assert "heading_drift_rad_per_m: 1.0e-05" in text  # PyYAML reads '1e-05' as a string
     assert load_odometry_error(path) == tiny
     assert [p.name for p in tmp_path.iterdir()] == ["odo.yaml"]
+
+
+@given(st.floats(allow_nan=False, allow_infinity=False))
+def test_yaml_floats_read_back_exactly_as_floats(value: float) -> None:
+    # what the map YAML and the odometry-error file write, PyYAML loads as the same float
+    loaded = yaml.safe_load(f"x: {format_float(value)}")["x"]
+    assert isinstance(loaded, float) and loaded == value
+    assert number(loaded) == value
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_yaml_floats_must_be_finite(bad: float) -> None:
+    with pytest.raises(ValueError, match="non-finite"):
+        format_float(bad)
+
+
+@pytest.mark.parametrize(
+    ("value", "expected"),
+    [
+        (3, 3.0),
+        (0.5, 0.5),
+        ("5e-2", 0.05),
+        (" 1e-3 ", 0.001),
+        (True, None),
+        ("x", None),
+        (None, None),
+    ],
+)
+def test_yaml_numbers_include_exponents_without_a_point(value: object, expected: object) -> None:
+    # PyYAML reads '5e-2' as a string; yaml-cpp (and so ROS) reads it as a number
+    assert number(value) == expected
 
 
 def test_missing_keys_take_their_defaults(tmp_path: Path) -> None:
