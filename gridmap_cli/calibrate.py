@@ -48,7 +48,7 @@ MIN_ROTATION_RAD = math.pi / 2
 
 
 class CalibrationError(GridmapError):
-    """The log cannot be calibrated on (no truth, too little travel)."""
+    """The log cannot be calibrated on: too little travel."""
 
 
 @dataclass(frozen=True)
@@ -136,14 +136,9 @@ class Calibration:
 def truth_at_odometry(log: RangeLog) -> tuple[PoseTrack, PoseTrack]:
     """Odometry and truth at the same stamps (the odometry's, within the truth's span).
 
-    Raises :class:`CalibrationError` for a log without ground truth.
+    Raises :class:`~gridmap_cli.errors.InputFileError` for a log without ground truth.
     """
-    if log.truth is None:
-        raise CalibrationError(
-            f"{log.source}: the log has no ground truth (CSV true_x, true_y, true_theta "
-            "columns or ARIA robotGlobal: lines); calibrate compares the odometry against it"
-        )
-    odo, truth = log.poses, log.truth
+    odo, truth = log.poses, log.require_truth("calibrate compares the odometry against it")
     if np.array_equal(odo.stamp_ns, truth.stamp_ns):
         return odo, truth
     x, y, th, valid = interpolate_pose(truth, odo.stamp_ns)
@@ -277,8 +272,9 @@ def calibrate(
 ) -> Calibration:
     """Estimate f and g from ``log``'s odometry against its ground truth.
 
-    Raises :class:`CalibrationError` for a log without truth or with fewer than
-    :data:`MIN_WINDOWS` complete windows of travel.
+    Raises :class:`~gridmap_cli.errors.InputFileError` for a log without truth and
+    :class:`CalibrationError` for one with fewer than :data:`MIN_WINDOWS` complete windows of
+    travel.
     """
     odometry, truth = truth_at_odometry(log)
     windows = compare_windows(odometry, truth, window_m, window_rad)

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from gridmap_cli.calibrate import CalibrationError, calibrate
+from gridmap_cli.errors import InputFileError
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
@@ -132,13 +133,17 @@ def test_a_simulated_drift_1_log_finds_the_simulators_errors() -> None:
 def test_log_without_truth_is_refused(tmp_path: Path) -> None:
     log = straight_line(0.02)
     no_truth = RangeLog(log.source, log.poses, log.readings, log.sensor_names, metadata={})
-    with pytest.raises(CalibrationError, match="the log has no ground truth"):
+    with pytest.raises(InputFileError, match="the log has no ground truth"):
         calibrate(no_truth)
     save_csv_log(no_truth, tmp_path / "plain.csv")
     out = tmp_path / "odo.yaml"
     code, _, err = run("calibrate", str(tmp_path / "plain.csv"), "-o", str(out))
     assert code == 1
-    assert err.startswith(f"Error: {tmp_path / 'plain.csv'}: the log has no ground truth")
+    assert err == (
+        f"Error: {tmp_path / 'plain.csv'}: the log has no ground truth (CSV true_x, true_y, "
+        "true_theta columns, ARIA robotGlobal: lines in every block, or an MCAP pose topic named "
+        "ground_truth); calibrate compares the odometry against it\n"
+    )
     assert names(tmp_path) == {"plain.csv"}
 
 
