@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from gridmap_cli.odometry_error import (
     travelled_at,
 )
 from gridmap_cli.records import PoseTrack
+from gridmap_cli.sim.odometry import OdometryErrorModel
 from gridmap_cli.yamlfile import format_float, number
 
 MODEL = OdometryError(
@@ -198,3 +200,35 @@ def test_yaml_text_is_what_the_docs_show() -> None:
         "heading_drift_rad_per_m: 0.0\n"
         "sonar_relative_error: 0.01\n"
     )
+
+
+def test_the_simulators_errors_as_coefficients() -> None:
+    sim = OdometryErrorModel(
+        scale_error=-0.01,
+        turn_scale_error=0.02,
+        heading_drift_rad_per_m=-0.003,
+        sigma_dist_per_sqrt_m=0.04,
+        sigma_turn_per_sqrt_rad=0.05,
+    )
+    assert sim.as_odometry_error() == OdometryError(
+        range_m_per_m=0.01,  # systematic terms as magnitudes: a spread has no sign
+        range_m_per_sqrt_m=0.04,
+        bearing_rad_per_rad=0.02,
+        bearing_rad_per_sqrt_rad=0.05,
+        heading_drift_rad_per_m=0.003,
+        sonar_relative_error=0.01,
+    )
+    # drift 1 (the defaults), and every simulator term feeds exactly one coefficient
+    drift1 = OdometryErrorModel().as_odometry_error().as_dict()
+    assert drift1 == {
+        "range_m_per_m": 0.01,
+        "range_m_per_sqrt_m": 0.01,
+        "bearing_rad_per_rad": 0.02,
+        "bearing_rad_per_sqrt_rad": 0.02,
+        "heading_drift_rad_per_m": math.radians(0.2),
+        "sonar_relative_error": 0.01,
+    }
+    for f in dataclasses.fields(OdometryErrorModel):
+        one = dataclasses.replace(OdometryErrorModel().scaled(0.0), **{f.name: 0.5})
+        coefficients = one.as_odometry_error().as_dict()
+        assert sorted(coefficients.values()) == [0.0] * 4 + [0.01, 0.5], f.name
