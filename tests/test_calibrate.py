@@ -6,38 +6,21 @@ import json
 import math
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from gridmap_cli.calibrate import CalibrationError, calibrate
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.readers import read_log
-from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
+from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import load_robot
 from gridmap_cli.sim.odometry import OdometryErrorModel
 from gridmap_cli.writers.aria_log import save_aria_log
 from gridmap_cli.writers.csv_log import save_csv_log
-from tests.helpers import names, run
+from tests.helpers import log_with_truth, names, run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 SONAR0 = load_robot("p3dx").sensors[:1]
-
-
-def make_log(
-    truth: list[tuple[float, float, float]], odometry: list[tuple[float, float, float]]
-) -> RangeLog:
-    """A log at 10 Hz with the given poses and one 2 m sonar0 reading per pose."""
-    n = len(truth)
-    stamps = np.arange(n, dtype=np.int64) * 100_000_000
-    return RangeLog(
-        source="test",
-        poses=PoseTrack.from_rows(stamps, odometry),
-        readings=RangeReadings(stamps.copy(), np.zeros(n, np.int32), np.full(n, 2.0)),
-        sensor_names=("sonar0",),
-        truth=PoseTrack.from_rows(stamps, truth),
-        metadata={"robot": "p3dx"},
-    )
 
 
 def straight_line(scale: float, metres: float = 10.0) -> RangeLog:
@@ -49,7 +32,7 @@ def straight_line(scale: float, metres: float = 10.0) -> RangeLog:
     steps = round(metres / 0.04)
     truth = [(3.0, 1.0 + 0.04 * k, math.pi / 2) for k in range(steps + 1)]
     odometry = [(0.04 * k * (1.0 + scale), 0.0, 0.0) for k in range(steps + 1)]
-    return make_log(truth, odometry)
+    return log_with_truth(truth, odometry)
 
 
 def spin_in_place(turn_scale: float, turns: float = 3.1) -> RangeLog:
@@ -59,7 +42,7 @@ def spin_in_place(turn_scale: float, turns: float = 3.1) -> RangeLog:
     truth = [(1.0, 2.0, math.remainder(k * step, math.tau)) for k in range(steps + 1)]
     reported = step * (1.0 + turn_scale)
     odo = [(0.0, 0.0, math.remainder(k * reported, math.tau)) for k in range(steps + 1)]
-    return make_log(truth, odo)
+    return log_with_truth(truth, odo)
 
 
 def test_straight_line_with_a_two_percent_scale_error() -> None:
@@ -95,7 +78,7 @@ def test_heading_drift_per_metre() -> None:
     steps = 250
     truth = [(0.04 * k, 0.0, 0.0) for k in range(steps + 1)]
     odo = [(0.04 * k, 0.0, 0.004 * 0.04 * k) for k in range(steps + 1)]
-    c = calibrate(make_log(truth, odo))
+    c = calibrate(log_with_truth(truth, odo))
     assert c.heading_drift_rad_per_m == pytest.approx(0.004, abs=1e-9)
 
 
