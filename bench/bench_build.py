@@ -108,6 +108,7 @@ def main() -> None:
     from gridmap_cli.pipeline import BuildOptions, build_map
     from gridmap_cli.readers import read_log
     from gridmap_cli.robot import load_robot
+    from gridmap_cli.sim.odometry import OdometryErrorModel
     from gridmap_cli.writers.map_image import write_map
 
     t0 = time.perf_counter()
@@ -134,14 +135,8 @@ def main() -> None:
     print(f"    write PNG+YAML  {t3 - t2:8.2f} s")
 
     # the error-aware mode on the same log, with the simulator's drift-1 error as its f and g
-    drift1 = {
-        "range_m_per_m": 0.01,
-        "range_m_per_sqrt_m": 0.01,
-        "bearing_rad_per_rad": 0.02,
-        "bearing_rad_per_sqrt_rad": 0.02,
-        "heading_drift_rad_per_m": 0.00349,
-    }
-    coefficients = [a for k, v in drift1.items() for a in ("--odometry-coefficient", f"{k}={v}")]
+    drift1 = OdometryErrorModel().as_odometry_error().as_dict()
+    coefficients = [a for k, v in drift1.items() for a in ("--odometry-coefficient", f"{k}={v!r}")]
     cmd = one_core(
         [
             *gridmap(), "build", str(log), "-o", str(CACHE / "bench_map_ea.png"), "--force",

@@ -2,9 +2,9 @@
 
 The log is cut into consecutive windows of travel: a window ends as soon as the robot has driven
 ``window_m`` metres or turned ``window_rad`` radians (both measured on the truth) since it began.
-Over each window the odometry's relative motion is compared with the truth's, each in its own
-window-start frame, so the error a window shows is the error made within it, whatever the drift
-before it:
+Over each window the odometry's motion is compared with the truth's through what no frame changes
+(the length of the window's displacement, the sum of its turns), so the error a window shows is the
+error made within it, whatever the drift before it:
 
 * distance error ``e_d = |odometry displacement| - |true displacement|`` (metres);
 * heading error ``e_h = odometry rotation - true rotation`` (radians, signed sums of the wrapped
@@ -18,8 +18,7 @@ grows with what was driven (turned), so ``sigma_d**2 = sum(r_d**2) / sum(driven)
 residuals, non-negative by construction. The file gets the magnitudes: a spread has no sign.
 
 A term the log cannot show (no rotation in a straight-line log) is reported as not estimated
-and written as 0. Frames do not matter: each window is compared in its own start frame, so the
-odometry may start anywhere.
+and written as 0. Frames do not matter, so the odometry may start anywhere.
 """
 
 from __future__ import annotations
@@ -31,8 +30,8 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.geometry import compose, inverse, wrap_angle
-from gridmap_cli.odometry_error import DEFAULT_SONAR_RELATIVE_ERROR, OdometryError
+from gridmap_cli.geometry import wrap_angle
+from gridmap_cli.odometry_error import DEFAULT_SONAR_RELATIVE_ERROR, OdometryError, travelled
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.sync import interpolate_pose
 
@@ -49,28 +48,29 @@ MIN_ROTATION_RAD = math.pi / 2
 
 
 class CalibrationError(GridmapError):
-    """The log cannot be calibrated on (no truth, too little travel)."""
+    """The log cannot be calibrated on: too little travel."""
 
 
 @dataclass(frozen=True)
 class Windows:
-    """Per-window comparison of odometry and truth, shape (W,) each.
+    """Per-window comparison of odometry and truth, shape (W,) each, and the windows' budgets.
 
     ``driven_m``, ``turned_rad``: true path length and signed true rotation in the window;
     ``displacement_m``: length of the true relative translation; ``distance_error_m`` and
-    ``heading_error_rad``: odometry minus truth (see module docstring).
+    ``heading_error_rad``: odometry minus truth (see module docstring). ``window_m`` and
+    ``window_rad``: the distance and turn that close a window.
     """
 
-    start: npt.NDArray[np.int64]
-    end: npt.NDArray[np.int64]
     driven_m: FloatArray
     turned_rad: FloatArray
     displacement_m: FloatArray
     distance_error_m: FloatArray
     heading_error_rad: FloatArray
+    window_m: float
+    window_rad: float
 
     def __len__(self) -> int:
-        return int(self.start.shape[0])
+        return int(self.driven_m.shape[0])
 
 
 @dataclass(frozen=True)
@@ -93,13 +93,17 @@ class Calibration:
     drift_estimated: bool
     windows: int
     driving_windows: int
-    turning_windows: int
     driven_m: float
     turned_rad: float
     distance_residual_m: float
     heading_residual_rad: float
     window_m: float
     window_rad: float
+
+    @property
+    def turning_windows(self) -> int:
+        """Windows closed by their turn budget: all those that did not drive theirs."""
+        return self.windows - self.driving_windows
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -132,14 +136,9 @@ class Calibration:
 def truth_at_odometry(log: RangeLog) -> tuple[PoseTrack, PoseTrack]:
     """Odometry and truth at the same stamps (the odometry's, within the truth's span).
 
-    Raises :class:`CalibrationError` for a log without ground truth.
+    Raises :class:`~gridmap_cli.errors.InputFileError` for a log without ground truth.
     """
-    if log.truth is None:
-        raise CalibrationError(
-            f"{log.source}: the log has no ground truth (CSV true_x, true_y, true_theta "
-            "columns or ARIA robotGlobal: lines); calibrate compares the odometry against it"
-        )
-    odo, truth = log.poses, log.truth
+    odo, truth = log.poses, log.require_truth("calibrate compares the odometry against it")
     if np.array_equal(odo.stamp_ns, truth.stamp_ns):
         return odo, truth
     x, y, th, valid = interpolate_pose(truth, odo.stamp_ns)
@@ -164,13 +163,10 @@ def compare_windows(
         raise ValueError(f"window must be a positive number of metres, got {window_m}")
     if not (window_rad > 0.0 and math.isfinite(window_rad)):
         raise ValueError(f"window turn must be a positive number of radians, got {window_rad}")
-    step = np.hypot(np.diff(truth.x_m), np.diff(truth.y_m))
-    true_turn = wrap_angle(np.diff(truth.theta_rad))
-    odo_turn = wrap_angle(np.diff(odometry.theta_rad))
-    dist = np.concatenate([[0.0], np.cumsum(step)])
-    rot = np.concatenate([[0.0], np.cumsum(np.abs(true_turn))])
-    signed_true = np.concatenate([[0.0], np.cumsum(true_turn)])
-    signed_odo = np.concatenate([[0.0], np.cumsum(odo_turn)])
+    dist, rot = travelled(truth)
+    # the heading error needs the signed rotation, which travelled() does not keep
+    signed_true = np.concatenate([[0.0], np.cumsum(wrap_angle(np.diff(truth.theta_rad)))])
+    signed_odo = np.concatenate([[0.0], np.cumsum(wrap_angle(np.diff(odometry.theta_rad)))])
     starts: list[int] = []
     ends: list[int] = []
     i = 0
@@ -189,88 +185,78 @@ def compare_windows(
         i = j
     s = np.asarray(starts, dtype=np.int64)
     e = np.asarray(ends, dtype=np.int64)
-    tx, ty, _ = _relative(truth, s, e)
-    ox, oy, _ = _relative(odometry, s, e)
-    true_disp = np.hypot(tx, ty)
+    # a length is the same in every frame: no need to move each window into its start frame
+    true_disp = np.hypot(truth.x_m[e] - truth.x_m[s], truth.y_m[e] - truth.y_m[s])
+    odo_disp = np.hypot(odometry.x_m[e] - odometry.x_m[s], odometry.y_m[e] - odometry.y_m[s])
     return Windows(
-        start=s,
-        end=e,
         driven_m=dist[e] - dist[s],
         turned_rad=signed_true[e] - signed_true[s],
         displacement_m=true_disp,
-        distance_error_m=np.hypot(ox, oy) - true_disp,
+        distance_error_m=odo_disp - true_disp,
         heading_error_rad=(signed_odo[e] - signed_odo[s]) - (signed_true[e] - signed_true[s]),
+        window_m=window_m,
+        window_rad=window_rad,
     )
 
 
-def _relative(
-    track: PoseTrack, start: npt.NDArray[np.int64], end: npt.NDArray[np.int64]
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Pose at ``end`` in the frame of the pose at ``start``, shape (W,) each."""
-    ix, iy, ith = inverse(track.x_m[start], track.y_m[start], track.theta_rad[start])
-    return compose(ix, iy, ith, track.x_m[end], track.y_m[end], track.theta_rad[end])
-
-
 def fit(
-    windows: Windows,
-    window_m: float = DEFAULT_WINDOW_M,
-    window_rad: float = DEFAULT_WINDOW_RAD,
-    sonar_relative_error: float = DEFAULT_SONAR_RELATIVE_ERROR,
+    windows: Windows, sonar_relative_error: float = DEFAULT_SONAR_RELATIVE_ERROR
 ) -> Calibration:
     """Fit the coefficients to compared windows (module docstring gives the estimators)."""
+    full_m = windows.window_m - BUDGET_TOLERANCE  # a window's distance budget, used up
     driven = windows.driven_m
     turned = windows.turned_rad
     disp = windows.displacement_m
     total_driven = float(driven.sum())
     total_turned = float(np.abs(turned).sum())
 
-    distance_ok = bool(float(np.sum(disp**2)) > 0.0 and total_driven >= window_m - BUDGET_TOLERANCE)
+    distance_ok = bool(float(np.sum(disp**2)) > 0.0 and total_driven >= full_m)
     scale = float(np.sum(windows.distance_error_m * disp) / np.sum(disp**2)) if distance_ok else 0.0
     r_d = windows.distance_error_m - scale * disp
     sigma_d = math.sqrt(float(np.sum(r_d**2)) / total_driven) if distance_ok else 0.0
 
     turn_ok = total_turned >= MIN_ROTATION_RAD
-    drift_ok = total_driven >= window_m - BUDGET_TOLERANCE
+    drift_ok = total_driven >= full_m
     columns = [c for c, ok in ((turned, turn_ok), (driven, drift_ok)) if ok]
-    coef = [0.0, 0.0]
+    turn_scale, drift = 0.0, 0.0
     r_h = windows.heading_error_rad
     if columns:
         design = np.column_stack(columns)
         solution, *_ = np.linalg.lstsq(design, windows.heading_error_rad, rcond=None)
         r_h = windows.heading_error_rad - design @ solution
-        it = iter(solution.tolist())
-        coef = [next(it) if turn_ok else 0.0, next(it) if drift_ok else 0.0]
+        # the turn column comes first, the drift column last, each only when estimated
+        turn_scale = float(solution[0]) if turn_ok else 0.0
+        drift = float(solution[-1]) if drift_ok else 0.0
     sigma_h = math.sqrt(float(np.sum(r_h**2)) / total_turned) if turn_ok else 0.0
 
     # rounding noise of an error-free log (1e-17) is no error: write it as 0
     scale, sigma_d, sigma_h = _clean(scale), _clean(sigma_d), _clean(sigma_h)
-    coef = [_clean(c) for c in coef]
+    turn_scale, drift = _clean(turn_scale), _clean(drift)
     model = OdometryError(
         range_m_per_m=abs(scale),
         range_m_per_sqrt_m=sigma_d,
-        bearing_rad_per_rad=abs(coef[0]),
+        bearing_rad_per_rad=abs(turn_scale),
         bearing_rad_per_sqrt_rad=sigma_h,
-        heading_drift_rad_per_m=abs(coef[1]),
+        heading_drift_rad_per_m=abs(drift),
         sonar_relative_error=sonar_relative_error,
     )
     return Calibration(
         model=model,
         scale_error=scale,
-        turn_scale_error=coef[0],
-        heading_drift_rad_per_m=coef[1],
+        turn_scale_error=turn_scale,
+        heading_drift_rad_per_m=drift,
         distance_estimated=distance_ok,
         turn_estimated=turn_ok,
         drift_estimated=drift_ok,
         windows=len(windows),
         # a window "drives" when it ended on its distance budget, "turns" otherwise
-        driving_windows=int(np.count_nonzero(driven >= window_m - BUDGET_TOLERANCE)),
-        turning_windows=int(np.count_nonzero(driven < window_m - BUDGET_TOLERANCE)),
+        driving_windows=int(np.count_nonzero(driven >= full_m)),
         driven_m=total_driven,
         turned_rad=total_turned,
         distance_residual_m=float(np.sqrt(np.mean(r_d**2))),
         heading_residual_rad=float(np.sqrt(np.mean(r_h**2))),
-        window_m=window_m,
-        window_rad=window_rad,
+        window_m=windows.window_m,
+        window_rad=windows.window_rad,
     )
 
 
@@ -286,18 +272,20 @@ def calibrate(
 ) -> Calibration:
     """Estimate f and g from ``log``'s odometry against its ground truth.
 
-    Raises :class:`CalibrationError` for a log without truth or with fewer than
-    :data:`MIN_WINDOWS` complete windows of travel.
+    Raises :class:`~gridmap_cli.errors.InputFileError` for a log without truth and
+    :class:`CalibrationError` for one with fewer than :data:`MIN_WINDOWS` complete windows of
+    travel.
     """
     odometry, truth = truth_at_odometry(log)
     windows = compare_windows(odometry, truth, window_m, window_rad)
     if len(windows) < MIN_WINDOWS:
-        step = np.hypot(np.diff(truth.x_m), np.diff(truth.y_m))
-        turn = np.abs(wrap_angle(np.diff(truth.theta_rad)))
+        dist, rot = travelled(truth)
+        # a truth that never overlaps the odometry is empty: it drives nothing
+        driven, turned = (float(dist[-1]), float(rot[-1])) if len(truth) else (0.0, 0.0)
         raise CalibrationError(
             f"{log.source}: too little travel to calibrate: the truth drives "
-            f"{float(step.sum()):.2f} m and turns {math.degrees(float(turn.sum())):.0f} deg, "
+            f"{driven:.2f} m and turns {math.degrees(turned):.0f} deg, "
             f"{len(windows)} complete window{'s' if len(windows) != 1 else ''} of "
             f"{window_m:g} m or {math.degrees(window_rad):g} deg; need at least {MIN_WINDOWS}"
         )
-    return fit(windows, window_m, window_rad, sonar_relative_error)
+    return fit(windows, sonar_relative_error)

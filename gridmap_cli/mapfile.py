@@ -40,7 +40,7 @@ from PIL import Image, UnidentifiedImageError
 
 from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.grid import GridSpec
-from gridmap_cli.yamlfile import read_yaml_mapping
+from gridmap_cli.yamlfile import number, read_yaml_mapping
 
 LOADER_FLAVOURS = ("ros1", "nav2-humble", "nav2-jazzy")
 DEFAULT_FLAVOUR = "nav2-jazzy"
@@ -134,11 +134,11 @@ def load_map(yaml_path: Path, flavour: str = DEFAULT_FLAVOUR) -> LoadedMap:
         if key not in doc:
             raise InputFileError(yaml_path, f"missing key '{key}'")
 
-    resolution = _number(doc["resolution"])
+    resolution = number(doc["resolution"])
     if resolution is None or not (math.isfinite(resolution) and resolution > 0.0):
         raise fail("resolution", f"resolution must be a positive number, got {doc['resolution']!r}")
     origin = doc["origin"]
-    values = [_number(v) for v in origin] if isinstance(origin, list) else []
+    values = [number(v) for v in origin] if isinstance(origin, list) else []
     if len(values) != 3 or not all(v is not None and math.isfinite(v) for v in values):
         raise fail("origin", f"origin must be three finite numbers [x, y, yaw], got {origin!r}")
     x0, y0, yaw = (float(v) for v in values if v is not None)
@@ -148,7 +148,7 @@ def load_map(yaml_path: Path, flavour: str = DEFAULT_FLAVOUR) -> LoadedMap:
         raise fail("negate", f"negate must be 0 or 1, got {negate!r}")
     thresholds: dict[str, float] = {}
     for key in ("occupied_thresh", "free_thresh"):
-        value = _number(doc[key])
+        value = number(doc[key])
         if value is None or not math.isfinite(value):
             raise fail(key, f"{key} must be a number, got {doc[key]!r}")
         thresholds[key] = value
@@ -185,24 +185,6 @@ def load_map(yaml_path: Path, flavour: str = DEFAULT_FLAVOUR) -> LoadedMap:
         origin_yaw_rad=yaw,
         pixels=(colour, alpha) if mode == "scale" else None,
     )
-
-
-def _number(value: object) -> float | None:
-    """A YAML value as a float, or None if it is not a number.
-
-    Strings that parse as numbers count: PyYAML reads '5e-2' (no '.') as a string, while the
-    yaml-cpp loaders read it as a number.
-    """
-    if isinstance(value, bool):
-        return None
-    if isinstance(value, int | float):
-        return float(value)
-    if isinstance(value, str):
-        try:
-            return float(value.strip())
-        except ValueError:
-            return None
-    return None
 
 
 def _read_image(

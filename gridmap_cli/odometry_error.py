@@ -29,8 +29,7 @@ from gridmap_cli.atomic import atomic_output
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.records import PoseTrack
-from gridmap_cli.writers.map_image import _yaml_float
-from gridmap_cli.yamlfile import read_yaml_mapping
+from gridmap_cli.yamlfile import format_float, number, read_yaml_mapping
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -180,31 +179,17 @@ def load_odometry_error(path: Path) -> OdometryError:
             raise InputFileError(
                 path, f"unknown key {key!r} (known: {', '.join(_KEYS)})", line=lines.get(key)
             )
-        number = _number(value)
-        if number is None:
+        parsed = number(value)
+        if parsed is None:
             raise InputFileError(
                 path, f"{key} must be a number, got {value!r}", line=lines.get(key)
             )
-        if not (math.isfinite(number) and number >= 0.0):
+        if not (math.isfinite(parsed) and parsed >= 0.0):
             raise InputFileError(
                 path, f"{key} must be a finite number >= 0, got {value!r}", line=lines.get(key)
             )
-        values[key] = number
+        values[key] = parsed
     return OdometryError(**values)
-
-
-def _number(value: object) -> float | None:
-    """A YAML value as a float, or None. PyYAML reads '1e-3' (no '.') as a string; accept it."""
-    if isinstance(value, bool):
-        return None
-    if isinstance(value, int | float):
-        return float(value)
-    if isinstance(value, str):
-        try:
-            return float(value.strip())
-        except ValueError:
-            return None
-    return None
 
 
 def odometry_error_yaml(model: OdometryError, comments: list[str] | None = None) -> str:
@@ -215,7 +200,7 @@ def odometry_error_yaml(model: OdometryError, comments: list[str] | None = None)
     head = [f"# {c}" if c else "#" for c in comments or []]
     body = [f"{FORMAT_KEY}: {FORMAT_VERSION}"]
     for key, value in model.as_dict().items():
-        body.append(f"{key}: {_yaml_float(value)}")
+        body.append(f"{key}: {format_float(value)}")
     return "\n".join([*head, *body]) + "\n"
 
 

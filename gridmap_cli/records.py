@@ -14,7 +14,14 @@ from datetime import UTC, datetime
 import numpy as np
 import numpy.typing as npt
 
+from gridmap_cli.errors import InputFileError
 from gridmap_cli.robot import RangeSensor
+
+#: Where each reader finds a log's ground truth, for the error when a log has none.
+TRUTH_SOURCES = (
+    "CSV true_x, true_y, true_theta columns, ARIA robotGlobal: lines in every block, "
+    "or an MCAP pose topic named ground_truth"
+)
 
 
 @dataclass(frozen=True)
@@ -82,6 +89,18 @@ class RangeLog:
     sensors: tuple[RangeSensor, ...] | None = None
     truth: PoseTrack | None = None
     metadata: dict[str, str] = field(default_factory=dict)
+
+    def require_truth(self, purpose: str) -> PoseTrack:
+        """The ground-truth track; :class:`InputFileError` naming the log if it has none.
+
+        ``purpose`` ends the message, saying what needed the truth ("evaluate needs the true
+        path"): ``<source>: the log has no ground truth (<where readers find it>); <purpose>``.
+        """
+        if self.truth is None:
+            raise InputFileError(
+                self.source, f"the log has no ground truth ({TRUTH_SOURCES}); {purpose}"
+            )
+        return self.truth
 
 
 #: Stamps at or after this (2001-09-09) are taken as Unix epoch times when shown to people;

@@ -76,12 +76,7 @@ def select_poses(log: RangeLog, source: str) -> RangeLog:
         return log
     if source != "global":
         raise GridmapError(f"unknown pose source '{source}' (known: {', '.join(POSE_SOURCES)})")
-    if log.truth is None:
-        raise GridmapError(
-            f"{log.source}: the log has no global pose (ARIA robotGlobal: lines in every block, "
-            "or CSV true_x, true_y, true_theta columns)"
-        )
-    return dataclasses.replace(log, poses=log.truth)
+    return dataclasses.replace(log, poses=log.require_truth("--pose global maps with it"))
 
 
 def sensors_for_log(log: RangeLog, robot: RobotDescription | None) -> tuple[RangeSensor, ...]:

@@ -1,7 +1,12 @@
-"""Reading a small YAML file whose top level is a mapping, keeping each key's line for errors."""
+"""Small YAML files: reading a top-level mapping with each key's line, numbers in and out.
+
+The map YAML and the odometry-error file share these, so both read '5e-2' as a number and write
+floats that read back exactly.
+"""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -43,3 +48,38 @@ def read_yaml_mapping(
             if isinstance(key_node.value, str):
                 lines[key_node.value] = value_node.start_mark.line + 1
     return doc, lines
+
+
+def number(value: object) -> float | None:
+    """A YAML value as a float, or None if it is not a number.
+
+    Strings that parse as numbers count: PyYAML reads '5e-2' (no '.') as a string, while the
+    yaml-cpp loaders read it as a number. Booleans are not numbers.
+    """
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, int | float):
+        return float(value)
+    if isinstance(value, str):
+        try:
+            return float(value.strip())
+        except ValueError:
+            return None
+    return None
+
+
+def format_float(value: float) -> str:
+    """Shortest text that reads back as exactly ``value`` in yaml-cpp and in PyYAML.
+
+    ``repr`` round-trips, but PyYAML's YAML 1.1 resolver wants a '.' in a float ('1e-05' would
+    load as a string), so an exponent form without one gets '.0' before the 'e'. Raises
+    ``ValueError`` for NaN and infinities, which gridmap's YAML files never hold.
+    """
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"a gridmap YAML file cannot hold the non-finite number {value}")
+    text = repr(value)
+    mantissa, e, exponent = text.partition("e")
+    if e and "." not in mantissa:
+        text = f"{mantissa}.0e{exponent}"
+    return text

@@ -1,12 +1,14 @@
-"""Helpers shared by the CLI tests."""
+"""Helpers shared by the tests: running the CLI in-process, tiny logs built inline."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 from click.testing import CliRunner
 
 from gridmap_cli.cli import cli
+from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 
 
 def run(*args: str) -> tuple[int, str, str]:
@@ -24,3 +26,22 @@ def run(*args: str) -> tuple[int, str, str]:
 def names(folder: Path) -> set[str]:
     """Names of the entries of ``folder``: what a command left behind."""
     return {p.name for p in folder.iterdir()}
+
+
+def log_with_truth(
+    truth: list[tuple[float, float, float]], odometry: list[tuple[float, float, float]]
+) -> RangeLog:
+    """A p3dx log at 10 Hz: the given true and odometry poses, one 2 m sonar0 reading per pose.
+
+    Poses are (x_m, y_m, theta_rad); both lists have one entry per stamp.
+    """
+    n = len(truth)
+    stamps = np.arange(n, dtype=np.int64) * 100_000_000
+    return RangeLog(
+        source="test",
+        poses=PoseTrack.from_rows(stamps, odometry),
+        readings=RangeReadings(stamps.copy(), np.zeros(n, np.int32), np.full(n, 2.0)),
+        sensor_names=("sonar0",),
+        truth=PoseTrack.from_rows(stamps, truth),
+        metadata={"robot": "p3dx"},
+    )

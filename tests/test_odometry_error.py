@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -20,6 +22,8 @@ from gridmap_cli.odometry_error import (
     travelled_at,
 )
 from gridmap_cli.records import PoseTrack
+from gridmap_cli.sim.odometry import OdometryErrorModel
+from gridmap_cli.yamlfile import format_float, number
 
 MODEL = OdometryError(
     range_m_per_m=0.02,
@@ -107,6 +111,37 @@ def test_yaml_round_trip(tmp_path: Path) -> None:
     assert [p.name for p in tmp_path.iterdir()] == ["odo.yaml"]
 
 
+@given(st.floats(allow_nan=False, allow_infinity=False))
+def test_yaml_floats_read_back_exactly_as_floats(value: float) -> None:
+    # what the map YAML and the odometry-error file write, PyYAML loads as the same float
+    loaded = yaml.safe_load(f"x: {format_float(value)}")["x"]
+    assert isinstance(loaded, float) and loaded == value
+    assert number(loaded) == value
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_yaml_floats_must_be_finite(bad: float) -> None:
+    with pytest.raises(ValueError, match="non-finite"):
+        format_float(bad)
+
+
+@pytest.mark.parametrize(
+    ("value", "expected"),
+    [
+        (3, 3.0),
+        (0.5, 0.5),
+        ("5e-2", 0.05),
+        (" 1e-3 ", 0.001),
+        (True, None),
+        ("x", None),
+        (None, None),
+    ],
+)
+def test_yaml_numbers_include_exponents_without_a_point(value: object, expected: object) -> None:
+    # PyYAML reads '5e-2' as a string; yaml-cpp (and so ROS) reads it as a number
+    assert number(value) == expected
+
+
 def test_missing_keys_take_their_defaults(tmp_path: Path) -> None:
     path = tmp_path / "odo.yaml"
     path.write_text("gridmap-odometry-error: 1\nrange_m_per_m: 0.02\nbearing_rad_per_rad: 3e-2\n")
@@ -165,3 +200,35 @@ def test_yaml_text_is_what_the_docs_show() -> None:
         "heading_drift_rad_per_m: 0.0\n"
         "sonar_relative_error: 0.01\n"
     )
+
+
+def test_the_simulators_errors_as_coefficients() -> None:
+    sim = OdometryErrorModel(
+        scale_error=-0.01,
+        turn_scale_error=0.02,
+        heading_drift_rad_per_m=-0.003,
+        sigma_dist_per_sqrt_m=0.04,
+        sigma_turn_per_sqrt_rad=0.05,
+    )
+    assert sim.as_odometry_error() == OdometryError(
+        range_m_per_m=0.01,  # systematic terms as magnitudes: a spread has no sign
+        range_m_per_sqrt_m=0.04,
+        bearing_rad_per_rad=0.02,
+        bearing_rad_per_sqrt_rad=0.05,
+        heading_drift_rad_per_m=0.003,
+        sonar_relative_error=0.01,
+    )
+    # drift 1 (the defaults), and every simulator term feeds exactly one coefficient
+    drift1 = OdometryErrorModel().as_odometry_error().as_dict()
+    assert drift1 == {
+        "range_m_per_m": 0.01,
+        "range_m_per_sqrt_m": 0.01,
+        "bearing_rad_per_rad": 0.02,
+        "bearing_rad_per_sqrt_rad": 0.02,
+        "heading_drift_rad_per_m": math.radians(0.2),
+        "sonar_relative_error": 0.01,
+    }
+    for f in dataclasses.fields(OdometryErrorModel):
+        one = dataclasses.replace(OdometryErrorModel().scaled(0.0), **{f.name: 0.5})
+        coefficients = one.as_odometry_error().as_dict()
+        assert sorted(coefficients.values()) == [0.0] * 4 + [0.01, 0.5], f.name

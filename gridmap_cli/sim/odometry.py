@@ -27,6 +27,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from gridmap_cli.geometry import compose, inverse, wrap_angle
+from gridmap_cli.odometry_error import OdometryError
 from gridmap_cli.records import PoseTrack
 
 
@@ -66,6 +67,20 @@ class OdometryErrorModel:
         if not (drift >= 0.0 and math.isfinite(drift)):
             raise ValueError(f"drift must be a finite number >= 0, got {drift}")
         return replace(self, **{f.name: getattr(self, f.name) * drift for f in fields(self)})
+
+    def as_odometry_error(self) -> OdometryError:
+        """The f and g coefficients (:mod:`gridmap_cli.odometry_error`) these errors give.
+
+        Each term maps onto one coefficient: the systematic ones as magnitudes (a spread has no
+        sign), the random walks as they are. The sonar's own error keeps its default.
+        """
+        return OdometryError(
+            range_m_per_m=abs(self.scale_error),
+            range_m_per_sqrt_m=self.sigma_dist_per_sqrt_m,
+            bearing_rad_per_rad=abs(self.turn_scale_error),
+            bearing_rad_per_sqrt_rad=self.sigma_turn_per_sqrt_rad,
+            heading_drift_rad_per_m=abs(self.heading_drift_rad_per_m),
+        )
 
 
 def odometry_from_truth(

@@ -28,6 +28,7 @@ from PIL import Image
 from gridmap_cli.atomic import atomic_outputs
 from gridmap_cli.errors import GridmapError, OutputExistsError, UsageError
 from gridmap_cli.grid import GridSpec, OccupancyMap
+from gridmap_cli.yamlfile import format_float
 
 MAP_MODES = ("trinary", "scale", "raw")
 IMAGE_SUFFIXES = (".pgm", ".png")
@@ -157,22 +158,6 @@ def map_pixels(
     return np.ascontiguousarray(image[::-1])
 
 
-def _yaml_float(value: float) -> str:
-    """Shortest text that reads back as exactly ``value`` in yaml-cpp and in PyYAML.
-
-    ``repr`` round-trips, but PyYAML's YAML 1.1 resolver wants a '.' in a float ('1e-05' would
-    load as a string), so an exponent form without one gets '.0' before the 'e'.
-    """
-    value = float(value)
-    if not math.isfinite(value):
-        raise ValueError(f"a map YAML cannot hold the non-finite number {value}")
-    text = repr(value)
-    mantissa, e, exponent = text.partition("e")
-    if e and "." not in mantissa:
-        text = f"{mantissa}.0e{exponent}"
-    return text
-
-
 def _yaml_string(name: str) -> str:
     """``name`` as a YAML scalar: plain when that is unambiguous, else single-quoted."""
     text = name if _PLAIN_NAME.fullmatch(name) else "'" + name.replace("'", "''") + "'"
@@ -196,15 +181,15 @@ def map_yaml_text(
     """
     if not (spec.resolution_m > 0.0 and math.isfinite(spec.resolution_m)):
         raise ValueError(f"resolution must be a positive number of metres, got {spec.resolution_m}")
-    origin = ", ".join(_yaml_float(v) for v in (spec.origin_x_m, spec.origin_y_m, 0.0))
+    origin = ", ".join(format_float(v) for v in (spec.origin_x_m, spec.origin_y_m, 0.0))
     return (
         f"image: {_yaml_string(image_name)}\n"
         f"mode: {mode}\n"
-        f"resolution: {_yaml_float(spec.resolution_m)}\n"
+        f"resolution: {format_float(spec.resolution_m)}\n"
         f"origin: [{origin}]\n"
         "negate: 0\n"
-        f"occupied_thresh: {_yaml_float(occupied_thresh)}\n"
-        f"free_thresh: {_yaml_float(free_thresh)}\n"
+        f"occupied_thresh: {format_float(occupied_thresh)}\n"
+        f"free_thresh: {format_float(free_thresh)}\n"
     )
 
 
