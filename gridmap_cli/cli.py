@@ -860,18 +860,13 @@ def evaluate(
     region = None
     if log_path is not None:
         data = resolve_format(log_path, log_format).read(log_path)
-        if data.truth is None:
-            raise InputFileError(
-                log_path,
-                "the log has no ground truth (CSV true_x, true_y, true_theta columns or ARIA "
-                "robotGlobal: lines); evaluate needs the true path",
-            )
+        true_path = data.require_truth("evaluate needs the true path")
         if robot_desc is None:
             robot_desc = _robot_from_log(log_path, data.metadata)
         sensors = sensors_for_log(data, robot_desc)
         if frame == "odometry":
             map_to_world = ev.odometry_frame_in_world(data)
-        region = ev.sensed_region(truth.world, data.truth, sensors)
+        region = ev.sensed_region(truth.world, true_path, sensors)
     result = ev.evaluate_map(pmap, truth.walls, truth.spec, region, map_to_world)
     if plot is not None:
         from gridmap_cli.evaluate_plot import plot_evaluation

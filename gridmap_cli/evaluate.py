@@ -130,9 +130,9 @@ def odometry_frame_in_world(log: RangeLog) -> Pose:
     """Pose of the odometry frame in the world: ``truth[0] (+) inverse(odometry[0])``.
 
     The odometry and the truth are taken at the first odometry stamp the truth covers.
-    Raises :class:`EvaluationError` for a log without ground truth.
+    Raises :class:`~gridmap_cli.errors.InputFileError` for a log without ground truth.
     """
-    truth = _truth(log)
+    truth = log.require_truth("evaluate needs the true path")
     odo = log.poses
     k = int(np.searchsorted(odo.stamp_ns, truth.stamp_ns[0], side="left"))
     if k >= len(odo):
@@ -141,15 +141,6 @@ def odometry_frame_in_world(log: RangeLog) -> Pose:
     ix, iy, ith = inverse(odo.x_m[k], odo.y_m[k], odo.theta_rad[k])
     x, y, th = compose(tx[0], ty[0], tth[0], ix, iy, ith)
     return float(x), float(y), float(th)
-
-
-def _truth(log: RangeLog) -> PoseTrack:
-    if log.truth is None:
-        raise EvaluationError(
-            f"{log.source}: the log has no ground truth (CSV true_x, true_y, true_theta columns "
-            "or ARIA robotGlobal: lines); evaluate needs the true path"
-        )
-    return log.truth
 
 
 def sensed_region(

@@ -250,8 +250,9 @@ def test_pose_global_needs_a_global_track(room_csv: Path, tmp_path: Path) -> Non
     code, _, stderr = run("build", str(room_csv), "-o", str(tmp_path / "m.png"), "--pose", "global")
     assert code == 1
     assert stderr.strip() == (
-        f"Error: {room_csv}: the log has no global pose (ARIA robotGlobal: lines in every block, "
-        "or CSV true_x, true_y, true_theta columns)"
+        f"Error: {room_csv}: the log has no ground truth (CSV true_x, true_y, true_theta "
+        "columns, ARIA robotGlobal: lines in every block, or an MCAP pose topic named "
+        "ground_truth); --pose global maps with it"
     )
     assert not (tmp_path / "m.png").exists()
 

@@ -23,12 +23,12 @@ from gridmap_cli.evaluate import (
 from gridmap_cli.evaluate_plot import UNKNOWN_RGB, map_rgb
 from gridmap_cli.grid import GridSpec, OccupancyMap
 from gridmap_cli.mapfile import load_map
-from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
+from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.sim.world import World
 from gridmap_cli.writers.csv_log import save_csv_log
 from gridmap_cli.writers.map_image import write_map
-from tests.helpers import names, run
+from tests.helpers import log_with_truth, names, run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 
@@ -133,27 +133,12 @@ def test_a_map_in_the_odometry_frame_scores_as_the_same_map_in_the_world_frame()
     assert evaluate_map(in_odometry, WALLS10, WORLD10, map_to_world=(3.0, 2.0, 0.0)).nll > a.nll
 
 
-def _log(
-    truth: list[tuple[float, float, float]], odometry: list[tuple[float, float, float]]
-) -> RangeLog:
-    n = len(truth)
-    stamps = np.arange(n, dtype=np.int64) * 100_000_000
-    return RangeLog(
-        source="test",
-        poses=PoseTrack.from_rows(stamps, odometry),
-        readings=RangeReadings(stamps.copy(), np.zeros(n, np.int32), np.full(n, 2.0)),
-        sensor_names=("sonar0",),
-        truth=PoseTrack.from_rows(stamps, truth),
-        metadata={"robot": "p3dx"},
-    )
-
-
 def test_odometry_frame_in_world() -> None:
     # odometry starting at 0: the frame is the first true pose
-    log = _log([START, (3.0, 3.0, math.pi / 2)], [(0, 0, 0), (1, 0, 0)])
+    log = log_with_truth([START, (3.0, 3.0, math.pi / 2)], [(0, 0, 0), (1, 0, 0)])
     assert odometry_frame_in_world(log) == pytest.approx(START)
     # odometry starting at (1, 0, 0): the frame lies 1 m behind the robot, at world (3, 1)
-    log = _log([START, (3.0, 3.0, math.pi / 2)], [(1, 0, 0), (2, 0, 0)])
+    log = log_with_truth([START, (3.0, 3.0, math.pi / 2)], [(1, 0, 0), (2, 0, 0)])
     assert odometry_frame_in_world(log) == pytest.approx((3.0, 1.0, math.pi / 2))
 
 
@@ -259,7 +244,7 @@ def test_cli_with_a_log_in_the_odometry_frame(tmp_path: Path) -> None:
     # the robot stands at START and turns on the spot; odometry starts at 0
     turns = [(3.0, 2.0, math.pi / 2 + k * 0.3) for k in range(25)]
     odo = [(0.0, 0.0, k * 0.3) for k in range(25)]
-    save_csv_log(_log(turns, odo), tmp_path / "run.csv")
+    save_csv_log(log_with_truth(turns, odo), tmp_path / "run.csv")
     results = []
     for name, frame in (("global", "world"), ("odom", "odometry")):
         code, out, err = run(
@@ -327,7 +312,7 @@ def test_bad_inputs(tmp_path: Path) -> None:
     broken = str(tmp_path / "broken.yaml")
     code, _, err = run("evaluate", broken, "--truth", str(world), "--frame", "world")
     assert code == 1 and "broken.yaml: missing key 'resolution'" in err
-    log = _log([(1.5, 1.5, 0.0)] * 2, [(0, 0, 0)] * 2)
+    log = log_with_truth([(1.5, 1.5, 0.0)] * 2, [(0, 0, 0)] * 2)
     plain = RangeLog(log.source, log.poses, log.readings, log.sensor_names, metadata={})
     save_csv_log(plain, tmp_path / "plain.csv")
     code, _, err = run("evaluate", m, "--truth", str(world), "--log", str(tmp_path / "plain.csv"))
