@@ -16,6 +16,7 @@ from gridmap_cli.errors import GridmapError, UsageError
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription
 from gridmap_cli.sync import sensors_for_log
+from gridmap_cli.writers import no_echo_at_max_range
 from gridmap_cli.writers.aria_log import save_aria_log
 from gridmap_cli.writers.csv_log import CSV_VERSION_KEY, save_csv_log
 from gridmap_cli.writers.mcap_log import ENCODINGS, save_mcap_log
@@ -87,9 +88,12 @@ def write_log(
     """Write ``log`` with ``writer``; sensor geometry from the log itself, else from ``robot``.
 
     The CSV layout's version key is dropped from the metadata of other formats (the CSV writer
-    writes its own).
+    writes its own). A reading of ``inf`` (a CSV log's "no echo") is written as its sensor's
+    maximum range by every format that has sensor geometry; CSV keeps ``inf``.
     """
     sensors = sensors_for_log(log, robot) if writer.needs_sensors else ()
+    if sensors:
+        log = no_echo_at_max_range(log, sensors)
     if writer.name != "csv" and CSV_VERSION_KEY in log.metadata:
         metadata = {k: v for k, v in log.metadata.items() if k != CSV_VERSION_KEY}
         log = dataclasses.replace(log, metadata=metadata)

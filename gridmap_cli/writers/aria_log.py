@@ -72,6 +72,11 @@ def write_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], handle: Text
     if len({sensors[c].max_range_m for c in sonar}) > 1:
         raise GridmapError("the ARIA sonar format has one sonarMaxRange for all units")
     check_metadata_lines(log.metadata)
+    if not np.isfinite(log.readings.range_m).all():
+        raise GridmapError(
+            "the ARIA format holds ranges in whole mm, not infinity (write no echo as the "
+            "sensor's maximum range)"
+        )
 
     poses, truth, readings = log.poses, log.truth, log.readings
     row_of = np.searchsorted(poses.stamp_ns, readings.stamp_ns)

@@ -182,8 +182,6 @@ def _write_json(log: RangeLog, sensors: tuple[RangeSensor, ...], writer: Writer)
         else:
             column = int(readings.sensor[i])
             value = float(readings.range_m[i])
-            if math.isinf(value):  # no echo: JSON has no infinity, the layout says max_range
-                value = sensors[column].max_range_m
             data = _dumps({"timestamp": _json_time(stamp), "sensor": names[column], "range": value})
             writer.add_message(range_ch, stamp, data, stamp, sequence=i)
 

@@ -92,3 +92,11 @@ def test_a_reading_between_poses_is_refused() -> None:
     sensors = (RangeSensor("sonar0", 0, 0, 0, 0.4, 0.1, 4.0),)
     with pytest.raises(GridmapError, match="a reading has no pose"):
         written(log_for(("sonar0",), [(S // 20, 0, 1.0)]), sensors)
+
+
+def test_an_infinite_range_is_refused_not_written_as_a_huge_negative() -> None:
+    """No echo reaches the writer as the maximum range (convert.write_log sees to it); an
+    infinity cannot be whole millimetres."""
+    sensors = (RangeSensor("sonar0", 0, 0, 0, 0.4, 0.1, 4.0),)
+    with pytest.raises(GridmapError, match="not infinity"):
+        written(log_for(("sonar0",), [(0, 0, math.inf)]), sensors)

@@ -27,6 +27,7 @@ from mcap_ros2.decoder import DecoderFactory
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor, load_robot
+from gridmap_cli.writers import no_echo_at_max_range
 from gridmap_cli.writers.mcap_log import json_schema_text, save_mcap_log, write_mcap_log
 from gridmap_cli.writers.ros2_msgdefs import message_definition
 from tests.helpers import names
@@ -222,16 +223,22 @@ def test_no_truth_means_no_ground_truth_channel() -> None:
     assert topics == {"/sensors", "/odom", "/range"}
 
 
-def test_infinite_range_is_written_as_max_range() -> None:
+def test_an_infinite_range_is_written_as_max_range() -> None:
     log = sample_log()
     ranges = log.readings.range_m.copy()
     ranges[3] = math.inf
     log = dataclasses.replace(log, readings=dataclasses.replace(log.readings, range_m=ranges))
-    data = written(log, SONARS, "json")
+    capped = no_echo_at_max_range(log, SONARS)  # what convert.write_log hands the writers
+    data = written(capped, SONARS, "json")
     values = [
         json.loads(m.data)["range"] for _, c, m in validated_messages(data) if c.topic == "/range"
     ]
     assert values[3] == 5.0
+    ros2 = [m for t, _, m in ros2_messages(written(capped, SONARS, "ros2")) if t == "/sonar"]
+    assert ros2[3].range == ros2[3].max_range == 5.0
+    # an infinity that did not go through it is refused, never written as something else
+    with pytest.raises(GridmapError, match="non-finite number cannot be written as JSON"):
+        written(log, SONARS, "json")
 
 
 def test_the_same_log_gives_the_same_bytes() -> None:
