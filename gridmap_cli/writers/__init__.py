@@ -3,12 +3,22 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 
-from gridmap_cli.errors import GridmapError
+from gridmap_cli.errors import GridmapError, OutputExistsError, UsageError
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RangeSensor
+
+
+def check_output(path: Path, force: bool) -> None:
+    """Refuse an output that is a directory, or that exists without ``force``; call before any
+    work. Raises :class:`UsageError` / :class:`OutputExistsError`."""
+    if path.is_dir():
+        raise UsageError(f"{path} is a directory")
+    if path.exists() and not force:
+        raise OutputExistsError(path)
 
 
 def check_metadata_lines(metadata: dict[str, str]) -> None:

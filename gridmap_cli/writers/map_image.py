@@ -26,8 +26,9 @@ import yaml
 from PIL import Image
 
 from gridmap_cli.atomic import atomic_outputs
-from gridmap_cli.errors import GridmapError, OutputExistsError, UsageError
+from gridmap_cli.errors import GridmapError, UsageError
 from gridmap_cli.grid import GridSpec, OccupancyMap
+from gridmap_cli.writers import check_output
 
 MAP_MODES = ("trinary", "scale", "raw")
 IMAGE_SUFFIXES = (".pgm", ".png")
@@ -80,10 +81,7 @@ def check_map_outputs(image_path: Path, mode: str, force: bool) -> None:
             f"{image}: scale maps need a PNG (unknown cells are transparent, and PGM has no alpha)"
         )
     for path in (image, yaml_path):
-        if path.is_dir():
-            raise UsageError(f"{path} is a directory")
-        if path.exists() and not force:
-            raise OutputExistsError(path)
+        check_output(path, force)
 
 
 def _check_thresholds(occupied_thresh: float, free_thresh: float) -> None:

@@ -18,22 +18,15 @@ from mcap.writer import CompressionType, Writer
 from mcap_ros2._dynamic import serialize_dynamic
 
 from gridmap_cli.atomic import atomic_output
-from gridmap_cli.errors import GridmapError, OutputExistsError, UsageError
+from gridmap_cli.errors import GridmapError
 from gridmap_cli.grid import OccupancyMap
+from gridmap_cli.writers import check_output
 from gridmap_cli.writers.mcap_log import LIBRARY, qos_profiles_yaml
 from gridmap_cli.writers.ros2_msgdefs import message_definition
 
 MAP_SCHEMA = "nav_msgs/msg/OccupancyGrid"
 MAP_TOPIC = "/map"
 MAP_FRAME = "map"
-
-
-def check_map_mcap_output(path: Path, force: bool) -> None:
-    """Refuse an output that is a directory, or exists without ``force``; call before any work."""
-    if path.is_dir():
-        raise UsageError(f"{path} is a directory")
-    if path.exists() and not force:
-        raise OutputExistsError(path)
 
 
 def occupancy_values(prob: npt.NDArray[np.float64]) -> npt.NDArray[np.int8]:
@@ -67,7 +60,7 @@ def write_map_mcap(
     ``info.origin`` is the lower-left corner of cell (0, 0) with identity orientation;
     ``info.resolution`` is the cell size (float32 in the message). Written atomically.
     """
-    check_map_mcap_output(path, force)
+    check_output(path, force)
     spec = omap.spec
     if omap.prob.shape != spec.shape:
         raise ValueError(f"probability array of shape {omap.prob.shape} for a grid of {spec.shape}")
