@@ -108,6 +108,27 @@ def transparent_grey(occupied_thresh: float, free_thresh: float) -> int:
     return int(candidates[np.argmin(np.abs((255 - candidates) / 255 - middle))])
 
 
+def occupancy_percent(
+    prob: npt.NDArray[np.float64],
+) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.bool_]]:
+    """Occupancy percentages of a probability map and its unknown cells, both shaped as ``prob``.
+
+    ``prob``: shape (height, width), values in [0, 1], NaN unknown. Returns round(100 p) (half to
+    even; 0 under unknown cells) as uint8 and the mask of NaN cells: what a ``raw`` image and an
+    OccupancyGrid hold. Raises ``ValueError`` for an array that is not 2-D or holds values outside
+    [0, 1], which would otherwise wrap around in the 8-bit result.
+    """
+    prob = np.asarray(prob, dtype=np.float64)
+    if prob.ndim != 2:
+        raise ValueError(f"a probability map must be 2-D, got shape {prob.shape}")
+    unknown = np.isnan(prob)
+    known = prob[~unknown]
+    if known.size and not (known.min() >= 0.0 and known.max() <= 1.0):
+        raise ValueError("probabilities must lie in [0, 1] (NaN for unknown)")
+    percent = np.rint(100.0 * np.where(unknown, 0.0, prob)).astype(np.uint8)
+    return percent, unknown
+
+
 def map_pixels(
     prob: npt.NDArray[np.float64], mode: str, occupied_thresh: float, free_thresh: float
 ) -> npt.NDArray[np.uint8]:
@@ -127,15 +148,9 @@ def map_pixels(
     if mode not in MAP_MODES:
         raise UsageError(f"unknown map mode '{mode}' (known: {', '.join(MAP_MODES)})")
     _check_thresholds(occupied_thresh, free_thresh)
-    prob = np.asarray(prob, dtype=np.float64)
-    if prob.ndim != 2:
-        raise ValueError(f"a probability map must be 2-D, got shape {prob.shape}")
-    unknown = np.isnan(prob)
-    known = prob[~unknown]
-    if known.size and not (known.min() >= 0.0 and known.max() <= 1.0):
-        raise ValueError("probabilities must lie in [0, 1] (NaN for unknown)")
+    percent, unknown = occupancy_percent(prob)
     # NaN-free copy so the arithmetic below raises no warnings; unknown cells are overwritten
-    p = np.where(unknown, 0.0, prob)
+    p = np.where(unknown, 0.0, np.asarray(prob, dtype=np.float64))
 
     if mode == "trinary":
         grey = np.full(p.shape, UNKNOWN_GREY, dtype=np.uint8)
@@ -144,7 +159,7 @@ def map_pixels(
         grey[unknown] = UNKNOWN_GREY
         image: npt.NDArray[np.uint8] = grey
     elif mode == "raw":
-        image = np.rint(100.0 * p).astype(np.uint8)
+        image = percent
         image[unknown] = RAW_UNKNOWN_GREY
     else:
         grey = np.rint(255.0 * (1.0 - p)).astype(np.uint8)

@@ -21,6 +21,7 @@ from gridmap_cli.atomic import atomic_output
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.grid import OccupancyMap
 from gridmap_cli.writers import check_output
+from gridmap_cli.writers.map_image import occupancy_percent
 from gridmap_cli.writers.mcap_log import LIBRARY, qos_profiles_yaml
 from gridmap_cli.writers.ros2_msgdefs import message_definition
 
@@ -31,10 +32,10 @@ MAP_FRAME = "map"
 
 def occupancy_values(prob: npt.NDArray[np.float64]) -> npt.NDArray[np.int8]:
     """OccupancyGrid cell values of a probability map, same shape (height, width), row 0 bottom:
-    round(100 p) with halves to even, -1 for NaN (unknown)."""
-    prob = np.asarray(prob, dtype=np.float64)
-    unknown = np.isnan(prob)
-    values = np.rint(100.0 * np.where(unknown, 0.0, prob)).astype(np.int8)
+    round(100 p) with halves to even, -1 for NaN (unknown). ``ValueError`` as
+    :func:`~gridmap_cli.writers.map_image.occupancy_percent` raises it."""
+    percent, unknown = occupancy_percent(prob)
+    values = percent.astype(np.int8)
     values[unknown] = -1
     return values
 

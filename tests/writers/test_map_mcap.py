@@ -39,6 +39,17 @@ def test_values_by_hand() -> None:
     assert occupancy_values(prob).tolist() == [[-1, 0, 12], [0, 66, 100]]
 
 
+@pytest.mark.parametrize("bad", [1.5, -0.01, np.inf])
+def test_probabilities_outside_0_1_are_refused_not_wrapped(bad: float, tmp_path: Path) -> None:
+    """1.5 would be 150, which int8 wraps to -106; the map image's check applies here too."""
+    prob = np.array([[0.5, bad]])
+    with pytest.raises(ValueError, match=r"probabilities must lie in \[0, 1\]"):
+        occupancy_values(prob)
+    with pytest.raises(ValueError, match=r"probabilities must lie in \[0, 1\]"):
+        write_map_mcap(tmp_path / "map.mcap", OccupancyMap(GridSpec(0.0, 0.0, 1.0, 2, 1), prob))
+    assert names(tmp_path) == set()
+
+
 def test_a_small_map_by_hand(tmp_path: Path) -> None:
     spec = GridSpec(origin_x_m=-1.5, origin_y_m=2.0, resolution_m=0.05, width=3, height=2)
     prob = np.array([[np.nan, 0.0, 0.25], [0.5, 0.75, 1.0]])  # row 0 is the bottom
