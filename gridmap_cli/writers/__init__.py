@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import dataclasses
+import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +12,8 @@ import numpy as np
 from gridmap_cli.errors import GridmapError, OutputExistsError, UsageError
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RangeSensor
+
+_LASER_BEAM = re.compile(r"^(.+)_(\d+)$")
 
 
 def check_output(path: Path, force: bool) -> None:
@@ -49,3 +53,79 @@ def no_echo_at_max_range(log: RangeLog, sensors: tuple[RangeSensor, ...]) -> Ran
     capped = np.where(infinite, max_range[log.readings.sensor], ranges)
     readings = dataclasses.replace(log.readings, range_m=capped)
     return dataclasses.replace(log, readings=readings)
+
+
+@dataclass(frozen=True)
+class Laser:
+    """A scanning laser: beams (columns of the log) ``<frame>_0`` .. in order, at one position
+    with one range interval, evenly spaced in angle. Angles in radians, in the base frame."""
+
+    frame: str
+    columns: tuple[int, ...]
+    x_m: float
+    y_m: float
+    first_yaw_rad: float  # beam 0
+    last_yaw_rad: float  # the last beam
+    yaw_rad: float  # the middle of the scan, (first + last) / 2: the laser frame's heading
+    angle_min_rad: float  # beam 0 relative to ``yaw_rad``
+    angle_increment_rad: float  # 0 for a one-beam laser
+    range_min_m: float
+    range_max_m: float
+
+
+def laser_groups(sensors: tuple[RangeSensor, ...], target: str) -> tuple[list[int], list[Laser]]:
+    """Columns of the sensors that are not laser beams, and the scanning lasers, in column order.
+
+    A laser is every kind-``laser`` sensor named ``<frame>_<i>`` with the same ``<frame>``; beam
+    indices must run 0, 1, ... in column order, share position and range interval, and be evenly
+    spaced (as a robot description's ``first_deg``/``last_deg``/``samples`` make them), or
+    :class:`GridmapError` says that ``target`` (``"a LaserScan"``) needs them so.
+    """
+    beams: dict[str, list[tuple[int, int]]] = {}  # frame -> (column, beam index)
+    singles: list[int] = []
+    for column, s in enumerate(sensors):
+        match = _LASER_BEAM.match(s.name)
+        if s.kind == "laser" and match:
+            beams.setdefault(match.group(1), []).append((column, int(match.group(2))))
+        else:
+            singles.append(column)
+    lasers: list[Laser] = []
+    for frame, numbered in beams.items():
+        columns = [c for c, _ in numbered]
+        if [i for _, i in numbered] != list(range(len(numbered))):
+            raise GridmapError(
+                f"laser {frame!r}: beams must be named {frame}_0, {frame}_1, ... in order "
+                f"to be written as {target}"
+            )
+        members = [sensors[c] for c in columns]
+        first = members[0]
+        same = all(
+            (m.x_m, m.y_m, m.min_range_m, m.max_range_m)
+            == (first.x_m, first.y_m, first.min_range_m, first.max_range_m)
+            for m in members
+        )
+        yaws = np.asarray([m.yaw_rad for m in members], dtype=np.float64)
+        step = (yaws[-1] - yaws[0]) / (len(yaws) - 1) if len(yaws) > 1 else 0.0
+        even = np.allclose(yaws, yaws[0] + step * np.arange(len(yaws)), rtol=0.0, atol=1e-9)
+        if not (same and even):
+            raise GridmapError(
+                f"laser {frame!r}: {target} needs beams at one position with one range "
+                "interval, evenly spaced in angle"
+            )
+        middle = 0.5 * (float(yaws[0]) + float(yaws[-1]))
+        lasers.append(
+            Laser(
+                frame,
+                tuple(columns),
+                first.x_m,
+                first.y_m,
+                float(yaws[0]),
+                float(yaws[-1]),
+                middle,
+                float(yaws[0]) - middle,
+                float(step),
+                first.min_range_m,
+                first.max_range_m,
+            )
+        )
+    return singles, lasers

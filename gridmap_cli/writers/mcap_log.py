@@ -20,9 +20,7 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import IO, Any
@@ -36,6 +34,7 @@ from gridmap_cli.atomic import atomic_output
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor
+from gridmap_cli.writers import Laser, laser_groups
 from gridmap_cli.writers.ros2_msgdefs import message_definition
 
 ENCODINGS = ("json", "ros2")
@@ -52,7 +51,6 @@ WORLD_FRAME = "world"
 #: The JSON message types and the topics they go on.
 JSON_SCHEMAS = ("gridmap.RangeSensor", "gridmap.Pose2D", "gridmap.RangeReading")
 
-_LASER_BEAM = re.compile(r"^(.+)_(\d+)$")
 _INT32_MAX = 2**31 - 1
 # sensor_msgs/msg/Range radiation types
 _ULTRASOUND = 0
@@ -201,76 +199,6 @@ def qos_profiles_yaml(depth: int, durability: str) -> str:
     )
 
 
-@dataclass(frozen=True)
-class _Laser:
-    """A scanning laser: beams (columns of the log) ``<frame>_0`` .. in order, evenly spaced."""
-
-    frame: str
-    columns: tuple[int, ...]
-    x_m: float
-    y_m: float
-    yaw_rad: float  # the laser frame's heading in the base frame: the middle of the scan
-    angle_min_rad: float
-    angle_increment_rad: float
-    range_min_m: float
-    range_max_m: float
-
-
-def _split_sensors(sensors: tuple[RangeSensor, ...]) -> tuple[list[int], list[_Laser]]:
-    """Columns written as sensor_msgs/Range (one message per reading) and the scanning lasers.
-
-    A laser is every kind-``laser`` sensor named ``<frame>_<i>`` with the same ``<frame>``;
-    beam indices must run 0, 1, ... in column order, share position and ranges, and be evenly
-    spaced (as a robot description's ``first_deg``/``last_deg``/``samples`` make them).
-    """
-    beams: dict[str, list[int]] = {}
-    singles: list[int] = []
-    for column, s in enumerate(sensors):
-        match = _LASER_BEAM.match(s.name)
-        if s.kind == "laser" and match:
-            beams.setdefault(match.group(1), []).append(column)
-        else:
-            singles.append(column)
-    lasers: list[_Laser] = []
-    for frame, columns in beams.items():
-        members = [sensors[c] for c in columns]
-        indices = [int(_LASER_BEAM.match(m.name).group(2)) for m in members]  # type: ignore[union-attr]
-        if indices != list(range(len(members))):
-            raise GridmapError(
-                f"laser {frame!r}: beams must be named {frame}_0, {frame}_1, ... in order "
-                "to be written as a LaserScan"
-            )
-        first = members[0]
-        same = all(
-            (m.x_m, m.y_m, m.min_range_m, m.max_range_m)
-            == (first.x_m, first.y_m, first.min_range_m, first.max_range_m)
-            for m in members
-        )
-        yaws = np.asarray([m.yaw_rad for m in members], dtype=np.float64)
-        step = (yaws[-1] - yaws[0]) / (len(yaws) - 1) if len(yaws) > 1 else 0.0
-        even = np.allclose(yaws, yaws[0] + step * np.arange(len(yaws)), rtol=0.0, atol=1e-9)
-        if not (same and even):
-            raise GridmapError(
-                f"laser {frame!r}: a LaserScan needs beams at one position with one range "
-                "interval, evenly spaced in angle"
-            )
-        middle = 0.5 * (float(yaws[0]) + float(yaws[-1]))
-        lasers.append(
-            _Laser(
-                frame,
-                tuple(columns),
-                first.x_m,
-                first.y_m,
-                middle,
-                float(yaws[0]) - middle,
-                float(step),
-                first.min_range_m,
-                first.max_range_m,
-            )
-        )
-    return singles, lasers
-
-
 def _ros_time(stamp_ns: int) -> dict[str, int]:
     sec, nanosec = divmod(stamp_ns, 1_000_000_000)
     if not -(2**31) <= sec <= _INT32_MAX:
@@ -348,7 +276,7 @@ class _Ros2Channels:
 
 
 def _write_ros2(log: RangeLog, sensors: tuple[RangeSensor, ...], writer: Writer) -> None:
-    singles, lasers = _split_sensors(sensors)
+    singles, lasers = laser_groups(sensors, "a LaserScan")
     writer.start(profile="ros2", library=LIBRARY)
     ch = _Ros2Channels(writer)
     volatile = qos_profiles_yaml(10, "volatile")
@@ -383,7 +311,7 @@ def _write_ros2(log: RangeLog, sensors: tuple[RangeSensor, ...], writer: Writer)
     is_single[singles] = True
     single_rows = np.flatnonzero(is_single[readings.sensor])
     # one scan per laser and stamp at which any of its beams has a reading
-    scans: list[tuple[int, _Laser]] = []
+    scans: list[tuple[int, Laser]] = []
     for laser in lasers:
         rows = np.flatnonzero(np.isin(readings.sensor, laser.columns))
         for stamp in np.unique(readings.stamp_ns[rows]):
