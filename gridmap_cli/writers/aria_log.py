@@ -15,7 +15,7 @@ from typing import TextIO
 
 import numpy as np
 
-from gridmap_cli.atomic import atomic_output
+from gridmap_cli.atomic import atomic_write
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RangeSensor
@@ -131,8 +131,8 @@ def write_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], handle: Text
 
 def save_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], path: Path) -> None:
     """Write ``log`` to ``path`` atomically (nothing is left behind on failure)."""
-    try:
-        with atomic_output(path) as tmp, open(tmp, "w", encoding="ascii", newline="\n") as handle:
-            write_aria_log(log, sensors, handle)
-    except OSError as exc:
-        raise GridmapError(f"{path}: cannot write the log: {exc.strerror or exc}") from exc
+    with (
+        atomic_write(path, "the log") as tmp,
+        open(tmp, "w", encoding="ascii", newline="\n") as out,
+    ):
+        write_aria_log(log, sensors, out)

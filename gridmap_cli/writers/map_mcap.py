@@ -14,15 +14,13 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
-from mcap.writer import CompressionType, Writer
 from mcap_ros2._dynamic import serialize_dynamic
 
-from gridmap_cli.atomic import atomic_output
-from gridmap_cli.errors import GridmapError
+from gridmap_cli.atomic import atomic_write
 from gridmap_cli.grid import OccupancyMap
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import occupancy_percent
-from gridmap_cli.writers.mcap_log import LIBRARY, qos_profiles_yaml
+from gridmap_cli.writers.mcap_log import LIBRARY, mcap_writer, qos_profiles_yaml, ros_time
 from gridmap_cli.writers.ros2_msgdefs import message_definition
 
 MAP_SCHEMA = "nav_msgs/msg/OccupancyGrid"
@@ -65,8 +63,7 @@ def write_map_mcap(
     spec = omap.spec
     if omap.prob.shape != spec.shape:
         raise ValueError(f"probability array of shape {omap.prob.shape} for a grid of {spec.shape}")
-    sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
-    stamp = {"sec": sec, "nanosec": nanosec}
+    stamp = ros_time(int(stamp_ns))
     message = {
         "header": {"stamp": stamp, "frame_id": MAP_FRAME},
         "info": {
@@ -83,21 +80,16 @@ def write_map_mcap(
     }
     text = message_definition(MAP_SCHEMA)
     data = _with_cells(serialize_dynamic(MAP_SCHEMA, text)[MAP_SCHEMA](message), omap)
-    try:
-        with atomic_output(path) as tmp, open(tmp, "wb") as handle:
-            writer = Writer(
-                handle, compression=CompressionType.ZSTD, enable_crcs=True, enable_data_crcs=True
-            )
-            writer.start(profile="ros2", library=LIBRARY)
-            schema_id = writer.register_schema(MAP_SCHEMA, "ros2msg", text.encode("utf-8"))
-            channel_id = writer.register_channel(
-                MAP_TOPIC,
-                "cdr",
-                schema_id,
-                metadata={"offered_qos_profiles": qos_profiles_yaml(1, "transient_local")},
-            )
-            writer.add_message(channel_id, int(stamp_ns), data, int(stamp_ns))
-            writer.finish()  # type: ignore[no-untyped-call]
-    except OSError as exc:
-        raise GridmapError(f"{path}: cannot write the map: {exc.strerror or exc}") from exc
+    with atomic_write(path, "the map") as tmp, open(tmp, "wb") as handle:
+        writer = mcap_writer(handle)
+        writer.start(profile="ros2", library=LIBRARY)
+        schema_id = writer.register_schema(MAP_SCHEMA, "ros2msg", text.encode("utf-8"))
+        channel_id = writer.register_channel(
+            MAP_TOPIC,
+            "cdr",
+            schema_id,
+            metadata={"offered_qos_profiles": qos_profiles_yaml(1, "transient_local")},
+        )
+        writer.add_message(channel_id, int(stamp_ns), data, int(stamp_ns))
+        writer.finish()  # type: ignore[no-untyped-call]
     return path

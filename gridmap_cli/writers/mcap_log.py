@@ -30,7 +30,7 @@ import numpy.typing as npt
 from mcap.writer import CompressionType, Writer
 from mcap_ros2._dynamic import serialize_dynamic
 
-from gridmap_cli.atomic import atomic_output
+from gridmap_cli.atomic import atomic_write
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor
@@ -64,7 +64,8 @@ def json_schema_text(name: str) -> bytes:
     return resource.read_bytes()
 
 
-def _writer(stream: IO[bytes]) -> Writer:
+def mcap_writer(stream: IO[bytes]) -> Writer:
+    """An MCAP writer as gridmap writes every file: zstd chunks, chunk and data CRCs."""
     return Writer(
         stream,
         compression=CompressionType.ZSTD,
@@ -199,7 +200,8 @@ def qos_profiles_yaml(depth: int, durability: str) -> str:
     )
 
 
-def _ros_time(stamp_ns: int) -> dict[str, int]:
+def ros_time(stamp_ns: int) -> dict[str, int]:
+    """A ``builtin_interfaces/Time`` of integer ns; :class:`GridmapError` past int32 seconds."""
     sec, nanosec = divmod(stamp_ns, 1_000_000_000)
     if not -(2**31) <= sec <= _INT32_MAX:
         raise GridmapError(f"stamp {stamp_ns} ns does not fit a ROS 2 time (int32 seconds)")
@@ -295,7 +297,7 @@ def _write_ros2(log: RangeLog, sensors: tuple[RangeSensor, ...], writer: Writer)
     writer.add_metadata(METADATA_NAME, dict(log.metadata))
 
     t0 = _first_stamp(log)
-    stamp0 = _ros_time(t0)
+    stamp0 = ros_time(t0)
     mounts = [
         _transform(stamp0, BASE_FRAME, sensors[c].name, sensors[c].x_m, sensors[c].y_m,
                    sensors[c].yaw_rad)
@@ -329,7 +331,7 @@ def _write_ros2(log: RangeLog, sensors: tuple[RangeSensor, ...], writer: Writer)
     stamp_lo = np.searchsorted(readings.stamp_ns, groups[3], side="left")
     stamp_hi = np.searchsorted(readings.stamp_ns, groups[3], side="right")
     for stamp, group, i in _events(groups):
-        when = _ros_time(stamp)
+        when = ros_time(stamp)
         if group == 0:
             x, y, th = poses.x_m[i], poses.y_m[i], poses.theta_rad[i]
             ch.write(odom, stamp, _odometry(when, ODOM_FRAME, x, y, th), i)
@@ -389,7 +391,7 @@ def write_mcap_log(
     if encoding not in ENCODINGS:
         raise GridmapError(f"unknown MCAP encoding '{encoding}' (known: {', '.join(ENCODINGS)})")
     _check_log(log, sensors)
-    writer = _writer(stream)
+    writer = mcap_writer(stream)
     if encoding == "json":
         _write_json(log, sensors, writer)
     else:
@@ -401,8 +403,5 @@ def save_mcap_log(
     log: RangeLog, sensors: tuple[RangeSensor, ...], path: Path, encoding: str = "json"
 ) -> None:
     """Write ``log`` to ``path`` atomically (nothing is left behind on failure)."""
-    try:
-        with atomic_output(path) as tmp, open(tmp, "wb") as handle:
-            write_mcap_log(log, sensors, handle, encoding)
-    except OSError as exc:
-        raise GridmapError(f"{path}: cannot write the log: {exc.strerror or exc}") from exc
+    with atomic_write(path, "the log") as tmp, open(tmp, "wb") as handle:
+        write_mcap_log(log, sensors, handle, encoding)

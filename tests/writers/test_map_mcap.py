@@ -13,7 +13,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from PIL import Image
 
-from gridmap_cli.errors import OutputExistsError
+from gridmap_cli.errors import GridmapError, OutputExistsError
 from gridmap_cli.grid import GridSpec, OccupancyMap
 from gridmap_cli.writers.map_mcap import occupancy_values, write_map_mcap
 from tests.helpers import names, run
@@ -48,6 +48,18 @@ def test_probabilities_outside_0_1_are_refused_not_wrapped(bad: float, tmp_path:
     with pytest.raises(ValueError, match=r"probabilities must lie in \[0, 1\]"):
         write_map_mcap(tmp_path / "map.mcap", OccupancyMap(GridSpec(0.0, 0.0, 1.0, 2, 1), prob))
     assert names(tmp_path) == set()
+
+
+def test_a_stamp_past_int32_seconds_is_an_error_not_a_traceback(tmp_path: Path) -> None:
+    """ROS 2 time has int32 seconds: 2038-01-19 03:14:08 UTC does not fit."""
+    spec = GridSpec(0.0, 0.0, 1.0, 1, 1)
+    late = 2**31 * 1_000_000_000
+    with pytest.raises(GridmapError, match=rf"stamp {late} ns does not fit a ROS 2 time"):
+        write_map_mcap(tmp_path / "map.mcap", OccupancyMap(spec, np.array([[0.5]])), stamp_ns=late)
+    assert names(tmp_path) == set()
+    last = late - 1  # 2038-01-19 03:14:07.999999999 still fits
+    write_map_mcap(tmp_path / "map.mcap", OccupancyMap(spec, np.array([[0.5]])), stamp_ns=last)
+    assert decoded_grid(tmp_path / "map.mcap")[1].log_time == last
 
 
 def test_a_small_map_by_hand(tmp_path: Path) -> None:
