@@ -54,7 +54,9 @@ from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros_frames import FrameTree, Transform, frame_name, wrapped, yaw_of
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor, RobotDescription
-from gridmap_cli.writers.mcap_log import METADATA_NAME
+
+#: Metadata record holding gridmap's own key/value header (robot, world, seed...).
+METADATA_NAME = "gridmap"
 
 
 class JsonDecoderFactory(McapDecoderFactory):

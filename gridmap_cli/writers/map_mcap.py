@@ -18,9 +18,16 @@ from mcap_ros2._dynamic import serialize_dynamic
 
 from gridmap_cli.atomic import atomic_write
 from gridmap_cli.grid import OccupancyMap
+from gridmap_cli.readers.ros_frames import IDENTITY_ROTATION
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import occupancy_percent
-from gridmap_cli.writers.mcap_log import LIBRARY, mcap_writer, qos_profiles_yaml, ros_time
+from gridmap_cli.writers.mcap_log import (
+    LIBRARY,
+    mcap_writer,
+    qos_profiles_yaml,
+    ros_quaternion,
+    ros_time,
+)
 from gridmap_cli.writers.ros2_msgdefs import message_definition
 
 MAP_SCHEMA = "nav_msgs/msg/OccupancyGrid"
@@ -73,7 +80,7 @@ def write_map_mcap(
             "height": spec.height,
             "origin": {
                 "position": {"x": float(spec.origin_x_m), "y": float(spec.origin_y_m), "z": 0.0},
-                "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+                "orientation": ros_quaternion(IDENTITY_ROTATION),
             },
         },
         "data": [],

@@ -32,6 +32,8 @@ from mcap_ros2._dynamic import serialize_dynamic
 
 from gridmap_cli.atomic import atomic_write
 from gridmap_cli.errors import GridmapError
+from gridmap_cli.readers.mcap_log import METADATA_NAME
+from gridmap_cli.readers.ros_frames import Quaternion, quaternion_of_yaw
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.writers import Laser, laser_groups
@@ -41,8 +43,6 @@ ENCODINGS = ("json", "ros2")
 
 #: The Header record's library field: no version, so that releases write the same bytes.
 LIBRARY = "gridmap-cli"
-#: Name of the Metadata record holding the log's key/value header.
-METADATA_NAME = "gridmap"
 
 ODOM_FRAME = "odom"
 BASE_FRAME = "base_link"
@@ -208,9 +208,10 @@ def ros_time(stamp_ns: int) -> dict[str, int]:
     return {"sec": sec, "nanosec": nanosec}
 
 
-def _quaternion(theta_rad: float) -> dict[str, float]:
-    half = 0.5 * float(theta_rad)
-    return {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}
+def ros_quaternion(q: Quaternion) -> dict[str, float]:
+    """A ``geometry_msgs/Quaternion`` of an (x, y, z, w) quaternion."""
+    x, y, z, w = q
+    return {"x": x, "y": y, "z": z, "w": w}
 
 
 def _transform(
@@ -221,7 +222,7 @@ def _transform(
         "child_frame_id": child,
         "transform": {
             "translation": {"x": float(x), "y": float(y), "z": 0.0},
-            "rotation": _quaternion(theta),
+            "rotation": ros_quaternion(quaternion_of_yaw(theta)),
         },
     }
 
@@ -236,7 +237,7 @@ def _odometry(
         "pose": {
             "pose": {
                 "position": {"x": float(x), "y": float(y), "z": 0.0},
-                "orientation": _quaternion(theta),
+                "orientation": ros_quaternion(quaternion_of_yaw(theta)),
             },
             "covariance": zeros,
         },
