@@ -319,8 +319,9 @@ def _write_ros2(log: RangeLog, sensors: tuple[RangeSensor, ...], writer: Writer)
         rows = np.flatnonzero(np.isin(readings.sensor, laser.columns))
         for stamp in np.unique(readings.stamp_ns[rows]):
             scans.append((int(stamp), laser))
-    scan_order = sorted(range(len(scans)), key=lambda k: scans[k][0])  # stable: laser order
-    scans = [scans[k] for k in scan_order]
+    # _events would emit them in time order anyway; sorting (stably: lasers in order within a
+    # stamp) makes the index, the /scan message's sequence number, count up in time as well
+    scans.sort(key=lambda scan: scan[0])
     empty = np.zeros(0, dtype=np.int64)
     groups = [
         poses.stamp_ns,

@@ -386,6 +386,31 @@ def test_lasers_become_laser_scans() -> None:
     assert [t for t, _, _ in messages].count("/sonar") == 1
 
 
+def test_scans_of_two_lasers_are_numbered_in_time_order() -> None:
+    beams = laser_robot()[1:]
+    second = tuple(
+        dataclasses.replace(b, name=b.name.replace("laser1", "laser2"), x_m=-0.16) for b in beams
+    )
+    sensors = (*beams, *second)
+    rows = [(STAMPS[0], 0, 2.0), (STAMPS[0], 3, 3.0), (STAMPS[1], 1, 2.5), (STAMPS[2], 4, 1.0)]
+    log = dataclasses.replace(
+        sample_log(truth=False),
+        readings=RangeReadings(
+            np.asarray([r[0] for r in rows], dtype=np.int64),
+            np.asarray([r[1] for r in rows], dtype=np.int32),
+            np.asarray([r[2] for r in rows], dtype=np.float64),
+        ),
+        sensor_names=tuple(s.name for s in sensors),
+    )
+    data = written(log, sensors, "ros2")
+    scans = [(m.log_time, m.sequence) for _, c, m in validated_messages(data) if c.topic == "/scan"]
+    assert scans == [
+        (STAMPS[0], 0), (STAMPS[0], 1), (STAMPS[1], 2), (STAMPS[2], 3)
+    ]  # fmt: skip
+    frames = [m.header.frame_id for t, _, m in ros2_messages(data) if t == "/scan"]
+    assert frames == ["laser1", "laser2", "laser1", "laser2"]
+
+
 def test_laser_beams_that_do_not_make_a_scan_are_refused() -> None:
     sensors = list(laser_robot())
     sensors[2] = dataclasses.replace(sensors[2], yaw_rad=0.3)  # not evenly spaced
