@@ -58,10 +58,10 @@ def write_csv_log(log: RangeLog, handle: TextIO) -> None:
     table[row_of, log.readings.sensor] = log.readings.range_m
 
     # the layout's version first; a log read from a CSV carries it in its metadata already
-    handle.write(f"# {CSV_VERSION_KEY}: 1\n")
-    for key, value in log.metadata.items():
-        if key != CSV_VERSION_KEY:
-            handle.write(f"# {key}: {value}\n")
+    lines = {CSV_VERSION_KEY: "1", **log.metadata}
+    lines[CSV_VERSION_KEY] = "1"
+    for key, value in lines.items():
+        handle.write(f"# {key}: {value}\n")
     header = list(POSE_COLUMNS) + names + (list(TRUTH_COLUMNS) if log.truth is not None else [])
     handle.write(",".join(header) + "\n")
     for i in range(n):

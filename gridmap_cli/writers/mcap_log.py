@@ -402,8 +402,9 @@ def write_mcap_log(
 
 
 def save_mcap_log(
-    log: RangeLog, sensors: tuple[RangeSensor, ...], path: Path, encoding: str = "json"
+    log: RangeLog, sensors: tuple[RangeSensor, ...], path: Path, encoding: str | None = "json"
 ) -> None:
-    """Write ``log`` to ``path`` atomically (nothing is left behind on failure)."""
+    """Write ``log`` to ``path`` atomically (nothing is left behind on failure); ``encoding``
+    None is ``json``."""
     with atomic_write(path, "the log") as tmp, open(tmp, "wb") as handle:
-        write_mcap_log(log, sensors, handle, encoding)
+        write_mcap_log(log, sensors, handle, encoding or "json")
