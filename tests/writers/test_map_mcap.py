@@ -3,7 +3,6 @@ image writer's output cell by cell."""
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
@@ -15,6 +14,7 @@ from PIL import Image
 
 from gridmap_cli.errors import GridmapError, OutputExistsError
 from gridmap_cli.grid import GridSpec, OccupancyMap
+from gridmap_cli.readers.csv_log import read_csv_log
 from gridmap_cli.writers.map_mcap import occupancy_values, write_map_mcap
 from tests.helpers import names, run
 
@@ -113,10 +113,14 @@ def test_a_built_map_is_stamped_at_the_last_reading(tmp_path: Path) -> None:
     log = REPO / "samples" / "corridor_loop.csv"
     code, _, err = run("build", str(log), "-o", str(tmp_path / "map.mcap"), "-q")
     assert code == 0, err
-    _, message, _ = decoded_grid(tmp_path / "map.mcap")
+    _, message, grid = decoded_grid(tmp_path / "map.mcap")
     last_time = log.read_text().strip().splitlines()[-1].split(",")[0]
     assert message.log_time == round(float(last_time) * 1e9)
-    assert not math.isnan(message.log_time)
+    # the stamp the CLI passes is the last reading's, in the header and the load time as well
+    last_reading = int(read_csv_log(log).readings.stamp_ns[-1])
+    assert message.log_time == message.publish_time == last_reading
+    for stamp in (grid.header.stamp, grid.info.map_load_time):
+        assert stamp.sec * 1_000_000_000 + stamp.nanosec == last_reading
 
 
 def test_an_existing_map_needs_force(tmp_path: Path) -> None:

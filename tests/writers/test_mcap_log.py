@@ -474,7 +474,7 @@ def test_sensors_must_match_the_log() -> None:
         written(sample_log(), SONARS, "protobuf")
 
 
-def test_a_simulated_p3at_log_round_trips_through_both_encodings(tmp_path: Path) -> None:
+def test_a_simulated_p3at_log_round_trips_through_both_encodings() -> None:
     """The committed sample, decoded by hand, against the CSV of the same run."""
     from gridmap_cli.readers.csv_log import read_csv_log
 
