@@ -19,6 +19,8 @@ import shutil
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
+from gridmap_cli.errors import GridmapError
+
 #: How many random names to try before giving up on creating a temporary file; a clash of 32
 #: random bits with a leftover file is already unlikely, several in a row mean something else.
 _NAME_ATTEMPTS = 16
@@ -86,6 +88,18 @@ def atomic_output(path: Path) -> Iterator[Path]:
     """
     with atomic_outputs([path]) as (tmp,):
         yield tmp
+
+
+@contextlib.contextmanager
+def atomic_write(path: Path, what: str) -> Iterator[Path]:
+    """:func:`atomic_output`, with an ``OSError`` in the block (or in the final rename) raised as
+    :class:`GridmapError` ``"<path>: cannot write <what>: <reason>"``, ``what`` like ``"the log"``.
+    """
+    try:
+        with atomic_output(path) as tmp:
+            yield tmp
+    except OSError as exc:
+        raise GridmapError(f"{path}: cannot write {what}: {exc.strerror or exc}") from exc
 
 
 def _backup(target: Path) -> Path | None:

@@ -23,7 +23,7 @@ from tqdm import tqdm
 
 from gridmap_cli import __version__
 from gridmap_cli.convert import output_writer, write_log, writer_names
-from gridmap_cli.errors import GridmapError, InputFileError, OutputExistsError, UsageError
+from gridmap_cli.errors import GridmapError, InputFileError, UsageError
 from gridmap_cli.models.error_aware import ErrorAwareParams
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
@@ -32,8 +32,9 @@ from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import RobotDescription, load_robot, preset_names
 from gridmap_cli.sync import POSE_SOURCES, select_poses
+from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import MAP_MODES, check_map_outputs, write_map
-from gridmap_cli.writers.map_mcap import check_map_mcap_output, write_map_mcap
+from gridmap_cli.writers.map_mcap import write_map_mcap
 from gridmap_cli.writers.mcap_log import ENCODINGS
 
 if TYPE_CHECKING:
@@ -292,7 +293,7 @@ def build(
         source = click.get_current_context().get_parameter_source("map_mode")
         if source is not None and source != click.core.ParameterSource.DEFAULT:
             raise UsageError("--map-mode applies to map images; an MCAP map holds 0..100 and -1")
-        check_map_mcap_output(output, force)
+        check_output(output, force)
     else:
         check_map_outputs(output, map_mode, force)
     _check_output_folder(output)
@@ -532,8 +533,7 @@ def simulate(
     if duration is not None and not (duration > 0.0 and math.isfinite(duration)):
         raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
     writer = output_writer(output, log_format, encoding)
-    if output.exists() and not force:
-        raise OutputExistsError(output)
+    check_output(output, force)
     _check_output_folder(output)
     robot_desc = load_robot(robot)
     for given in (world, path_file):
@@ -627,8 +627,7 @@ def calibrate(
     if not (sonar_error >= 0.0 and math.isfinite(sonar_error)):
         raise UsageError(f"--sonar-error must be a finite number >= 0, got {sonar_error}")
     if output is not None:
-        if output.exists() and not force:
-            raise OutputExistsError(output)
+        check_output(output, force)
         _check_output_folder(output)
     if not log.is_file():
         raise InputFileError(log, "no such file" if not log.exists() else "not a regular file")
@@ -743,10 +742,7 @@ def convert(
     What the output format cannot hold is refused, never dropped (see schemas/*.md).
     """
     writer = output_writer(output, out_format, encoding)
-    if output.is_dir():
-        raise UsageError(f"{output} is a directory")
-    if output.exists() and not force:
-        raise OutputExistsError(output)
+    check_output(output, force)
     _check_output_folder(output)
     robot_desc = load_robot(robot) if robot else None
     if not log.is_file():
@@ -847,8 +843,7 @@ def evaluate(
         check_plotting()
         if plot.suffix.lower() != ".png":
             raise UsageError(f"{plot}: --plot writes a PNG; name it .png")
-        if plot.exists() and not force:
-            raise OutputExistsError(plot)
+        check_output(plot, force)
         _check_output_folder(plot)
     robot_desc = load_robot(robot) if robot else None
     for given in (map_yaml, truth_yaml, *([log_path] if log_path else [])):

@@ -16,6 +16,7 @@ from gridmap_cli.errors import GridmapError, UsageError
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription
 from gridmap_cli.sync import sensors_for_log
+from gridmap_cli.writers import no_echo_at_max_range
 from gridmap_cli.writers.aria_log import save_aria_log
 from gridmap_cli.writers.csv_log import CSV_VERSION_KEY, save_csv_log
 from gridmap_cli.writers.mcap_log import ENCODINGS, save_mcap_log
@@ -31,22 +32,11 @@ class LogWriter:
     write: Callable[[RangeLog, tuple[RangeSensor, ...], Path, str | None], None]
 
 
-def _csv(log: RangeLog, sensors: tuple[RangeSensor, ...], path: Path, enc: str | None) -> None:
-    save_csv_log(log, path)
-
-
-def _aria(log: RangeLog, sensors: tuple[RangeSensor, ...], path: Path, enc: str | None) -> None:
-    save_aria_log(log, sensors, path)
-
-
-def _mcap(log: RangeLog, sensors: tuple[RangeSensor, ...], path: Path, enc: str | None) -> None:
-    save_mcap_log(log, sensors, path, enc or "json")
-
-
+# write(log, sensors, path, encoding); CSV needs neither sensors nor encoding, ARIA no encoding
 LOG_WRITERS: tuple[LogWriter, ...] = (
-    LogWriter("csv", ".csv", False, _csv),
-    LogWriter("aria", ".2d", True, _aria),
-    LogWriter("mcap", ".mcap", True, _mcap),
+    LogWriter("csv", ".csv", False, lambda log, _, path, __: save_csv_log(log, path)),
+    LogWriter("aria", ".2d", True, lambda log, sensors, path, _: save_aria_log(log, sensors, path)),
+    LogWriter("mcap", ".mcap", True, save_mcap_log),
 )
 
 
@@ -86,11 +76,15 @@ def write_log(
 ) -> None:
     """Write ``log`` with ``writer``; sensor geometry from the log itself, else from ``robot``.
 
-    The CSV layout's version key is dropped from the metadata of other formats (the CSV writer
-    writes its own).
+    The CSV layout's version key is dropped from the metadata (it describes the file the log was
+    read from; the CSV writer writes its own). A reading of ``inf`` (a CSV log's "no echo") is
+    written as its sensor's maximum range by every format that has sensor geometry; CSV keeps
+    ``inf``.
     """
     sensors = sensors_for_log(log, robot) if writer.needs_sensors else ()
-    if writer.name != "csv" and CSV_VERSION_KEY in log.metadata:
+    if sensors:
+        log = no_echo_at_max_range(log, sensors)
+    if CSV_VERSION_KEY in log.metadata:
         metadata = {k: v for k, v in log.metadata.items() if k != CSV_VERSION_KEY}
         log = dataclasses.replace(log, metadata=metadata)
     try:

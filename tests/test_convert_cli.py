@@ -7,15 +7,18 @@ content is checked message by message in tests/writers/test_mcap_log.py.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from gridmap_cli.readers import format_names
+from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.readers.aria_log import read_aria_log
 from gridmap_cli.readers.csv_log import read_csv_log
 from tests.helpers import names, run
+from tests.writers.test_mcap_log import ros2_messages
 
 REPO = Path(__file__).resolve().parent.parent
 SAMPLES = REPO / "samples"
@@ -107,18 +110,56 @@ def test_simulate_writes_mcap(tmp_path: Path) -> None:
 
 
 def test_mcap_input_goes_through_the_readers_registry(tmp_path: Path) -> None:
-    """MCAP as input needs an MCAP reader in the registry; until then it is an unknown format."""
+    """MCAP input is read through the readers registry, like every other format."""
+    assert "mcap" in format_names()
     out = tmp_path / "back.csv"
     code, _, err = run("convert", str(SAMPLES / "corridor_loop.mcap"), str(out), "-q")
-    if "mcap" in format_names():
-        assert code == 0, err
-        assert read_csv_log(out).readings.range_m.tolist() == (
-            read_csv_log(SAMPLES / "corridor_loop.csv").readings.range_m.tolist()
+    assert code == 0, err
+    assert read_csv_log(out).readings.range_m.tolist() == (
+        read_csv_log(SAMPLES / "corridor_loop.csv").readings.range_m.tolist()
+    )
+
+
+@pytest.mark.parametrize(
+    ("out_name", "extra"),
+    [("back.csv", []), ("back.2d", []), ("back.mcap", []), ("ros2.mcap", ["--encoding", "ros2"])],
+)
+def test_an_infinite_range_reads_back_as_no_echo_in_every_format(
+    out_name: str, extra: list[str], tmp_path: Path
+) -> None:
+    """A CSV's `inf` (no echo) is written as the sensor's maximum range wherever geometry is
+    known, and as `inf` again in CSV; either reads back as a range at or above the maximum."""
+    log = tmp_path / "inf.csv"
+    log.write_text(
+        "# robot: p3at\ntime,x,y,theta,sonar0,sonar1\n0.0,0,0,0,inf,1.5\n0.1,0.01,0,0,2.0,inf\n"
+    )
+    out = tmp_path / out_name
+    code, _, err = run("convert", str(log), str(out), *extra, "-q")
+    assert code == 0, err
+    assert "Warning" not in err
+    back = resolve_format(out).read(out)
+    got = [
+        (int(t), back.sensor_names[k], float(r))
+        for t, k, r in zip(
+            back.readings.stamp_ns, back.readings.sensor, back.readings.range_m, strict=True
         )
-    else:
-        assert code == 2
-        assert err.startswith(f"Error: {SAMPLES / 'corridor_loop.mcap'}: not a log format")
-        assert names(tmp_path) == set()
+    ]
+    no_echo = math.inf if out.suffix == ".csv" else 4.335  # the p3at sonar's maximum range
+    assert got == [
+        (0, "sonar0", no_echo),
+        (0, "sonar1", 1.5),
+        (100_000_000, "sonar0", 2.0),
+        (100_000_000, "sonar1", no_echo),
+    ]
+    if out.suffix == ".mcap" and extra:  # sensor_msgs/Range: no echo is range == max_range
+        sonar = [m for t, _, m in ros2_messages(out.read_bytes()) if t == "/sonar"]
+        top = np.float32(4.335)
+        assert [(m.range, m.max_range) for m in sonar] == [
+            (top, top),
+            (1.5, top),
+            (2.0, top),
+            (top, top),
+        ]
 
 
 def write_odd_robot_log(tmp_path: Path) -> Path:

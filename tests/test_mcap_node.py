@@ -3,12 +3,15 @@
 tests/node/validate_mcap.mjs reads each file with its indexed and its streaming reader (CRCs
 validated) and prints the message count per topic. Runs when ``node`` is on the PATH and the
 pinned packages are installed (``cd tests/node && npm ci``, which ``.ci/run`` does when npm
-exists); skipped otherwise.
+exists); skipped otherwise, except under CI (the ``CI`` environment variable set, as CI
+services set it): there ``node`` without the packages fails, since it means the npm install
+broke.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -24,10 +27,19 @@ NODE_DIR = REPO / "tests" / "node"
 SCRIPT = NODE_DIR / "validate_mcap.mjs"
 NODE = shutil.which("node")
 
-pytestmark = pytest.mark.skipif(
-    NODE is None or not (NODE_DIR / "node_modules" / "@mcap" / "core").is_dir(),
-    reason="node or tests/node's packages absent (cd tests/node && npm ci)",
-)
+PACKAGES = NODE_DIR / "node_modules" / "@mcap" / "core"
+
+
+@pytest.fixture(autouse=True)
+def node_and_packages() -> None:
+    """Skip without node or tests/node's packages; under CI, fail when only the packages lack."""
+    if NODE is None:
+        pytest.skip("node is not on the PATH")
+    if not PACKAGES.is_dir():
+        message = f"node is installed but {PACKAGES} is not (cd tests/node && npm ci)"
+        if os.environ.get("CI", "").lower() not in ("", "0", "false"):
+            pytest.fail(f"{message}: under CI the npm install must have failed")
+        pytest.skip(message)
 
 
 def node_read(*paths: Path) -> tuple[int, list[dict[str, Any]], str]:

@@ -14,6 +14,7 @@ from click.testing import CliRunner
 from mcap.reader import make_reader
 
 from gridmap_cli.cli import cli
+from gridmap_cli.readers.mcap_log import METADATA_NAME
 
 REPO = Path(__file__).resolve().parent.parent
 SAMPLES = REPO / "samples"
@@ -31,7 +32,7 @@ def metadata_lines(path: Path) -> dict[str, str]:
     """The ``# key: value`` lines before the header row (an MCAP's ``gridmap`` metadata)."""
     if path.suffix == ".mcap":
         with path.open("rb") as handle:
-            records = [m for m in make_reader(handle).iter_metadata() if m.name == "gridmap"]
+            records = [m for m in make_reader(handle).iter_metadata() if m.name == METADATA_NAME]
         return dict(records[0].metadata) if records else {}
     meta: dict[str, str] = {}
     with path.open(encoding="utf-8") as handle:

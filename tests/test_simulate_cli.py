@@ -249,6 +249,20 @@ def test_existing_output_needs_force(world: Path, path_file: Path, tmp_path: Pat
     assert out.read_text().startswith("# gridmap-csv: 1\n")
 
 
+@pytest.mark.parametrize("force", [[], ["--force"]])
+def test_an_output_that_is_a_directory_is_refused_before_simulating(
+    force: list[str], world: Path, path_file: Path, tmp_path: Path
+) -> None:
+    """click's Path(dir_okay=False) refuses it first; writers.check_output, which simulate calls
+    as well, refuses it for callers that bypass click."""
+    out = tmp_path / "sim.csv"
+    out.mkdir()
+    code, stdout, stderr = run("simulate", str(world), str(path_file), "-o", str(out), *force)
+    assert (code, stdout) == (2, "")
+    assert stderr.endswith(f"'-o' / '--output': File '{out}' is a directory.\n")
+    assert names(out) == set()
+
+
 def _bad_path_file(tmp_path: Path) -> Path:
     bad = tmp_path / "bad.yaml"
     bad.write_text("gridmap-path: 1\nwaypoints:\n  - [1.0, 1.0]\n  - [3.0, oops]\n")

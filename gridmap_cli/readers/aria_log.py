@@ -33,6 +33,11 @@ from typing import TextIO
 import numpy as np
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.readers.aria_params import (
+    DEFAULT_BEAM_WIDTH_DEG,
+    DEFAULT_MIN_RANGE_M,
+    DEFAULT_SONAR_MAX_RANGE_MM,
+)
 from gridmap_cli.readers.csv_log import seconds_to_ns
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor
@@ -41,10 +46,6 @@ MAGIC = "LaserOdometryLog"
 
 #: ARIA writes no laser maximum range in the log; readings are end points or ranges that hit.
 LASER_MAX_RANGE_M = 32.0
-#: Sonar geometry defaults for units declared in the log (same as the Pioneer presets).
-SONAR_BEAM_WIDTH_DEG = 25.0
-SONAR_MIN_RANGE_M = 0.15
-SONAR_MAX_RANGE_M = 4.335
 
 _LASER_TAG = re.compile(r"^(sick|scan)(\d+)(pose|conf|id|name)?$", re.IGNORECASE)
 
@@ -95,7 +96,7 @@ class _Parser:
         self.version: str | None = None
         self.lasers: dict[int, _Laser] = {}
         self.sonar_units: dict[int, tuple[float, float, float, int]] = {}
-        self.sonar_max_m = SONAR_MAX_RANGE_M
+        self.sonar_max_m = DEFAULT_SONAR_MAX_RANGE_MM / 1000.0  # as the Pioneer presets
         self.blocks: list[_Block] = []
         self.metadata: dict[str, str] = {}
 
@@ -286,8 +287,8 @@ class _Parser:
                     names.append(f"sonar{n}")
                     sensors.append(
                         RangeSensor(
-                            f"sonar{n}", x, y, th, math.radians(SONAR_BEAM_WIDTH_DEG),
-                            SONAR_MIN_RANGE_M, self.sonar_max_m,
+                            f"sonar{n}", x, y, th, math.radians(DEFAULT_BEAM_WIDTH_DEG),
+                            DEFAULT_MIN_RANGE_M, self.sonar_max_m,
                         )
                     )  # fmt: skip
             else:

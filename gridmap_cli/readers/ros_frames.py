@@ -16,6 +16,9 @@ from dataclasses import dataclass
 Quaternion = tuple[float, float, float, float]
 Vector = tuple[float, float, float]
 
+#: The rotation that turns nothing.
+IDENTITY_ROTATION: Quaternion = (0.0, 0.0, 0.0, 1.0)
+
 
 def frame_name(frame_id: str) -> str:
     """A frame id as gridmap compares it: without leading slashes."""
@@ -37,6 +40,13 @@ def yaw_of(q: Quaternion) -> float:
     if x == 0.0 and y == 0.0:
         return wrapped(2.0 * math.atan2(z, w))
     return wrapped(math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+
+
+def quaternion_of_yaw(theta_rad: float) -> Quaternion:
+    """The rotation by ``theta_rad`` about z, (0, 0, sin(theta/2), cos(theta/2)): the inverse of
+    :func:`yaw_of` up to wrapping (and about 1 ulp)."""
+    half = 0.5 * float(theta_rad)
+    return (0.0, 0.0, math.sin(half), math.cos(half))
 
 
 def _qmul(a: Quaternion, b: Quaternion) -> Quaternion:
@@ -88,7 +98,7 @@ class Transform:
         return self.translation[0], self.translation[1], yaw
 
 
-IDENTITY = Transform((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+IDENTITY = Transform((0.0, 0.0, 0.0), IDENTITY_ROTATION)
 
 
 class FrameTree:

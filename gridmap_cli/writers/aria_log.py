@@ -15,15 +15,15 @@ from typing import TextIO
 
 import numpy as np
 
-from gridmap_cli.atomic import atomic_output
+from gridmap_cli.atomic import atomic_write
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RangeSensor
-from gridmap_cli.writers import check_metadata_lines
+from gridmap_cli.writers import Laser, check_metadata_lines, laser_groups
 from gridmap_cli.writers.csv_log import ns_to_seconds_text
 
 _SONAR_NAME = re.compile(r"^sonar(\d+)$")
-_LASER_BEAM = re.compile(r"^laser(\d+)_(\d+)$")
+_LASER_FRAME = re.compile(r"^laser(\d+)$")
 
 
 def _num(value: float) -> str:
@@ -36,42 +36,52 @@ def _pose(x_m: float, y_m: float, theta_rad: float) -> str:
     return f"{round(x_m * 1000.0):d} {round(y_m * 1000.0):d} {math.degrees(theta_rad):.2f}"
 
 
-def _layout(
-    names: list[str], sensors: tuple[RangeSensor, ...]
-) -> tuple[list[int], dict[int, list[int]]]:
-    """Column indices of the sonar units (in unit order) and of each laser's beams."""
+def _layout(sensors: tuple[RangeSensor, ...]) -> tuple[list[int], dict[int, Laser]]:
+    """Column indices of the sonar units (in unit order), and the lasers by ARIA number."""
+    singles, groups = laser_groups(sensors, "the ARIA format")
     sonar: list[int] = []
-    lasers: dict[int, list[int]] = {}
-    for column, (name, sensor) in enumerate(zip(names, sensors, strict=True)):
+    for column in singles:
+        name, kind = sensors[column].name, sensors[column].kind
         sonar_match = _SONAR_NAME.match(name)
-        laser_match = _LASER_BEAM.match(name)
-        if sensor.kind == "sonar" and sonar_match and int(sonar_match.group(1)) == len(sonar):
-            sonar.append(column)
-        elif sensor.kind == "laser" and laser_match:
-            beams = lasers.setdefault(int(laser_match.group(1)), [])
-            if int(laser_match.group(2)) != len(beams):
-                raise GridmapError(f"laser beams must be numbered in order: {name!r}")
-            beams.append(column)
-        else:
-            raise GridmapError(
-                f"the ARIA format cannot hold sensor {name!r}: sonar units are sonar0, sonar1, "
-                "... in order and laser beams laser<N>_0, laser<N>_1, ..."
-            )
+        if not (kind == "sonar" and sonar_match and int(sonar_match.group(1)) == len(sonar)):
+            raise _cannot_hold(name)
+        sonar.append(column)
+    lasers: dict[int, Laser] = {}
+    for laser in groups:
+        number = _LASER_FRAME.match(laser.frame)
+        if number is None or int(number.group(1)) in lasers:
+            raise _cannot_hold(sensors[laser.columns[0]].name)
+        lasers[int(number.group(1))] = laser
     return sonar, lasers
+
+
+def _cannot_hold(name: str) -> GridmapError:
+    return GridmapError(
+        f"the ARIA format cannot hold sensor {name!r}: sonar units are sonar0, sonar1, "
+        "... in order and laser beams laser<N>_0, laser<N>_1, ..."
+    )
 
 
 def write_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], handle: TextIO) -> None:
     """Write a log of sonar and laser readings; ``sensors`` gives ``log.sensor_names``' geometry.
 
     Sonar units must be named ``sonar0`` .. ``sonarN-1`` in order, as ARIA numbers them, and
-    laser beams ``laser<N>_0`` .. in order (beam angles evenly spaced, as ``sick<N>conf:`` says).
+    laser beams ``laser<N>_0`` .. in order, at one position and evenly spaced in angle (the
+    ``sick<N>pose:`` and ``sick<N>conf:`` lines hold nothing else), or it is refused.
     Laser beams with no return are written as 0, the way ARIA marks a reading it ignored.
     """
     names = list(log.sensor_names)
-    sonar, lasers = _layout(names, sensors)
+    if names != [s.name for s in sensors]:
+        raise GridmapError("sensor geometry does not match the log's sensors")
+    sonar, lasers = _layout(sensors)
     if len({sensors[c].max_range_m for c in sonar}) > 1:
         raise GridmapError("the ARIA sonar format has one sonarMaxRange for all units")
     check_metadata_lines(log.metadata)
+    if not np.isfinite(log.readings.range_m).all():
+        raise GridmapError(
+            "the ARIA format holds ranges in whole mm, not infinity (write no echo as the "
+            "sensor's maximum range)"
+        )
 
     poses, truth, readings = log.poses, log.truth, log.readings
     row_of = np.searchsorted(poses.stamp_ns, readings.stamp_ns)
@@ -83,7 +93,7 @@ def write_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], handle: Text
     max_range = np.asarray([s.max_range_m for s in sensors], dtype=np.float64)
     mm = np.round(readings.range_m * 1000.0).astype(np.int64)
     no_return = (readings.range_m >= max_range[readings.sensor]) & np.isin(
-        readings.sensor, [c for beams in lasers.values() for c in beams]
+        readings.sensor, [c for laser in lasers.values() for c in laser.columns]
     )
     table = np.zeros((len(poses), len(names)), dtype=np.int64)  # 0 = no reading
     table[row_of, readings.sensor] = np.where(no_return, 0, mm)
@@ -92,12 +102,11 @@ def write_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], handle: Text
     for key, value in log.metadata.items():
         handle.write(f"# {key}: {value}\n")
     handle.write("version: 4\n")
-    for number, beams in sorted(lasers.items()):
-        first, last = sensors[beams[0]], sensors[beams[-1]]
+    for number, laser in sorted(lasers.items()):
         handle.write(
-            f"sick{number}pose: {_num(first.x_m * 1000.0)} {_num(first.y_m * 1000.0)} 0\n"
-            f"sick{number}conf: {_num(math.degrees(first.yaw_rad))} "
-            f"{_num(math.degrees(last.yaw_rad))} {len(beams)}\n"
+            f"sick{number}pose: {_num(laser.x_m * 1000.0)} {_num(laser.y_m * 1000.0)} 0\n"
+            f"sick{number}conf: {_num(math.degrees(laser.first_yaw_rad))} "
+            f"{_num(math.degrees(laser.last_yaw_rad))} {len(laser.columns)}\n"
         )
     handle.write("locationTypes: robot" + (" robotGlobal\n" if truth is not None else "\n"))
     for unit, column in enumerate(sonar):
@@ -115,14 +124,15 @@ def write_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], handle: Text
             handle.write(f"robotGlobal: {_pose(truth.x_m[i], truth.y_m[i], truth.theta_rad[i])}\n")
         if sonar:
             handle.write("sonar: " + " ".join(str(v) for v in table[i, sonar]) + "\n")
-        for number, beams in sorted(lasers.items()):
+        for number, laser in sorted(lasers.items()):
+            beams = list(laser.columns)
             handle.write(f"sick{number}: " + " ".join(str(v) for v in table[i, beams]) + "\n")
 
 
 def save_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], path: Path) -> None:
     """Write ``log`` to ``path`` atomically (nothing is left behind on failure)."""
-    try:
-        with atomic_output(path) as tmp, open(tmp, "w", encoding="ascii", newline="\n") as handle:
-            write_aria_log(log, sensors, handle)
-    except OSError as exc:
-        raise GridmapError(f"{path}: cannot write the log: {exc.strerror or exc}") from exc
+    with (
+        atomic_write(path, "the log") as tmp,
+        open(tmp, "w", encoding="ascii", newline="\n") as out,
+    ):
+        write_aria_log(log, sensors, out)

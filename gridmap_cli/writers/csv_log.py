@@ -12,7 +12,7 @@ from typing import TextIO
 
 import numpy as np
 
-from gridmap_cli.atomic import atomic_output
+from gridmap_cli.atomic import atomic_write
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.readers.csv_log import POSE_COLUMNS, TRUTH_COLUMNS
 from gridmap_cli.records import RangeLog
@@ -58,10 +58,10 @@ def write_csv_log(log: RangeLog, handle: TextIO) -> None:
     table[row_of, log.readings.sensor] = log.readings.range_m
 
     # the layout's version first; a log read from a CSV carries it in its metadata already
-    handle.write(f"# {CSV_VERSION_KEY}: 1\n")
-    for key, value in log.metadata.items():
-        if key != CSV_VERSION_KEY:
-            handle.write(f"# {key}: {value}\n")
+    lines = {CSV_VERSION_KEY: "1", **log.metadata}
+    lines[CSV_VERSION_KEY] = "1"
+    for key, value in lines.items():
+        handle.write(f"# {key}: {value}\n")
     header = list(POSE_COLUMNS) + names + (list(TRUTH_COLUMNS) if log.truth is not None else [])
     handle.write(",".join(header) + "\n")
     for i in range(n):
@@ -79,8 +79,5 @@ def write_csv_log(log: RangeLog, handle: TextIO) -> None:
 
 def save_csv_log(log: RangeLog, path: Path) -> None:
     """Write ``log`` to ``path`` atomically (nothing is left behind on failure)."""
-    try:
-        with atomic_output(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as handle:
-            write_csv_log(log, handle)
-    except OSError as exc:
-        raise GridmapError(f"{path}: cannot write the log: {exc.strerror or exc}") from exc
+    with atomic_write(path, "the log") as tmp, open(tmp, "w", encoding="utf-8", newline="") as out:
+        write_csv_log(log, out)

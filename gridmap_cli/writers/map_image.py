@@ -26,8 +26,9 @@ import yaml
 from PIL import Image
 
 from gridmap_cli.atomic import atomic_outputs
-from gridmap_cli.errors import GridmapError, OutputExistsError, UsageError
+from gridmap_cli.errors import GridmapError, UsageError
 from gridmap_cli.grid import GridSpec, OccupancyMap
+from gridmap_cli.writers import check_output
 from gridmap_cli.yamlfile import format_float
 
 MAP_MODES = ("trinary", "scale", "raw")
@@ -81,10 +82,7 @@ def check_map_outputs(image_path: Path, mode: str, force: bool) -> None:
             f"{image}: scale maps need a PNG (unknown cells are transparent, and PGM has no alpha)"
         )
     for path in (image, yaml_path):
-        if path.is_dir():
-            raise UsageError(f"{path} is a directory")
-        if path.exists() and not force:
-            raise OutputExistsError(path)
+        check_output(path, force)
 
 
 def _check_thresholds(occupied_thresh: float, free_thresh: float) -> None:
@@ -111,6 +109,27 @@ def transparent_grey(occupied_thresh: float, free_thresh: float) -> int:
     return int(candidates[np.argmin(np.abs((255 - candidates) / 255 - middle))])
 
 
+def occupancy_percent(
+    prob: npt.NDArray[np.float64],
+) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.bool_]]:
+    """Occupancy percentages of a probability map and its unknown cells, both shaped as ``prob``.
+
+    ``prob``: shape (height, width), values in [0, 1], NaN unknown. Returns round(100 p) (half to
+    even; 0 under unknown cells) as uint8 and the mask of NaN cells: what a ``raw`` image and an
+    OccupancyGrid hold. Raises ``ValueError`` for an array that is not 2-D or holds values outside
+    [0, 1], which would otherwise wrap around in the 8-bit result.
+    """
+    prob = np.asarray(prob, dtype=np.float64)
+    if prob.ndim != 2:
+        raise ValueError(f"a probability map must be 2-D, got shape {prob.shape}")
+    unknown = np.isnan(prob)
+    known = prob[~unknown]
+    if known.size and not (known.min() >= 0.0 and known.max() <= 1.0):
+        raise ValueError("probabilities must lie in [0, 1] (NaN for unknown)")
+    percent = np.rint(100.0 * np.where(unknown, 0.0, prob)).astype(np.uint8)
+    return percent, unknown
+
+
 def map_pixels(
     prob: npt.NDArray[np.float64], mode: str, occupied_thresh: float, free_thresh: float
 ) -> npt.NDArray[np.uint8]:
@@ -130,15 +149,9 @@ def map_pixels(
     if mode not in MAP_MODES:
         raise UsageError(f"unknown map mode '{mode}' (known: {', '.join(MAP_MODES)})")
     _check_thresholds(occupied_thresh, free_thresh)
-    prob = np.asarray(prob, dtype=np.float64)
-    if prob.ndim != 2:
-        raise ValueError(f"a probability map must be 2-D, got shape {prob.shape}")
-    unknown = np.isnan(prob)
-    known = prob[~unknown]
-    if known.size and not (known.min() >= 0.0 and known.max() <= 1.0):
-        raise ValueError("probabilities must lie in [0, 1] (NaN for unknown)")
+    percent, unknown = occupancy_percent(prob)
     # NaN-free copy so the arithmetic below raises no warnings; unknown cells are overwritten
-    p = np.where(unknown, 0.0, prob)
+    p = np.where(unknown, 0.0, np.asarray(prob, dtype=np.float64))
 
     if mode == "trinary":
         grey = np.full(p.shape, UNKNOWN_GREY, dtype=np.uint8)
@@ -147,7 +160,7 @@ def map_pixels(
         grey[unknown] = UNKNOWN_GREY
         image: npt.NDArray[np.uint8] = grey
     elif mode == "raw":
-        image = np.rint(100.0 * p).astype(np.uint8)
+        image = percent
         image[unknown] = RAW_UNKNOWN_GREY
     else:
         grey = np.rint(255.0 * (1.0 - p)).astype(np.uint8)

@@ -14,13 +14,20 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
-from mcap.writer import CompressionType, Writer
 from mcap_ros2._dynamic import serialize_dynamic
 
-from gridmap_cli.atomic import atomic_output
-from gridmap_cli.errors import GridmapError, OutputExistsError, UsageError
+from gridmap_cli.atomic import atomic_write
 from gridmap_cli.grid import OccupancyMap
-from gridmap_cli.writers.mcap_log import LIBRARY, qos_profiles_yaml
+from gridmap_cli.readers.ros_frames import IDENTITY_ROTATION
+from gridmap_cli.writers import check_output
+from gridmap_cli.writers.map_image import occupancy_percent
+from gridmap_cli.writers.mcap_log import (
+    LIBRARY,
+    mcap_writer,
+    qos_profiles_yaml,
+    ros_quaternion,
+    ros_time,
+)
 from gridmap_cli.writers.ros2_msgdefs import message_definition
 
 MAP_SCHEMA = "nav_msgs/msg/OccupancyGrid"
@@ -28,20 +35,12 @@ MAP_TOPIC = "/map"
 MAP_FRAME = "map"
 
 
-def check_map_mcap_output(path: Path, force: bool) -> None:
-    """Refuse an output that is a directory, or exists without ``force``; call before any work."""
-    if path.is_dir():
-        raise UsageError(f"{path} is a directory")
-    if path.exists() and not force:
-        raise OutputExistsError(path)
-
-
 def occupancy_values(prob: npt.NDArray[np.float64]) -> npt.NDArray[np.int8]:
     """OccupancyGrid cell values of a probability map, same shape (height, width), row 0 bottom:
-    round(100 p) with halves to even, -1 for NaN (unknown)."""
-    prob = np.asarray(prob, dtype=np.float64)
-    unknown = np.isnan(prob)
-    values = np.rint(100.0 * np.where(unknown, 0.0, prob)).astype(np.int8)
+    round(100 p) with halves to even, -1 for NaN (unknown). ``ValueError`` as
+    :func:`~gridmap_cli.writers.map_image.occupancy_percent` raises it."""
+    percent, unknown = occupancy_percent(prob)
+    values = percent.astype(np.int8)
     values[unknown] = -1
     return values
 
@@ -67,12 +66,11 @@ def write_map_mcap(
     ``info.origin`` is the lower-left corner of cell (0, 0) with identity orientation;
     ``info.resolution`` is the cell size (float32 in the message). Written atomically.
     """
-    check_map_mcap_output(path, force)
+    check_output(path, force)
     spec = omap.spec
     if omap.prob.shape != spec.shape:
         raise ValueError(f"probability array of shape {omap.prob.shape} for a grid of {spec.shape}")
-    sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
-    stamp = {"sec": sec, "nanosec": nanosec}
+    stamp = ros_time(int(stamp_ns))
     message = {
         "header": {"stamp": stamp, "frame_id": MAP_FRAME},
         "info": {
@@ -82,28 +80,23 @@ def write_map_mcap(
             "height": spec.height,
             "origin": {
                 "position": {"x": float(spec.origin_x_m), "y": float(spec.origin_y_m), "z": 0.0},
-                "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+                "orientation": ros_quaternion(IDENTITY_ROTATION),
             },
         },
         "data": [],
     }
     text = message_definition(MAP_SCHEMA)
     data = _with_cells(serialize_dynamic(MAP_SCHEMA, text)[MAP_SCHEMA](message), omap)
-    try:
-        with atomic_output(path) as tmp, open(tmp, "wb") as handle:
-            writer = Writer(
-                handle, compression=CompressionType.ZSTD, enable_crcs=True, enable_data_crcs=True
-            )
-            writer.start(profile="ros2", library=LIBRARY)
-            schema_id = writer.register_schema(MAP_SCHEMA, "ros2msg", text.encode("utf-8"))
-            channel_id = writer.register_channel(
-                MAP_TOPIC,
-                "cdr",
-                schema_id,
-                metadata={"offered_qos_profiles": qos_profiles_yaml(1, "transient_local")},
-            )
-            writer.add_message(channel_id, int(stamp_ns), data, int(stamp_ns))
-            writer.finish()  # type: ignore[no-untyped-call]
-    except OSError as exc:
-        raise GridmapError(f"{path}: cannot write the map: {exc.strerror or exc}") from exc
+    with atomic_write(path, "the map") as tmp, open(tmp, "wb") as handle:
+        writer = mcap_writer(handle)
+        writer.start(profile="ros2", library=LIBRARY)
+        schema_id = writer.register_schema(MAP_SCHEMA, "ros2msg", text.encode("utf-8"))
+        channel_id = writer.register_channel(
+            MAP_TOPIC,
+            "cdr",
+            schema_id,
+            metadata={"offered_qos_profiles": qos_profiles_yaml(1, "transient_local")},
+        )
+        writer.add_message(channel_id, int(stamp_ns), data, int(stamp_ns))
+        writer.finish()  # type: ignore[no-untyped-call]
     return path

@@ -20,9 +20,7 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import IO, Any
@@ -32,18 +30,19 @@ import numpy.typing as npt
 from mcap.writer import CompressionType, Writer
 from mcap_ros2._dynamic import serialize_dynamic
 
-from gridmap_cli.atomic import atomic_output
+from gridmap_cli.atomic import atomic_write
 from gridmap_cli.errors import GridmapError
+from gridmap_cli.readers.mcap_log import METADATA_NAME
+from gridmap_cli.readers.ros_frames import Quaternion, quaternion_of_yaw
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor
+from gridmap_cli.writers import Laser, laser_groups
 from gridmap_cli.writers.ros2_msgdefs import message_definition
 
 ENCODINGS = ("json", "ros2")
 
 #: The Header record's library field: no version, so that releases write the same bytes.
 LIBRARY = "gridmap-cli"
-#: Name of the Metadata record holding the log's key/value header.
-METADATA_NAME = "gridmap"
 
 ODOM_FRAME = "odom"
 BASE_FRAME = "base_link"
@@ -52,7 +51,6 @@ WORLD_FRAME = "world"
 #: The JSON message types and the topics they go on.
 JSON_SCHEMAS = ("gridmap.RangeSensor", "gridmap.Pose2D", "gridmap.RangeReading")
 
-_LASER_BEAM = re.compile(r"^(.+)_(\d+)$")
 _INT32_MAX = 2**31 - 1
 # sensor_msgs/msg/Range radiation types
 _ULTRASOUND = 0
@@ -66,7 +64,8 @@ def json_schema_text(name: str) -> bytes:
     return resource.read_bytes()
 
 
-def _writer(stream: IO[bytes]) -> Writer:
+def mcap_writer(stream: IO[bytes]) -> Writer:
+    """An MCAP writer as gridmap writes every file: zstd chunks, chunk and data CRCs."""
     return Writer(
         stream,
         compression=CompressionType.ZSTD,
@@ -182,8 +181,6 @@ def _write_json(log: RangeLog, sensors: tuple[RangeSensor, ...], writer: Writer)
         else:
             column = int(readings.sensor[i])
             value = float(readings.range_m[i])
-            if math.isinf(value):  # no echo: JSON has no infinity, the layout says max_range
-                value = sensors[column].max_range_m
             data = _dumps({"timestamp": _json_time(stamp), "sensor": names[column], "range": value})
             writer.add_message(range_ch, stamp, data, stamp, sequence=i)
 
@@ -203,86 +200,18 @@ def qos_profiles_yaml(depth: int, durability: str) -> str:
     )
 
 
-@dataclass(frozen=True)
-class _Laser:
-    """A scanning laser: beams (columns of the log) ``<frame>_0`` .. in order, evenly spaced."""
-
-    frame: str
-    columns: tuple[int, ...]
-    x_m: float
-    y_m: float
-    yaw_rad: float  # the laser frame's heading in the base frame: the middle of the scan
-    angle_min_rad: float
-    angle_increment_rad: float
-    range_min_m: float
-    range_max_m: float
-
-
-def _split_sensors(sensors: tuple[RangeSensor, ...]) -> tuple[list[int], list[_Laser]]:
-    """Columns written as sensor_msgs/Range (one message per reading) and the scanning lasers.
-
-    A laser is every kind-``laser`` sensor named ``<frame>_<i>`` with the same ``<frame>``;
-    beam indices must run 0, 1, ... in column order, share position and ranges, and be evenly
-    spaced (as a robot description's ``first_deg``/``last_deg``/``samples`` make them).
-    """
-    beams: dict[str, list[int]] = {}
-    singles: list[int] = []
-    for column, s in enumerate(sensors):
-        match = _LASER_BEAM.match(s.name)
-        if s.kind == "laser" and match:
-            beams.setdefault(match.group(1), []).append(column)
-        else:
-            singles.append(column)
-    lasers: list[_Laser] = []
-    for frame, columns in beams.items():
-        members = [sensors[c] for c in columns]
-        indices = [int(_LASER_BEAM.match(m.name).group(2)) for m in members]  # type: ignore[union-attr]
-        if indices != list(range(len(members))):
-            raise GridmapError(
-                f"laser {frame!r}: beams must be named {frame}_0, {frame}_1, ... in order "
-                "to be written as a LaserScan"
-            )
-        first = members[0]
-        same = all(
-            (m.x_m, m.y_m, m.min_range_m, m.max_range_m)
-            == (first.x_m, first.y_m, first.min_range_m, first.max_range_m)
-            for m in members
-        )
-        yaws = np.asarray([m.yaw_rad for m in members], dtype=np.float64)
-        step = (yaws[-1] - yaws[0]) / (len(yaws) - 1) if len(yaws) > 1 else 0.0
-        even = np.allclose(yaws, yaws[0] + step * np.arange(len(yaws)), rtol=0.0, atol=1e-9)
-        if not (same and even):
-            raise GridmapError(
-                f"laser {frame!r}: a LaserScan needs beams at one position with one range "
-                "interval, evenly spaced in angle"
-            )
-        middle = 0.5 * (float(yaws[0]) + float(yaws[-1]))
-        lasers.append(
-            _Laser(
-                frame,
-                tuple(columns),
-                first.x_m,
-                first.y_m,
-                middle,
-                float(yaws[0]) - middle,
-                float(step),
-                first.min_range_m,
-                first.max_range_m,
-            )
-        )
-    return singles, lasers
-
-
-def _ros_time(stamp_ns: int) -> dict[str, int]:
+def ros_time(stamp_ns: int) -> dict[str, int]:
+    """A ``builtin_interfaces/Time`` of integer ns; :class:`GridmapError` past int32 seconds."""
     sec, nanosec = divmod(stamp_ns, 1_000_000_000)
     if not -(2**31) <= sec <= _INT32_MAX:
         raise GridmapError(f"stamp {stamp_ns} ns does not fit a ROS 2 time (int32 seconds)")
     return {"sec": sec, "nanosec": nanosec}
 
 
-def _quaternion(theta_rad: float) -> dict[str, float]:
-    half = 0.5 * float(theta_rad)
-    return {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}
+def ros_quaternion(q: Quaternion) -> dict[str, float]:
+    """A ``geometry_msgs/Quaternion`` of an (x, y, z, w) quaternion."""
+    x, y, z, w = q
+    return {"x": x, "y": y, "z": z, "w": w}
 
 
 def _transform(
@@ -293,7 +222,7 @@ def _transform(
         "child_frame_id": child,
         "transform": {
             "translation": {"x": float(x), "y": float(y), "z": 0.0},
-            "rotation": _quaternion(theta),
+            "rotation": ros_quaternion(quaternion_of_yaw(theta)),
         },
     }
 
@@ -308,7 +237,7 @@ def _odometry(
         "pose": {
             "pose": {
                 "position": {"x": float(x), "y": float(y), "z": 0.0},
-                "orientation": _quaternion(theta),
+                "orientation": ros_quaternion(quaternion_of_yaw(theta)),
             },
             "covariance": zeros,
         },
@@ -350,7 +279,7 @@ class _Ros2Channels:
 
 
 def _write_ros2(log: RangeLog, sensors: tuple[RangeSensor, ...], writer: Writer) -> None:
-    singles, lasers = _split_sensors(sensors)
+    singles, lasers = laser_groups(sensors, "a LaserScan")
     writer.start(profile="ros2", library=LIBRARY)
     ch = _Ros2Channels(writer)
     volatile = qos_profiles_yaml(10, "volatile")
@@ -369,7 +298,7 @@ def _write_ros2(log: RangeLog, sensors: tuple[RangeSensor, ...], writer: Writer)
     writer.add_metadata(METADATA_NAME, dict(log.metadata))
 
     t0 = _first_stamp(log)
-    stamp0 = _ros_time(t0)
+    stamp0 = ros_time(t0)
     mounts = [
         _transform(stamp0, BASE_FRAME, sensors[c].name, sensors[c].x_m, sensors[c].y_m,
                    sensors[c].yaw_rad)
@@ -385,13 +314,14 @@ def _write_ros2(log: RangeLog, sensors: tuple[RangeSensor, ...], writer: Writer)
     is_single[singles] = True
     single_rows = np.flatnonzero(is_single[readings.sensor])
     # one scan per laser and stamp at which any of its beams has a reading
-    scans: list[tuple[int, _Laser]] = []
+    scans: list[tuple[int, Laser]] = []
     for laser in lasers:
         rows = np.flatnonzero(np.isin(readings.sensor, laser.columns))
         for stamp in np.unique(readings.stamp_ns[rows]):
             scans.append((int(stamp), laser))
-    scan_order = sorted(range(len(scans)), key=lambda k: scans[k][0])  # stable: laser order
-    scans = [scans[k] for k in scan_order]
+    # _events would emit them in time order anyway; sorting (stably: lasers in order within a
+    # stamp) makes the index, the /scan message's sequence number, count up in time as well
+    scans.sort(key=lambda scan: scan[0])
     empty = np.zeros(0, dtype=np.int64)
     groups = [
         poses.stamp_ns,
@@ -403,7 +333,7 @@ def _write_ros2(log: RangeLog, sensors: tuple[RangeSensor, ...], writer: Writer)
     stamp_lo = np.searchsorted(readings.stamp_ns, groups[3], side="left")
     stamp_hi = np.searchsorted(readings.stamp_ns, groups[3], side="right")
     for stamp, group, i in _events(groups):
-        when = _ros_time(stamp)
+        when = ros_time(stamp)
         if group == 0:
             x, y, th = poses.x_m[i], poses.y_m[i], poses.theta_rad[i]
             ch.write(odom, stamp, _odometry(when, ODOM_FRAME, x, y, th), i)
@@ -463,7 +393,7 @@ def write_mcap_log(
     if encoding not in ENCODINGS:
         raise GridmapError(f"unknown MCAP encoding '{encoding}' (known: {', '.join(ENCODINGS)})")
     _check_log(log, sensors)
-    writer = _writer(stream)
+    writer = mcap_writer(stream)
     if encoding == "json":
         _write_json(log, sensors, writer)
     else:
@@ -472,11 +402,9 @@ def write_mcap_log(
 
 
 def save_mcap_log(
-    log: RangeLog, sensors: tuple[RangeSensor, ...], path: Path, encoding: str = "json"
+    log: RangeLog, sensors: tuple[RangeSensor, ...], path: Path, encoding: str | None = "json"
 ) -> None:
-    """Write ``log`` to ``path`` atomically (nothing is left behind on failure)."""
-    try:
-        with atomic_output(path) as tmp, open(tmp, "wb") as handle:
-            write_mcap_log(log, sensors, handle, encoding)
-    except OSError as exc:
-        raise GridmapError(f"{path}: cannot write the log: {exc.strerror or exc}") from exc
+    """Write ``log`` to ``path`` atomically (nothing is left behind on failure); ``encoding``
+    None is ``json``."""
+    with atomic_write(path, "the log") as tmp, open(tmp, "wb") as handle:
+        write_mcap_log(log, sensors, handle, encoding or "json")

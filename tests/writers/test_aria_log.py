@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import math
 
@@ -92,3 +93,45 @@ def test_a_reading_between_poses_is_refused() -> None:
     sensors = (RangeSensor("sonar0", 0, 0, 0, 0.4, 0.1, 4.0),)
     with pytest.raises(GridmapError, match="a reading has no pose"):
         written(log_for(("sonar0",), [(S // 20, 0, 1.0)]), sensors)
+
+
+def test_an_infinite_range_is_refused_not_written_as_a_huge_negative() -> None:
+    """No echo reaches the writer as the maximum range (convert.write_log sees to it); an
+    infinity cannot be whole millimetres."""
+    sensors = (RangeSensor("sonar0", 0, 0, 0, 0.4, 0.1, 4.0),)
+    with pytest.raises(GridmapError, match="not infinity"):
+        written(log_for(("sonar0",), [(0, 0, math.inf)]), sensors)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"yaw_rad": 0.3}, "laser 'laser1': the ARIA format needs beams at one position"),
+        ({"x_m": 0.2}, "laser 'laser1': the ARIA format needs beams at one position"),
+    ],
+)
+def test_a_laser_that_sick_conf_cannot_describe_is_refused(
+    change: dict[str, float], message: str
+) -> None:
+    """sick<N>pose/conf hold one position and the first and last beam: an irregular laser
+    would come back with other geometry, so it is refused rather than written."""
+    robot = load_robot("p3at-lms200")
+    names = robot.names()
+    sensors = list(robot.sensors)
+    k = names.index("laser1_90")
+    sensors[k] = dataclasses.replace(sensors[k], **change)
+    log = log_for(names, [(0, names.index("laser1_0"), 2.5)])
+    with pytest.raises(GridmapError, match=message):
+        written(log, tuple(sensors))
+    # the robot as described writes, with the conf line that makes those very beams
+    assert "sick1conf: -90 90 181\n" in written(log, robot.sensors)
+
+
+def test_laser_beams_out_of_order_are_refused() -> None:
+    sensors = (
+        RangeSensor("laser1_1", 0, 0, 0.1, 0.0, 0.0, 8.0, kind="laser"),
+        RangeSensor("laser1_0", 0, 0, 0.0, 0.0, 0.0, 8.0, kind="laser"),
+    )
+    names = tuple(s.name for s in sensors)
+    with pytest.raises(GridmapError, match=r"beams must be named laser1_0, laser1_1, \.\.\. in"):
+        written(log_for(names, [(0, 0, 1.0)]), sensors)

@@ -3,7 +3,6 @@ image writer's output cell by cell."""
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
@@ -13,8 +12,9 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from PIL import Image
 
-from gridmap_cli.errors import OutputExistsError
+from gridmap_cli.errors import GridmapError, OutputExistsError
 from gridmap_cli.grid import GridSpec, OccupancyMap
+from gridmap_cli.readers.csv_log import read_csv_log
 from gridmap_cli.writers.map_mcap import occupancy_values, write_map_mcap
 from tests.helpers import names, run
 
@@ -37,6 +37,29 @@ def test_values_by_hand() -> None:
     prob = np.array([[np.nan, 0.0, 0.125], [0.005, 0.655, 1.0]])
     # 12.5 and 0.5 round half to even, as the raw image does
     assert occupancy_values(prob).tolist() == [[-1, 0, 12], [0, 66, 100]]
+
+
+@pytest.mark.parametrize("bad", [1.5, -0.01, np.inf])
+def test_probabilities_outside_0_1_are_refused_not_wrapped(bad: float, tmp_path: Path) -> None:
+    """1.5 would be 150, which int8 wraps to -106; the map image's check applies here too."""
+    prob = np.array([[0.5, bad]])
+    with pytest.raises(ValueError, match=r"probabilities must lie in \[0, 1\]"):
+        occupancy_values(prob)
+    with pytest.raises(ValueError, match=r"probabilities must lie in \[0, 1\]"):
+        write_map_mcap(tmp_path / "map.mcap", OccupancyMap(GridSpec(0.0, 0.0, 1.0, 2, 1), prob))
+    assert names(tmp_path) == set()
+
+
+def test_a_stamp_past_int32_seconds_is_an_error_not_a_traceback(tmp_path: Path) -> None:
+    """ROS 2 time has int32 seconds: 2038-01-19 03:14:08 UTC does not fit."""
+    spec = GridSpec(0.0, 0.0, 1.0, 1, 1)
+    late = 2**31 * 1_000_000_000
+    with pytest.raises(GridmapError, match=rf"stamp {late} ns does not fit a ROS 2 time"):
+        write_map_mcap(tmp_path / "map.mcap", OccupancyMap(spec, np.array([[0.5]])), stamp_ns=late)
+    assert names(tmp_path) == set()
+    last = late - 1  # 2038-01-19 03:14:07.999999999 still fits
+    write_map_mcap(tmp_path / "map.mcap", OccupancyMap(spec, np.array([[0.5]])), stamp_ns=last)
+    assert decoded_grid(tmp_path / "map.mcap")[1].log_time == last
 
 
 def test_a_small_map_by_hand(tmp_path: Path) -> None:
@@ -90,10 +113,14 @@ def test_a_built_map_is_stamped_at_the_last_reading(tmp_path: Path) -> None:
     log = REPO / "samples" / "corridor_loop.csv"
     code, _, err = run("build", str(log), "-o", str(tmp_path / "map.mcap"), "-q")
     assert code == 0, err
-    _, message, _ = decoded_grid(tmp_path / "map.mcap")
+    _, message, grid = decoded_grid(tmp_path / "map.mcap")
     last_time = log.read_text().strip().splitlines()[-1].split(",")[0]
     assert message.log_time == round(float(last_time) * 1e9)
-    assert not math.isnan(message.log_time)
+    # the stamp the CLI passes is the last reading's, in the header and the load time as well
+    last_reading = int(read_csv_log(log).readings.stamp_ns[-1])
+    assert message.log_time == message.publish_time == last_reading
+    for stamp in (grid.header.stamp, grid.info.map_load_time):
+        assert stamp.sec * 1_000_000_000 + stamp.nanosec == last_reading
 
 
 def test_an_existing_map_needs_force(tmp_path: Path) -> None:

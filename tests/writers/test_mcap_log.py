@@ -27,6 +27,7 @@ from mcap_ros2.decoder import DecoderFactory
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor, load_robot
+from gridmap_cli.writers import no_echo_at_max_range
 from gridmap_cli.writers.mcap_log import json_schema_text, save_mcap_log, write_mcap_log
 from gridmap_cli.writers.ros2_msgdefs import message_definition
 from tests.helpers import names
@@ -222,16 +223,22 @@ def test_no_truth_means_no_ground_truth_channel() -> None:
     assert topics == {"/sensors", "/odom", "/range"}
 
 
-def test_infinite_range_is_written_as_max_range() -> None:
+def test_an_infinite_range_is_written_as_max_range() -> None:
     log = sample_log()
     ranges = log.readings.range_m.copy()
     ranges[3] = math.inf
     log = dataclasses.replace(log, readings=dataclasses.replace(log.readings, range_m=ranges))
-    data = written(log, SONARS, "json")
+    capped = no_echo_at_max_range(log, SONARS)  # what convert.write_log hands the writers
+    data = written(capped, SONARS, "json")
     values = [
         json.loads(m.data)["range"] for _, c, m in validated_messages(data) if c.topic == "/range"
     ]
     assert values[3] == 5.0
+    ros2 = [m for t, _, m in ros2_messages(written(capped, SONARS, "ros2")) if t == "/sonar"]
+    assert ros2[3].range == ros2[3].max_range == 5.0
+    # an infinity that did not go through it is refused, never written as something else
+    with pytest.raises(GridmapError, match="non-finite number cannot be written as JSON"):
+        written(log, SONARS, "json")
 
 
 def test_the_same_log_gives_the_same_bytes() -> None:
@@ -379,6 +386,31 @@ def test_lasers_become_laser_scans() -> None:
     assert [t for t, _, _ in messages].count("/sonar") == 1
 
 
+def test_scans_of_two_lasers_are_numbered_in_time_order() -> None:
+    beams = laser_robot()[1:]
+    second = tuple(
+        dataclasses.replace(b, name=b.name.replace("laser1", "laser2"), x_m=-0.16) for b in beams
+    )
+    sensors = (*beams, *second)
+    rows = [(STAMPS[0], 0, 2.0), (STAMPS[0], 3, 3.0), (STAMPS[1], 1, 2.5), (STAMPS[2], 4, 1.0)]
+    log = dataclasses.replace(
+        sample_log(truth=False),
+        readings=RangeReadings(
+            np.asarray([r[0] for r in rows], dtype=np.int64),
+            np.asarray([r[1] for r in rows], dtype=np.int32),
+            np.asarray([r[2] for r in rows], dtype=np.float64),
+        ),
+        sensor_names=tuple(s.name for s in sensors),
+    )
+    data = written(log, sensors, "ros2")
+    scans = [(m.log_time, m.sequence) for _, c, m in validated_messages(data) if c.topic == "/scan"]
+    assert scans == [
+        (STAMPS[0], 0), (STAMPS[0], 1), (STAMPS[1], 2), (STAMPS[2], 3)
+    ]  # fmt: skip
+    frames = [m.header.frame_id for t, _, m in ros2_messages(data) if t == "/scan"]
+    assert frames == ["laser1", "laser2", "laser1", "laser2"]
+
+
 def test_laser_beams_that_do_not_make_a_scan_are_refused() -> None:
     sensors = list(laser_robot())
     sensors[2] = dataclasses.replace(sensors[2], yaw_rad=0.3)  # not evenly spaced
@@ -442,7 +474,7 @@ def test_sensors_must_match_the_log() -> None:
         written(sample_log(), SONARS, "protobuf")
 
 
-def test_a_simulated_p3at_log_round_trips_through_both_encodings(tmp_path: Path) -> None:
+def test_a_simulated_p3at_log_round_trips_through_both_encodings() -> None:
     """The committed sample, decoded by hand, against the CSV of the same run."""
     from gridmap_cli.readers.csv_log import read_csv_log
 
