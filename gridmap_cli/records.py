@@ -59,9 +59,10 @@ class PoseTrack:
 class RangeReadings:
     """Range readings, shape (M,) each, ordered by stamp (ties in sensor order).
 
-    ``sensor`` indexes :attr:`RangeLog.sensor_names`. ``range_m`` is finite and positive; a range at
-    or beyond the sensor's maximum means "no echo". Absent readings (empty or NaN in a log) are not
-    records at all.
+    ``sensor`` indexes :attr:`RangeLog.sensor_names`. ``range_m`` is positive and never NaN; a
+    range at or beyond the sensor's maximum, ``+inf`` included (a CSV's ``inf``, REP 117's "no
+    detection"), means "no echo": sync caps it at the maximum, writers with sensor geometry write
+    the maximum. Absent readings (empty or NaN in a log) are not records at all.
     """
 
     stamp_ns: npt.NDArray[np.int64]
