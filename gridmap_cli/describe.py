@@ -19,7 +19,7 @@ from gridmap_cli.readers.mcap_channels import Survey, channel_spans
 from gridmap_cli.readers.mcap_log import McapRead, read_mcap
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import EPOCH_FROM_NS, PoseTrack, RangeLog, span_text
-from gridmap_cli.robot import RangeSensor, RobotDescription, load_robot, preset_names
+from gridmap_cli.robot import RangeSensor, RobotDescription, robot_from_log
 from gridmap_cli.sync import interpolate_pose
 
 
@@ -38,7 +38,8 @@ def describe_log(path: Path, fmt: LogFormat, options: ReadOptions) -> dict[str, 
         out["mcap"] = _mcap_part(path, mcap.survey, mcap)
     else:
         log = fmt.read(path, options)
-    robot, robot_source = _robot(path, log, options)
+    robot, robot_source, robot_problem = _robot(path, log, options)
+    problem = problem or robot_problem  # build reads the log before it loads the robot
     out["log"] = _log_part(log, robot, mcap.mount_from if mcap is not None else None)
     out["build"] = _build_part(fmt, log, mcap, robot, robot_source, problem)
     return out
@@ -46,19 +47,15 @@ def describe_log(path: Path, fmt: LogFormat, options: ReadOptions) -> dict[str, 
 
 def _robot(
     path: Path, log: RangeLog, options: ReadOptions
-) -> tuple[RobotDescription | None, str | None]:
+) -> tuple[RobotDescription | None, str | None, str | None]:
+    """The robot build would use, where it comes from, and the error build would stop at."""
     if options.robot is not None:
-        return options.robot, "--robot"
-    name = log.metadata.get("robot")
-    if not name:
-        return None, None
+        return options.robot, "--robot", None
     try:
-        if name in preset_names():
-            return load_robot(name), "the log's robot line"
-        candidate = Path(name) if Path(name).is_absolute() else path.parent / name
-        return load_robot(str(candidate)), "the log's robot line"
-    except GridmapError:
-        return None, None
+        robot = robot_from_log(path, log.metadata)
+    except GridmapError as exc:
+        return None, None, str(exc)
+    return robot, "the log's robot line" if robot is not None else None, None
 
 
 def _rate(count: int, span_ns: int) -> float | None:

@@ -8,6 +8,7 @@ from typing import Any
 
 import pytest
 
+from gridmap_cli.robot import preset_names
 from tests.helpers import run
 from tests.readers.mcap_helpers import DATA, merge_mcaps
 from tests.readers.test_mcap_log import ros2_sonar_log, write_json_log
@@ -223,3 +224,17 @@ def test_broken_inputs_are_errors(tmp_path: Path) -> None:
     assert err.startswith(f"Error: {cut}: truncated or damaged MCAP file")
     code, _, err = run("inspect", str(SAMPLES / "hall.csv"), "--odom-topic", "/odom")
     assert code == 2
+
+
+def test_unknown_robot_line_is_the_error_build_stops_at(room_csv: Path, tmp_path: Path) -> None:
+    room_csv.write_text(room_csv.read_text().replace("# robot: p3dx", "# robot: r2d2"))
+    message = (
+        f"'# robot: r2d2' is neither a preset ({', '.join(preset_names())}) nor a file beside "
+        "the log; give --robot"
+    )
+    code, _, err = run("build", str(room_csv), "-o", str(tmp_path / "m.png"))
+    assert (code, err.strip()) == (1, f"Error: {room_csv}: {message}")
+    d = inspect_json(str(room_csv))
+    assert (d["build"]["ready"], d["build"]["problem"]) == (False, f"{room_csv}: {message}")
+    assert d["build"]["robot"] is None
+    assert text_lines(room_csv)[-1] == f"  -> build would fail: {message}"
