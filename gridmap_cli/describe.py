@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.geometry import wrap_angle
+from gridmap_cli.odometry_error import travelled
 from gridmap_cli.readers import LogFormat
 from gridmap_cli.readers.mcap_channels import Survey, channel_spans
 from gridmap_cli.readers.mcap_log import McapRead, read_mcap
@@ -126,16 +126,15 @@ def _track_part(track: PoseTrack) -> dict[str, Any] | None:
         return None
     t = track.stamp_ns
     span = int(t[-1] - t[0])
-    steps = np.hypot(np.diff(track.x_m), np.diff(track.y_m))
-    turns = np.abs(wrap_angle(np.diff(track.theta_rad)))
+    distance, rotation = travelled(track)
     return {
         "count": n,
         "start_ns": int(t[0]),
         "end_ns": int(t[-1]),
         "duration_s": span / 1e9,
         "rate_hz": _rate(n, span),
-        "distance_m": round(float(steps.sum()), 3),
-        "rotation_deg": round(math.degrees(float(turns.sum())), 1),
+        "distance_m": round(float(distance[-1]), 3),
+        "rotation_deg": round(math.degrees(float(rotation[-1])), 1),
         "start_pose": [float(track.x_m[0]), float(track.y_m[0]), float(track.theta_rad[0])],
         "end_pose": [float(track.x_m[-1]), float(track.y_m[-1]), float(track.theta_rad[-1])],
     }
