@@ -15,7 +15,7 @@ import numpy as np
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.odometry_error import travelled
 from gridmap_cli.readers import LogFormat
-from gridmap_cli.readers.mcap_channels import Survey, channel_spans
+from gridmap_cli.readers.mcap_channels import TF_TYPES, Survey, channel_spans
 from gridmap_cli.readers.mcap_log import McapRead, read_mcap
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import EPOCH_FROM_NS, PoseTrack, RangeLog, span_text
@@ -325,8 +325,7 @@ def _range_text(sensor: dict[str, Any]) -> str:
 
 def _unused(channel: dict[str, Any], build: dict[str, Any]) -> str:
     """'-', with the reason when a TF channel is left unread (odometry from a pose topic)."""
-    tf_types = ("tf2_msgs/TFMessage", "tf2_msgs/msg/TFMessage", "tf/tfMessage")
-    if channel["type"] in tf_types and build.get("odometry_topic"):
+    if channel["type"] in TF_TYPES and build.get("odometry_topic"):
         return f"- (odometry is {build['odometry_topic']})"
     return "-"
 
