@@ -133,13 +133,6 @@ def read_mcap(
     return McapRead(log, survey, plan, base, dict(acc.tf_pairs), below, acc.mount_from)
 
 
-def _get(obj: Any, name: str) -> Any:
-    """Field ``name`` of a decoded message: attribute (ROS) or key (JSON)."""
-    if isinstance(obj, dict):
-        return obj[name]
-    return getattr(obj, name)
-
-
 def _stamp_ns(stamp: Any) -> int:
     """Integer nanoseconds of a ROS 1 / ROS 2 time or a JSON ``{"sec", "nsec"}`` object."""
     if isinstance(stamp, dict):
@@ -183,7 +176,6 @@ class _Track:
 class _Scan:
     """Beam geometry of one laser frame, from its first scan."""
 
-    topic: str
     angle_min: float
     angle_increment: float
     count: int
@@ -195,7 +187,6 @@ class _Scan:
 class _Sonar:
     """One sensor_msgs/Range frame: widest limits seen."""
 
-    topic: str
     fov: float
     min_range: float
     max_range: float
@@ -336,7 +327,7 @@ class _Accumulator:
             )
         sonar = self.sonars.get(frame)
         if sonar is None:
-            self.sonars[frame] = _Sonar(topic, _f32(msg.field_of_view), rmin, rmax)
+            self.sonars[frame] = _Sonar(_f32(msg.field_of_view), rmin, rmax)
         else:
             sonar.min_range = max(sonar.min_range, rmin)
             sonar.max_range = max(sonar.max_range, rmax)
@@ -354,7 +345,6 @@ class _Accumulator:
         self._claim(frame, topic)
         ranges = float32_decimal(msg.ranges) if len(msg.ranges) else np.empty(0)
         geometry = _Scan(
-            topic,
             _f32(msg.angle_min),
             _f32(msg.angle_increment),
             len(ranges),
@@ -502,7 +492,7 @@ class _Accumulator:
             return math.nan, math.nan, math.nan
         return None
 
-    def _unknown_mount(self, base: str, frame: str, topic: str) -> InputFileError:
+    def _unknown_mount(self, base: str, frame: str) -> InputFileError:
         where = ", ".join(self.plan.static_topics or self.plan.tf_topics)
         if frame in self.tree:
             tf_part = (
@@ -519,7 +509,8 @@ class _Accumulator:
             robot_part = f"and robot '{self.robot.name}' has no sensor named '{frame}'"
         return InputFileError(
             self.path,
-            f"sensor frame '{frame}' ({topic}): mounting pose unknown: {tf_part}, {robot_part}",
+            f"sensor frame '{frame}' ({self.frame_topic[frame]}): mounting pose unknown: "
+            f"{tf_part}, {robot_part}",
         )
 
     def _sensors(self, base: str) -> tuple[RangeSensor, ...]:
@@ -528,7 +519,7 @@ class _Accumulator:
         for frame, sonar in self.sonars.items():
             mount = self._mount(base, frame)
             if mount is None:
-                raise self._unknown_mount(base, frame, sonar.topic)
+                raise self._unknown_mount(base, frame)
             out[frame] = [
                 RangeSensor(frame, *mount, sonar.fov, sonar.min_range, sonar.max_range, "sonar")
             ]
@@ -570,7 +561,7 @@ class _Accumulator:
                             scan.range_min, scan.range_max, "laser")
                 for n in names
             ]  # fmt: skip
-        raise self._unknown_mount(base, frame, scan.topic)
+        raise self._unknown_mount(base, frame)
 
     def _cloud_sonars(self) -> list[RangeSensor]:
         assert self.robot is not None
