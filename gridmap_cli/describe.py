@@ -29,11 +29,8 @@ def describe_log(path: Path, fmt: LogFormat, options: ReadOptions) -> dict[str, 
     problem: str | None = None
     mcap: McapRead | None = None
     if fmt.name == "mcap":
-        try:
-            mcap = read_mcap(path, options)
-        except GridmapError as exc:
-            problem = str(exc)
-            mcap = read_mcap(path, options, strict=False)
+        mcap = read_mcap(path, options, strict=False)
+        problem = None if mcap.problem is None else str(mcap.problem)
         log = mcap.log
         out["mcap"] = _mcap_part(path, mcap.survey, mcap)
     else:

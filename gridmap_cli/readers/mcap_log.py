@@ -38,10 +38,11 @@ from mcap.records import Schema
 from mcap_ros1.decoder import DecoderFactory as Ros1DecoderFactory
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
-from gridmap_cli.errors import InputFileError
+from gridmap_cli.errors import GridmapError, InputFileError
 from gridmap_cli.readers.mcap_channels import (
     DAMAGED,
     Plan,
+    Refusals,
     Survey,
     message_type,
     open_reader,
@@ -72,17 +73,14 @@ def _factories() -> list[McapDecoderFactory]:
     return [Ros1DecoderFactory(), Ros2DecoderFactory(), JsonDecoderFactory()]
 
 
-def read_mcap_log(
-    source: str | Path, options: ReadOptions | None = None, strict: bool = True
-) -> RangeLog:
+def read_mcap_log(source: str | Path, options: ReadOptions | None = None) -> RangeLog:
     """Read an MCAP recording into the canonical record stream.
 
     Raises :class:`InputFileError` naming the file (and topic) for damaged files, missing
     odometry or ranges, unknown sensor mounting; :class:`UsageError` for a topic flag that
-    names no usable topic. ``strict=False`` (for ``inspect``) reads what is there instead: no
-    odometry gives an empty track, a sensor with unknown mounting gets a NaN mounting pose.
+    names no usable topic.
     """
-    return read_mcap(source, options, strict).log
+    return read_mcap(source, options).log
 
 
 @dataclass(frozen=True)
@@ -96,17 +94,25 @@ class McapRead:
     tf_pairs: dict[tuple[str, str], int]  # (parent, child) -> transforms seen on non-static TF
     static_frames: tuple[str, ...]  # frames with a static transform below the base frame
     mount_from: dict[str, str]  # sensor frame -> where its mounting came from: TF, robot, unknown
+    problem: GridmapError | None  # lenient read: the error a strict read raises, if any
 
 
 def read_mcap(
     source: str | Path, options: ReadOptions | None = None, strict: bool = True
 ) -> McapRead:
-    """:func:`read_mcap_log`, also returning what was chosen (for ``inspect``)."""
+    """:func:`read_mcap_log`, also returning what was chosen (for ``inspect``).
+
+    ``strict=False`` (for ``inspect``) reads what is there where a strict read raises: no
+    odometry gives an empty track, a sensor with unknown mounting a NaN mounting pose, and
+    :attr:`McapRead.problem` is the error the strict read raises. Damaged data, malformed
+    messages and bad topic flags raise in both modes.
+    """
     path = Path(source)
     opts = options or ReadOptions()
+    refusals = Refusals(strict)
     survey = survey_mcap(path)
-    plan = plan_topics(survey, opts, strict)
-    acc = _Accumulator(str(path), plan, opts.robot, strict)
+    plan = plan_topics(survey, opts, refusals)
+    acc = _Accumulator(str(path), plan, opts.robot, refusals)
     try:
         with open(path, "rb") as handle:
             reader = open_reader(path, handle, _factories())
@@ -130,7 +136,9 @@ def read_mcap(
     log = acc.finish(survey)
     base = acc.base_frame()
     below = tuple(f for f in acc.tree.order if acc.tree.lookup(base, f) is not None)
-    return McapRead(log, survey, plan, base, dict(acc.tf_pairs), below, acc.mount_from)
+    return McapRead(
+        log, survey, plan, base, dict(acc.tf_pairs), below, acc.mount_from, refusals.first
+    )
 
 
 def _stamp_ns(stamp: Any) -> int:
@@ -196,10 +204,10 @@ class _Accumulator:
     """Collects decoded messages; :meth:`finish` turns them into a RangeLog."""
 
     def __init__(
-        self, path: str, plan: Plan, robot: RobotDescription | None, strict: bool = True
+        self, path: str, plan: Plan, robot: RobotDescription | None, refusals: Refusals
     ) -> None:
         self.path = path
-        self.strict = strict
+        self.refusals = refusals
         self.plan = plan
         self.robot = robot
         self.odom = _Track()
@@ -459,25 +467,30 @@ class _Accumulator:
         )
 
     def _odometry(self, base: str) -> PoseTrack:
-        if not self.strict and not self.odom.stamps and base not in self.tf_odom:
-            return PoseTrack.from_rows(np.empty(0, dtype=np.int64), [])
+        """The odometry track; refused when there is none (empty when read on)."""
         if self.plan.odom_topic is not None:
-            if not self.odom.stamps:
-                raise InputFileError(self.path, f"{self.plan.odom_topic} holds no messages")
-            return self.odom.track()
-        track = self.tf_odom.get(base)
-        if track is None:
+            if self.odom.stamps:
+                return self.odom.track()
+            self.refusals.refuse(
+                InputFileError(self.path, f"{self.plan.odom_topic} holds no messages")
+            )
+        elif base in self.tf_odom:
+            return self.tf_odom[base].track()
+        else:
             seen = sorted(self.tf_pairs)
             listing = ", ".join(f"{p} -> {c}" for p, c in seen[:12]) or "none"
-            raise InputFileError(
-                self.path,
-                f"no odometry: no pose topic and no '{self.plan.odom_frame}' -> '{base}' "
-                f"transform on {', '.join(self.plan.tf_topics)} (transforms seen: {listing}); "
-                "choose with --odom-frame / --base-frame",
+            self.refusals.refuse(
+                InputFileError(
+                    self.path,
+                    f"no odometry: no pose topic and no '{self.plan.odom_frame}' -> '{base}' "
+                    f"transform on {', '.join(self.plan.tf_topics)} (transforms seen: "
+                    f"{listing}); choose with --odom-frame / --base-frame",
+                )
             )
-        return track.track()
+        return PoseTrack.from_rows(np.empty(0, dtype=np.int64), [])
 
     def _mount(self, base: str, frame: str) -> tuple[float, float, float] | None:
+        """A frame's mounting (x, y, yaw) from TF, else from the robot's sensor of its name."""
         transform = self.tree.lookup(base, frame)
         if transform is not None:
             self.mount_from[frame] = "TF"
@@ -487,10 +500,13 @@ class _Accumulator:
             if known is not None:
                 self.mount_from[frame] = "robot"
                 return known.x_m, known.y_m, known.yaw_rad
-        if not self.strict and not (self.robot and f"{frame}_0" in self.robot.by_name()):
-            self.mount_from[frame] = "unknown"
-            return math.nan, math.nan, math.nan
         return None
+
+    def _unmounted(self, base: str, frame: str) -> tuple[float, float, float]:
+        """A frame with no known mounting: refused; a NaN mounting when read on."""
+        self.refusals.refuse(self._unknown_mount(base, frame))
+        self.mount_from[frame] = "unknown"
+        return math.nan, math.nan, math.nan
 
     def _unknown_mount(self, base: str, frame: str) -> InputFileError:
         where = ", ".join(self.plan.static_topics or self.plan.tf_topics)
@@ -517,9 +533,7 @@ class _Accumulator:
         """RangeSensors for every Range / LaserScan frame, in a stable order."""
         out: dict[str, list[RangeSensor]] = {}
         for frame, sonar in self.sonars.items():
-            mount = self._mount(base, frame)
-            if mount is None:
-                raise self._unknown_mount(base, frame)
+            mount = self._mount(base, frame) or self._unmounted(base, frame)
             out[frame] = [
                 RangeSensor(frame, *mount, sonar.fov, sonar.min_range, sonar.max_range, "sonar")
             ]
@@ -546,22 +560,20 @@ class _Accumulator:
     def _beams(self, base: str, frame: str, scan: _Scan) -> list[RangeSensor]:
         mount = self._mount(base, frame)
         names = [f"{frame}_{i}" for i in range(scan.count)]
-        if mount is not None:
-            x, y, yaw = mount
-            return [
-                RangeSensor(name, x, y, wrapped(yaw + scan.angle_min + i * scan.angle_increment),
-                            0.0, scan.range_min, scan.range_max, "laser")
-                for i, name in enumerate(names)
-            ]  # fmt: skip
         known = self.robot.by_name() if self.robot is not None else {}
-        if all(n in known for n in names):
+        if mount is None and all(n in known for n in names):
             self.mount_from[frame] = "robot"
             return [
                 RangeSensor(n, known[n].x_m, known[n].y_m, known[n].yaw_rad, 0.0,
                             scan.range_min, scan.range_max, "laser")
                 for n in names
             ]  # fmt: skip
-        raise self._unknown_mount(base, frame)
+        x, y, yaw = mount or self._unmounted(base, frame)
+        return [
+            RangeSensor(name, x, y, wrapped(yaw + scan.angle_min + i * scan.angle_increment),
+                        0.0, scan.range_min, scan.range_max, "laser")
+            for i, name in enumerate(names)
+        ]  # fmt: skip
 
     def _cloud_sonars(self) -> list[RangeSensor]:
         assert self.robot is not None
@@ -571,13 +583,14 @@ class _Accumulator:
         """Ranges from RosAria point clouds: distance from each sonar's mount to its point."""
         topic = self.frame_topic[self.clouds[0][1]]
         if self.robot is None:
-            if not self.strict:
-                return
-            raise InputFileError(
-                self.path,
-                f"{topic}: sonar point clouds (as RosAria publishes them) need the sonar "
-                "positions: give --robot (a preset, robot YAML or ARIA .p file)",
+            self.refusals.refuse(
+                InputFileError(
+                    self.path,
+                    f"{topic}: sonar point clouds (as RosAria publishes them) need the sonar "
+                    "positions: give --robot (a preset, robot YAML or ARIA .p file)",
+                )
             )
+            return
         sonars = self._cloud_sonars()
         keys = np.array([self._key(s.name) for s in sonars], dtype=np.int32)
         sx = np.array([s.x_m for s in sonars])

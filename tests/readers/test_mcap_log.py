@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,7 @@ from mcap.writer import Writer
 
 from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.readers import read_log, resolve_format
-from gridmap_cli.readers.mcap_log import float32_decimal, read_mcap_log
+from gridmap_cli.readers.mcap_log import float32_decimal, read_mcap, read_mcap_log
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot
 from tests.helpers import names, run
@@ -337,6 +338,54 @@ def test_absurd_coordinates_fail_the_build_cleanly(tmp_path: Path) -> None:
     assert code == 1
     assert err.startswith("Error: ")
     assert names(tmp_path) == {"absurd.mcap"}
+
+
+def _no_odometry(rec: Recording) -> None:
+    rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "s0", 1.0))
+
+
+def _unmounted_sonar_and_laser(rec: Recording) -> None:
+    drive(rec)
+    rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "s0", 1.0))
+    scan = {"header": rec.header(S, "laser"), "angle_min": 0.0, "angle_increment": 0.5,
+            "range_max": 8.0, "ranges": [1.0, 2.0]}  # fmt: skip
+    rec.write("/scan", "sensor_msgs/LaserScan", S, scan)
+
+
+def _cloud_without_robot(rec: Recording) -> None:
+    drive(rec)
+    cloud = {"header": rec.header(S, "base_link"), "points": [{"x": 1.0, "y": 0.0, "z": 0.0}]}
+    rec.write("/RosAria/sonar", "sensor_msgs/PointCloud", S, cloud)
+
+
+@pytest.mark.parametrize(
+    ("content", "error"),
+    [
+        (_no_odometry, "no odometry: no nav_msgs/Odometry, geometry_msgs/PoseStamped or "
+                       "gridmap.Pose2D topic and no TF; topics: /sonar (sensor_msgs/Range, 1 "
+                       "messages)"),
+        (_unmounted_sonar_and_laser, "sensor frame 's0' (/sonar): mounting pose unknown: the "
+                                     "recording has no TF, and no --robot describing it"),
+        (_cloud_without_robot, "/RosAria/sonar: sonar point clouds (as RosAria publishes them) "
+                               "need the sonar positions: give --robot (a preset, robot YAML or "
+                               "ARIA .p file)"),
+    ],
+)  # fmt: skip
+def test_lenient_read_keeps_the_first_error_the_strict_read_raises(
+    tmp_path: Path, content: Callable[[Recording], None], error: str
+) -> None:
+    path = tmp_path / "broken.mcap"
+    with Recording(path) as rec:
+        content(rec)
+    with pytest.raises(InputFileError) as err:
+        read_mcap(path)
+    assert str(err.value) == f"{path}: {error}"
+    lenient = read_mcap(path, strict=False)
+    assert str(lenient.problem) == str(err.value)
+    # and reads on: whatever it could not place gets a NaN mounting
+    for sensor in lenient.log.sensors or ():
+        assert math.isnan(sensor.x_m)
+    assert read_mcap(ros2_sonar_log(tmp_path / "fine.mcap"), strict=False).problem is None
 
 
 def test_truncated_file_is_a_clear_error_and_writes_nothing(tmp_path: Path) -> None:
