@@ -15,7 +15,7 @@ import numpy as np
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.odometry_error import travelled
 from gridmap_cli.readers import LogFormat
-from gridmap_cli.readers.mcap_channels import TF_TYPES, Survey, channel_spans
+from gridmap_cli.readers.mcap_channels import TF_TYPES
 from gridmap_cli.readers.mcap_log import McapRead, read_mcap
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import EPOCH_FROM_NS, PoseTrack, RangeLog, span_text
@@ -29,10 +29,10 @@ def describe_log(path: Path, fmt: LogFormat, options: ReadOptions) -> dict[str, 
     problem: str | None = None
     mcap: McapRead | None = None
     if fmt.name == "mcap":
-        mcap = read_mcap(path, options, strict=False)
+        mcap = read_mcap(path, options, strict=False, every_topic=True)
         problem = None if mcap.problem is None else str(mcap.problem)
         log = mcap.log
-        out["mcap"] = _mcap_part(path, mcap.survey, mcap)
+        out["mcap"] = _mcap_part(mcap)
     else:
         log = fmt.read(path, options)
     robot, robot_source, robot_problem = _robot(path, log, options)
@@ -80,12 +80,12 @@ def _use(topic: str, read: McapRead) -> str:
     return " + ".join(uses)
 
 
-def _mcap_part(path: Path, survey: Survey, read: McapRead) -> dict[str, Any]:
+def _mcap_part(read: McapRead) -> dict[str, Any]:
+    survey = read.survey
     span = (survey.end_ns or 0) - (survey.start_ns or 0)
-    spans = channel_spans(path)
     channels = []
     for c in survey.channels:
-        first, last = spans.get(c.topic, (0, 0))
+        first, last = read.spans.get(c.topic, (0, 0))
         channels.append(
             {
                 "topic": c.topic,

@@ -10,8 +10,8 @@ import pytest
 
 from gridmap_cli.robot import preset_names
 from tests.helpers import run
-from tests.readers.mcap_helpers import DATA, merge_mcaps
-from tests.readers.test_mcap_log import ros2_sonar_log, write_json_log
+from tests.readers.mcap_helpers import DATA, Recording, merge_mcaps
+from tests.readers.test_mcap_log import S, ros2_sonar_log, ros2_sonar_messages, write_json_log
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 real = pytest.mark.skipif(not DATA.is_dir(), reason="../shared/data/mcap is not present")
@@ -238,3 +238,22 @@ def test_unknown_robot_line_is_the_error_build_stops_at(room_csv: Path, tmp_path
     assert (d["build"]["ready"], d["build"]["problem"]) == (False, f"{room_csv}: {message}")
     assert d["build"]["robot"] is None
     assert text_lines(room_csv)[-1] == f"  -> build would fail: {message}"
+
+
+def test_channels_unused_by_build_have_their_time_span(tmp_path: Path) -> None:
+    path = tmp_path / "r.mcap"
+    with Recording(path) as rec:  # a camera, which gridmap cannot decode, beside the sonar log
+        raw = rec.writer._writer
+        schema = raw.register_schema("foxglove.CompressedImage", "protobuf", b"\x00")
+        camera = raw.register_channel("/camera", "protobuf", schema)
+        for k in range(5):
+            raw.add_message(camera, S + k * S // 4, b"\xff", S)
+        ros2_sonar_messages(rec)
+    channels = {c["topic"]: c for c in inspect_json(str(path))["mcap"]["channels"]}
+    camera_row = channels["/camera"]
+    assert (camera_row["first_ns"], camera_row["last_ns"]) == (S, 2 * S)
+    assert (camera_row["rate_hz"], camera_row["used_as"]) == (4.0, "")
+    assert (channels["/sonar"]["first_ns"], channels["/sonar"]["last_ns"]) == (
+        S + S // 10,
+        S + 7 * S // 10,
+    )

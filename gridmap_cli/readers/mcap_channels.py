@@ -70,8 +70,6 @@ class ChannelInfo:
     schema_encoding: str
     message_encoding: str
     count: int
-    first_ns: int | None = None
-    last_ns: int | None = None
 
     @property
     def role(self) -> str:
@@ -369,19 +367,3 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
         odom_frame=options.odom_frame or "odom",
         base_frame=options.base_frame,
     )
-
-
-def channel_spans(path: Path) -> dict[str, tuple[int, int]]:
-    """First and last log time (ns) of each topic, from one pass over the undecoded messages."""
-    spans: dict[str, tuple[int, int]] = {}
-    try:
-        with open(path, "rb") as handle:
-            reader = open_reader(path, handle)
-            read_summary(path, reader)
-            for _schema, channel, message in reader.iter_messages(log_time_order=False):
-                t = message.log_time
-                first, last = spans.get(channel.topic, (t, t))
-                spans[channel.topic] = (min(first, t), max(last, t))
-    except DAMAGED as exc:
-        raise InputFileError(path, f"truncated or damaged MCAP data ({exc})") from exc
-    return spans

@@ -26,6 +26,7 @@ import functools
 import json
 import math
 from collections import Counter
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,8 +34,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 from mcap.decoder import DecoderFactory as McapDecoderFactory
-from mcap.exceptions import DecoderNotFoundError
-from mcap.records import Schema
+from mcap.reader import SeekingReader
+from mcap.records import Channel, Schema
 from mcap_ros1.decoder import DecoderFactory as Ros1DecoderFactory
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
@@ -69,10 +70,6 @@ class JsonDecoderFactory(McapDecoderFactory):
         return lambda data: json.loads(data)
 
 
-def _factories() -> list[McapDecoderFactory]:
-    return [Ros1DecoderFactory(), Ros2DecoderFactory(), JsonDecoderFactory()]
-
-
 def read_mcap_log(source: str | Path, options: ReadOptions | None = None) -> RangeLog:
     """Read an MCAP recording into the canonical record stream.
 
@@ -95,17 +92,22 @@ class McapRead:
     static_frames: tuple[str, ...]  # frames with a static transform below the base frame
     mount_from: dict[str, str]  # sensor frame -> where its mounting came from: TF, robot, unknown
     problem: GridmapError | None  # lenient read: the error a strict read raises, if any
+    spans: dict[str, tuple[int, int]]  # topic -> first and last log time (ns) of the messages read
 
 
 def read_mcap(
-    source: str | Path, options: ReadOptions | None = None, strict: bool = True
+    source: str | Path,
+    options: ReadOptions | None = None,
+    strict: bool = True,
+    every_topic: bool = False,
 ) -> McapRead:
     """:func:`read_mcap_log`, also returning what was chosen (for ``inspect``).
 
     ``strict=False`` (for ``inspect``) reads what is there where a strict read raises: no
     odometry gives an empty track, a sensor with unknown mounting a NaN mounting pose, and
     :attr:`McapRead.problem` is the error the strict read raises. Damaged data, malformed
-    messages and bad topic flags raise in both modes.
+    messages and bad topic flags raise in both modes. ``every_topic`` also goes through the
+    messages of the topics gridmap does not use (without decoding them), for their time spans.
     """
     path = Path(source)
     opts = options or ReadOptions()
@@ -113,31 +115,81 @@ def read_mcap(
     survey = survey_mcap(path)
     plan = plan_topics(survey, opts, refusals)
     acc = _Accumulator(str(path), plan, opts.robot, refusals)
+    spans: dict[str, list[int]] = {}
     try:
         with open(path, "rb") as handle:
-            reader = open_reader(path, handle, _factories())
+            reader = open_reader(path, handle)
             read_summary(path, reader)
-            messages = reader.iter_decoded_messages(topics=plan.topics(), log_time_order=True)
-            while True:
-                try:
-                    item = next(messages)
-                except StopIteration:
-                    break
-                except DecoderNotFoundError as exc:
-                    raise InputFileError(path, f"cannot decode: {exc}") from exc
-                except DAMAGED as exc:
-                    raise InputFileError(
-                        path, f"truncated or damaged MCAP data ({type(exc).__name__}: {exc})"
-                    ) from exc
-                acc.add(item.channel.topic, message_type(item.schema), item.message.log_time,
-                        item.decoded_message)  # fmt: skip
+            for topic, type_name, log_time, msg in _decoded(path, reader, plan.topics(),
+                                                             every_topic, spans):  # fmt: skip
+                acc.add(topic, type_name, log_time, msg)
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
     log = acc.finish(survey)
     base = acc.base_frame()
     below = tuple(f for f in acc.tree.order if acc.tree.lookup(base, f) is not None)
     return McapRead(
-        log, survey, plan, base, dict(acc.tf_pairs), below, acc.mount_from, refusals.first
+        log,
+        survey,
+        plan,
+        base,
+        dict(acc.tf_pairs),
+        below,
+        acc.mount_from,
+        refusals.first,
+        {topic: (first, last) for topic, (first, last) in spans.items()},
+    )
+
+
+def _decoded(
+    path: Path,
+    reader: SeekingReader,
+    topics: list[str],
+    every_topic: bool,
+    spans: dict[str, list[int]],
+) -> Iterator[tuple[str, str, int, Any]]:
+    """``(topic, type name, log time, decoded message)`` of ``topics``, in log-time order.
+
+    Notes each topic's first and last log time in ``spans`` (every topic's with ``every_topic``:
+    the others are read but not decoded).
+    """
+    wanted = set(topics)
+    factories = [Ros1DecoderFactory(), Ros2DecoderFactory(), JsonDecoderFactory()]
+    decoders: dict[int, Callable[[bytes], Any]] = {}
+    try:
+        for schema, channel, message in reader.iter_messages(
+            topics=None if every_topic else topics, log_time_order=True
+        ):
+            t = message.log_time
+            span = spans.get(channel.topic)
+            if span is None:
+                spans[channel.topic] = [t, t]
+            else:
+                span[1] = t  # log-time order: the latest so far
+            if channel.topic not in wanted:
+                continue
+            decoder = decoders.get(channel.id)
+            if decoder is None:
+                decoder = decoders[channel.id] = _decoder(path, factories, channel, schema)
+            yield channel.topic, message_type(schema), t, decoder(message.data)
+    except DAMAGED as exc:
+        raise InputFileError(
+            path, f"truncated or damaged MCAP data ({type(exc).__name__}: {exc})"
+        ) from exc
+
+
+def _decoder(
+    path: Path, factories: list[McapDecoderFactory], channel: Channel, schema: Schema | None
+) -> Callable[[bytes], Any]:
+    """The decoder of a channel's messages: ROS 1, ROS 2 (CDR) or JSON."""
+    for factory in factories:
+        decoder = factory.decoder_for(channel.message_encoding, schema)
+        if decoder is not None:
+            return decoder
+    raise InputFileError(
+        path,
+        f"{channel.topic}: cannot decode {channel.message_encoding} messages of "
+        f"{message_type(schema) or 'no schema'}",
     )
 
 

@@ -36,19 +36,24 @@ def static_tf(rec: Recording, *transforms: dict[str, object], topic: str = "/tf_
     rec.write(topic, type_name, S, {"transforms": list(transforms)})
 
 
+def ros2_sonar_messages(rec: Recording) -> None:
+    """A sonar mounted through an intermediate frame, readings of every kind."""
+    static_tf(
+        rec,
+        rec.transform(0, "base_link", "ring", 0.1, 0.0, 0.0),
+        rec.transform(0, "ring", "sonar_left", 0.0, 0.2, math.pi / 2),
+    )
+    drive(rec)
+    values = [1.0, 3.0, math.inf, math.nan, 0.05, -math.inf, 2.5]
+    for k, value in enumerate(values):
+        ns = S + (k + 1) * S // 10
+        rec.write("/sonar", "sensor_msgs/Range", ns, sonar_range(rec, ns, "sonar_left", value))
+
+
 def ros2_sonar_log(path: Path) -> Path:
-    """ROS 2: a sonar mounted through an intermediate frame, readings of every kind."""
+    """ROS 2: :func:`ros2_sonar_messages`."""
     with Recording(path) as rec:
-        static_tf(
-            rec,
-            rec.transform(0, "base_link", "ring", 0.1, 0.0, 0.0),
-            rec.transform(0, "ring", "sonar_left", 0.0, 0.2, math.pi / 2),
-        )
-        drive(rec)
-        values = [1.0, 3.0, math.inf, math.nan, 0.05, -math.inf, 2.5]
-        for k, value in enumerate(values):
-            ns = S + (k + 1) * S // 10
-            rec.write("/sonar", "sensor_msgs/Range", ns, sonar_range(rec, ns, "sonar_left", value))
+        ros2_sonar_messages(rec)
     return path
 
 
@@ -512,3 +517,15 @@ def test_posestamped_odometry_and_undecodable_other_topics(tmp_path: Path) -> No
     assert log.poses.x_m.tolist() == [0.0, 1.0, 2.0]
     assert log.poses.theta_rad.tolist() == pytest.approx([0.5, 0.5, 0.5])
     assert log.sensors is not None and log.sensors[0].x_m == 0.0  # frame = base frame
+
+
+def test_a_used_topic_without_a_decoder_is_an_error_naming_it(tmp_path: Path) -> None:
+    path = tmp_path / "proto.mcap"
+    with Recording(path) as rec:
+        drive(rec)
+        raw = rec.writer._writer
+        schema = raw.register_schema("sensor_msgs/msg/Range", "protobuf", b"\x00")
+        raw.add_message(raw.register_channel("/sonar", "protobuf", schema), S, b"\xff", S)
+    with pytest.raises(InputFileError) as err:
+        read_log(path)
+    assert str(err.value) == f"{path}: /sonar: cannot decode protobuf messages of sensor_msgs/Range"
