@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.odometry_error import travelled
@@ -37,9 +38,17 @@ def describe_log(path: Path, fmt: LogFormat, options: ReadOptions) -> dict[str, 
         log = fmt.read(path, options)
     robot, robot_source, robot_problem = _robot(path, log, options)
     problem = problem or robot_problem  # build reads the log before it loads the robot
-    out["log"] = _log_part(log, robot, mcap.mount_from if mcap is not None else None)
-    out["build"] = _build_part(fmt, log, mcap, robot, robot_source, problem)
+    during = _during_odometry(log)
+    out["log"] = _log_part(log, during, robot, mcap.mount_from if mcap is not None else None)
+    out["build"] = _build_part(fmt, log, during, mcap, robot, robot_source, problem)
     return out
+
+
+def _during_odometry(log: RangeLog) -> npt.NDArray[np.bool_]:
+    """Which readings (shape (N,)) fall within the odometry's time span, as sync decides it."""
+    if not len(log.poses):
+        return np.zeros(len(log.readings), dtype=bool)
+    return interpolate_pose(log.poses, log.readings.stamp_ns)[3]
 
 
 def _robot(
@@ -168,17 +177,25 @@ def _sensor_part(
 
 
 def _log_part(
-    log: RangeLog, robot: RobotDescription | None, mount_from: dict[str, str] | None
+    log: RangeLog,
+    valid: npt.NDArray[np.bool_],
+    robot: RobotDescription | None,
+    mount_from: dict[str, str] | None,
 ) -> dict[str, Any]:
     r = log.readings
     own = {s.name: s for s in log.sensors or ()}
     theirs = robot.by_name() if robot is not None else {}
-    counts = np.bincount(r.sensor, minlength=len(log.sensor_names))
+    described = [own.get(n) or theirs.get(n) for n in log.sensor_names]
+    n = len(log.sensor_names)
+    counts = np.bincount(r.sensor, minlength=n)
+    # no echo: at or beyond the sensor's maximum range; none counted for an unknown sensor
+    max_r = np.asarray([s.max_range_m if s else np.inf for s in described], dtype=np.float64)
+    known = np.asarray([s is not None for s in described], dtype=bool)
+    echo_less = known[r.sensor] & (r.range_m >= max_r[r.sensor])
+    no_echoes = np.bincount(r.sensor[echo_less], minlength=n)
     sensors = []
     for i, name in enumerate(log.sensor_names):
-        sensor = own.get(name) or theirs.get(name)
-        mine = r.range_m[r.sensor == i]
-        no_echo = int(np.count_nonzero(mine >= sensor.max_range_m)) if sensor else 0
+        no_echo = int(no_echoes[i])
         frame = name if name in (mount_from or {}) else name.rpartition("_")[0]
         source = (mount_from or {}).get(frame)
         sensors.append(
@@ -187,12 +204,8 @@ def _log_part(
     readings: dict[str, Any] | None = None
     if len(r):
         span = int(r.stamp_ns.max() - r.stamp_ns.min())
-        valid = np.zeros(len(r), dtype=bool)
-        if len(log.poses):
-            valid = interpolate_pose(log.poses, r.stamp_ns)[3]
         inside = int(np.count_nonzero(valid))
         below_min: int | None = None  # as build's sync counts them; None: a sensor is unknown
-        described = [own.get(n) or theirs.get(n) for n in log.sensor_names]
         if all(s is not None for s in described):
             min_r = np.asarray([s.min_range_m for s in described if s is not None])
             below_min = int(np.count_nonzero(valid & (r.range_m < min_r[r.sensor])))
@@ -201,7 +214,7 @@ def _log_part(
             "start_ns": int(r.stamp_ns.min()),
             "end_ns": int(r.stamp_ns.max()),
             "duration_s": span / 1e9,
-            "rate_hz": round(len(r) / (span / 1e9), 3) if span > 0 else None,
+            "rate_hz": _rate(len(r), span),
             "no_echo": sum(s["no_echo"] for s in sensors),
             "during_odometry": inside,
             "below_min_range": below_min,
@@ -218,6 +231,7 @@ def _log_part(
 def _build_part(
     fmt: LogFormat,
     log: RangeLog,
+    during_odometry: npt.NDArray[np.bool_],
     mcap: McapRead | None,
     robot: RobotDescription | None,
     robot_source: str | None,
@@ -266,10 +280,8 @@ def _build_part(
             f"no mounting pose for sensor{'s' if len(unknown) > 1 else ''} "
             f"{', '.join(unknown[:5])}{' ...' if len(unknown) > 5 else ''}: give --robot"
         )
-    if problem is None and len(log.readings) and len(log.poses):
-        inside = int(np.count_nonzero(interpolate_pose(log.poses, log.readings.stamp_ns)[3]))
-        if inside == 0:
-            problem = "no odometry during the range readings (recorded at different times?)"
+    if problem is None and len(log.readings) and len(log.poses) and not during_odometry.any():
+        problem = "no odometry during the range readings (recorded at different times?)"
     return {
         "odometry": odometry,
         "odometry_topic": odom_topic,

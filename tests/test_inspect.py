@@ -127,6 +127,8 @@ def test_csv_sample() -> None:
     assert log["odometry"]["rate_hz"] == 10.0
     assert log["truth"]["count"] == 1468
     assert log["readings"]["count"] == 23488
+    assert log["readings"]["rate_hz"] == 160.102  # 23,487 intervals in 146.7 s, as for odometry
+    assert [s["no_echo"] for s in log["sensors"][:3]] == [201, 183, 1109]
     assert log["readings"]["during_odometry"] == 23488
     assert len(log["sensors"]) == 16
     assert log["sensors"][0]["mounting"] == {"x_m": 0.147, "y_m": 0.136, "yaw_deg": 90.0}
