@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -10,8 +11,15 @@ import pytest
 
 from gridmap_cli.robot import preset_names
 from tests.helpers import run
-from tests.readers.mcap_helpers import DATA, Recording, merge_mcaps
-from tests.readers.test_mcap_log import S, ros2_sonar_log, ros2_sonar_messages, write_json_log
+from tests.readers.mcap_helpers import DATA, Recording, merge_mcaps, sonar_range
+from tests.readers.test_mcap_log import (
+    S,
+    drive,
+    ros2_sonar_log,
+    ros2_sonar_messages,
+    static_tf,
+    write_json_log,
+)
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 real = pytest.mark.skipif(not DATA.is_dir(), reason="../shared/data/mcap is not present")
@@ -259,3 +267,45 @@ def test_channels_unused_by_build_have_their_time_span(tmp_path: Path) -> None:
         S + S // 10,
         S + 7 * S // 10,
     )
+
+
+def test_unindexed_file_says_so_and_still_has_channel_spans(tmp_path: Path) -> None:
+    path = tmp_path / "bare.mcap"
+    write_json_log(path, indexed=False)
+    assert "  no index: the file is read from start to end" in text_lines(path)
+    d = inspect_json(str(path))
+    odom = next(c for c in d["mcap"]["channels"] if c["topic"] == "/odom")
+    assert (odom["messages"], odom["first_ns"], odom["last_ns"]) == (3, S, S + S // 5)
+    assert (d["mcap"]["indexed"], d["build"]["ready"]) == (False, True)
+
+
+def test_laser_beams_fold_into_one_row_and_a_long_table_is_cut(tmp_path: Path) -> None:
+    path = tmp_path / "many.mcap"
+    frames = [f"s{i:02d}" for i in range(22)]
+    with Recording(path) as rec:
+        static_tf(rec, *(rec.transform(0, "base_link", f, 0.1 * i, 0.0, 0.0)
+                         for i, f in enumerate(frames)),
+                  rec.transform(0, "base_link", "laser", 0.2, 0.0, 0.0))  # fmt: skip
+        drive(rec)
+        for f in frames:
+            rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, f, 1.0))
+        scan = {
+            "header": rec.header(S, "laser"),
+            "angle_min": -0.5,
+            "angle_increment": 0.25,
+            "range_min": 0.1,
+            "range_max": 8.0,
+            "ranges": [1.0, 8.0, 2.0, math.inf, 3.0],
+        }
+        rec.write("/scan", "sensor_msgs/LaserScan", S, scan)
+    lines = text_lines(path)
+    start = lines.index("Sensors: 27")  # 22 sonars and 5 beams, in 23 rows: 8, a gap, 4
+    rows = [line.split() for line in lines[start + 1 : start + 15]]
+    assert rows[0][:3] == ["name", "kind", "x"]
+    assert [row[0] for row in rows[1:9]] == frames[:8]
+    assert rows[1] == ["s00", "sonar", "0.000", "0.000", "0.0", "28.6", "0.1-3", "1", "0", "TF"]
+    assert rows[9] == ["...", "11", "more", "..."]
+    assert [row[0] for row in rows[10:13]] == frames[-3:]
+    assert rows[13] == ["laser_0..4", "(5", "beams)", "laser", "0.200", "0.000", "-28.6..28.6",
+                        "0.0", "0.1-8", "5", "2", "TF"]  # fmt: skip
+    assert lines[start + 15] == ""

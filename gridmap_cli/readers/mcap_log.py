@@ -244,7 +244,8 @@ class _Scan:
 
 @dataclass
 class _Sonar:
-    """One sensor_msgs/Range frame: widest limits seen (the messages' float32 values)."""
+    """One sensor_msgs/Range frame: its first field of view, and the largest ``min_range`` and
+    largest ``max_range`` of its messages (the messages' float32 values)."""
 
     fov: float
     min_range: float

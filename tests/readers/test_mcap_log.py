@@ -11,10 +11,12 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from mcap.writer import Writer
+from mcap.reader import SeekingReader
+from mcap.writer import IndexType, Writer
 
 from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.readers import read_log, resolve_format
+from gridmap_cli.readers.mcap_channels import survey_mcap
 from gridmap_cli.readers.mcap_log import float32_decimal, read_mcap, read_mcap_log
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot
@@ -166,6 +168,25 @@ def test_mount_frame_hanging_off_another_tree_says_where_it_leads(tmp_path: Path
         read_log(path)
 
 
+def test_range_limits_that_change_keep_the_largest_of_each(tmp_path: Path) -> None:
+    path = tmp_path / "limits.mcap"
+    with Recording(path) as rec:
+        static_tf(rec, rec.transform(0, "base_link", "s0", 0.0, 0.0, 0.0))
+        drive(rec)
+        for k, (value, rmin, rmax) in enumerate(
+            ((2.5, 0.1, 3.0), (2.5, 0.2, 2.0), (0.15, 0.2, 2.0))
+        ):
+            ns = S + k * S // 10
+            rec.write("/sonar", "sensor_msgs/Range", ns,
+                      sonar_range(rec, ns, "s0", value, rmin=rmin, rmax=rmax))  # fmt: skip
+    log = read_log(path)
+    assert log.sensors is not None
+    assert (log.sensors[0].min_range_m, log.sensors[0].max_range_m) == (0.2, 3.0)
+    # each reading is judged by its own message's limits: 2.5 >= 2.0 is no echo, stored at the
+    # sensor's maximum; 0.15 is kept for sync, which drops it below the sensor's 0.2
+    assert log.readings.range_m.tolist() == [2.5, 3.0, 0.15]
+
+
 def test_robot_description_mounts_sensors_the_tf_lacks(tmp_path: Path) -> None:
     path = tmp_path / "robot.mcap"
     with Recording(path) as rec:
@@ -255,6 +276,27 @@ def test_rosaria_pointcloud_sonar_ranges_from_robot_geometry(tmp_path: Path) -> 
     assert log.sensor_names == tuple(s.name for s in sonars)
     assert log.readings.sensor.tolist() == list(range(len(sonars)))
     assert log.readings.range_m.tolist() == pytest.approx(truth, abs=1e-6)  # float32 points
+
+
+def test_pointcloud_in_a_frame_of_its_own_is_moved_into_the_base_frame(tmp_path: Path) -> None:
+    # the same echoes as above, published in a frame 'ring' at (0.1, -0.05) turned 0.3 rad
+    p3at = load_robot("p3at")
+    sonars = [s for s in p3at.sensors if s.kind == "sonar"]
+    truth = [0.5 + 0.1 * i for i in range(len(sonars))]
+    tx, ty, yaw = 0.1, -0.05, 0.3
+    points = []
+    for s, r in zip(sonars, truth, strict=True):
+        bx, by = s.x_m + r * math.cos(s.yaw_rad) - tx, s.y_m + r * math.sin(s.yaw_rad) - ty
+        points.append({"x": math.cos(yaw) * bx + math.sin(yaw) * by,
+                       "y": -math.sin(yaw) * bx + math.cos(yaw) * by, "z": 0.0})  # fmt: skip
+    path = tmp_path / "ring.mcap"
+    with Recording(path, ros=1) as rec:
+        static_tf(rec, rec.transform(0, "base_link", "ring", tx, ty, yaw))
+        drive(rec)
+        rec.write("/RosAria/sonar", "sensor_msgs/PointCloud", S,
+                  {"header": rec.header(S, "ring"), "points": points})  # fmt: skip
+    log = read_log(path, options=ReadOptions(robot=p3at))
+    assert log.readings.range_m.tolist() == pytest.approx(truth, abs=1e-6)
 
 
 def test_laserscan_beams_take_the_frame_mount_and_scan_angles(tmp_path: Path) -> None:
@@ -413,14 +455,23 @@ def test_topic_flags_are_refused_for_csv_logs(room_csv: Path, tmp_path: Path) ->
 # ---------------------------------------------------------------- gridmap JSON channels
 
 
-def write_json_log(path: Path, truth: bool = True) -> None:
-    """gridmap's JSON layout (schemas/mcap-log.md): /sensors, /odom, /ground_truth, /range."""
+def write_json_log(path: Path, truth: bool = True, indexed: bool = True) -> None:
+    """gridmap's JSON layout (schemas/mcap-log.md): /sensors, /odom, /ground_truth, /range.
+
+    ``indexed=False`` writes no summary section (no index, no statistics) and no chunks, as a
+    streaming recorder may.
+    """
 
     def ts(ns: int) -> dict[str, int]:
         return {"sec": ns // S, "nsec": ns % S}
 
     with open(path, "wb") as handle:
-        w = Writer(handle)
+        if indexed:
+            w = Writer(handle)
+        else:
+            w = Writer(handle, index_types=IndexType.NONE, repeat_channels=False,
+                       repeat_schemas=False, use_chunking=False, use_statistics=False,
+                       use_summary_offsets=False)  # fmt: skip
         w.start(profile="", library="gridmap tests")
         ids = {}
         for topic, schema in (("/sensors", "gridmap.RangeSensor"), ("/odom", "gridmap.Pose2D"),
@@ -480,6 +531,29 @@ def test_gridmap_json_build_uses_ground_truth_with_pose_global(tmp_path: Path) -
     # the ground-truth track is the odometry moved by (5, 1) m: so is the map
     assert origins[1][0] - origins[0][0] == pytest.approx(5.0, abs=0.051)
     assert origins[1][1] - origins[0][1] == pytest.approx(1.0, abs=0.051)
+
+
+def test_a_file_without_summary_or_index_is_read_from_start_to_end(tmp_path: Path) -> None:
+    indexed, bare = tmp_path / "indexed.mcap", tmp_path / "bare.mcap"
+    write_json_log(indexed)
+    write_json_log(bare, indexed=False)
+    with open(bare, "rb") as handle:
+        assert SeekingReader(handle).get_summary() is None  # nothing but the data section
+    survey = survey_mcap(bare)
+    assert survey.indexed is False
+    assert [(c.topic, c.count) for c in survey.channels] == [
+        ("/sensors", 2), ("/odom", 3), ("/ground_truth", 3), ("/range", 6)
+    ]  # fmt: skip
+    assert (survey.message_count, survey.start_ns, survey.end_ns) == (14, S, S + S // 5)
+    assert survey.metadata == {"gridmap": {"robot": "p3at", "seed": "7"}}
+    want, got = read_log(indexed), read_log(bare)
+    for a, b in ((want.poses, got.poses), (want.truth, got.truth)):
+        assert a is not None and b is not None
+        assert np.array_equal(a.stamp_ns, b.stamp_ns) and np.array_equal(a.x_m, b.x_m)
+    for field_name in ("stamp_ns", "sensor", "range_m"):
+        assert np.array_equal(getattr(want.readings, field_name),
+                              getattr(got.readings, field_name))  # fmt: skip
+    assert (got.sensors, got.metadata) == (want.sensors, want.metadata)
 
 
 @given(st.integers(min_value=0, max_value=100_000))
