@@ -68,7 +68,8 @@ def test_rosbag2_text_explains_channels_odometry_and_why_build_fails() -> None:
 def test_rosbag2_json() -> None:
     d = inspect_json(str(DATA / "rosbag2_turtlebot_odometry.mcap"))
     mcap = d["mcap"]
-    assert isinstance(mcap, dict)
+    assert (mcap["profile"], mcap["indexed"], mcap["messages"]) == ("ros2", True, 8197)
+    assert mcap["tf"] == []  # /tf is left unread: odometry is /odom, mounting /tf_static
     counts = {c["topic"]: (c["messages"], c["used_as"]) for c in mcap["channels"]}
     assert counts == {
         "/odom": (2639, "odometry"),
@@ -79,11 +80,11 @@ def test_rosbag2_json() -> None:
     assert len(mcap["static_frames"]) == 29
     assert "rplidar_link" in mcap["static_frames"]
     log = d["log"]
-    assert isinstance(log, dict)
+    assert (log["odometry"]["distance_m"], log["odometry"]["rotation_deg"]) == (34.322, 806.9)
     assert log["odometry"]["count"] == 2639
     assert log["readings"] is None
     build = d["build"]
-    assert isinstance(build, dict)
+    assert (build["ranges"], build["sensors"], build["robot"]) == ([], 0, None)
     assert build["odometry"] == "/odom (nav_msgs/Odometry)"
     assert build["frames"] == {"odom": "odom", "base": "base_link"}
     assert build["ready"] is False
@@ -95,14 +96,14 @@ def test_tiago_recordings_at_different_times(tmp_path: Path) -> None:
     merge_mcaps([DATA / "tiago_sonar_range_ros1.mcap", DATA / "tiago_odometry_ros1.mcap"], both)
     d = inspect_json(str(both))
     build = d["build"]
-    assert isinstance(build, dict)
+    assert (build["ranges"], build["sensors"], build["ready"]) == (["/sonar_base"], 3, False)
     assert build["frames"] == {"odom": "odom", "base": "base_footprint"}
     assert build["problem"].endswith(
         "sensor frame 'base_sonar_01_link' (/sonar_base): mounting pose unknown: the recording "
         "has no TF, and no --robot describing it"
     )
     log = d["log"]
-    assert isinstance(log, dict)
+    assert (log["odometry"]["count"], log["readings"]["count"]) == (1301, 609)
     assert [
         (s["name"], s["readings"], s["no_echo"], s["mounting_from"]) for s in log["sensors"]
     ] == [
@@ -129,7 +130,7 @@ def test_tiago_recordings_at_different_times(tmp_path: Path) -> None:
 def test_csv_sample() -> None:
     d = inspect_json(str(SAMPLES / "corridor_loop.csv"))
     log = d["log"]
-    assert isinstance(log, dict)
+    assert log["metadata"]["robot"] == "p3at"
     assert log["odometry"]["count"] == 1468
     assert log["odometry"]["duration_s"] == 146.7
     assert log["odometry"]["rate_hz"] == 10.0
@@ -142,7 +143,7 @@ def test_csv_sample() -> None:
     assert log["sensors"][0]["mounting"] == {"x_m": 0.147, "y_m": 0.136, "yaw_deg": 90.0}
     assert {s["mounting_from"] for s in log["sensors"]} == {"robot"}
     build = d["build"]
-    assert isinstance(build, dict)
+    assert build["ranges"] == ["16 sensor columns: sonar0 .. sonar15"]
     assert build["robot"] == {"name": "p3at", "from": "the log's robot line", "needed": True}
     assert build["truth"] == "columns true_x, true_y, true_theta"
     assert build["ready"] is True
@@ -151,8 +152,8 @@ def test_csv_sample() -> None:
 def test_aria_sample_has_the_same_run_with_sonar_units_in_the_log() -> None:
     csv = inspect_json(str(SAMPLES / "corridor_loop.csv"))["log"]
     aria = inspect_json(str(SAMPLES / "corridor_loop.2d"))["log"]
-    assert isinstance(csv, dict) and isinstance(aria, dict)
-    assert aria["odometry"]["distance_m"] == csv["odometry"]["distance_m"]
+    assert aria["odometry"]["distance_m"] == csv["odometry"]["distance_m"] == 56.433
+    assert aria["odometry"]["rotation_deg"] == csv["odometry"]["rotation_deg"] == 284.5
     assert aria["readings"]["count"] == csv["readings"]["count"]
     assert {s["mounting_from"] for s in aria["sensors"]} == {"log"}
 
