@@ -21,7 +21,7 @@ from gridmap_cli.readers.mcap_log import float32_decimal, read_mcap, read_mcap_l
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot
 from tests.helpers import names, run
-from tests.readers.mcap_helpers import Recording, odometry, sonar_range
+from tests.readers.mcap_helpers import Recording, odometry, sonar_range, turn
 
 S = 1_000_000_000
 
@@ -583,8 +583,7 @@ def test_posestamped_odometry_and_undecodable_other_topics(tmp_path: Path) -> No
     with Recording(path) as rec:
         for k in range(3):
             ns = S + k * S
-            turn = {"x": 0.0, "y": 0.0, "z": math.sin(0.25), "w": math.cos(0.25)}
-            pose = {"position": {"x": float(k), "y": 0.0, "z": 0.0}, "orientation": turn}
+            pose = {"position": {"x": float(k), "y": 0.0, "z": 0.0}, "orientation": turn(0.5)}
             rec.write("/pose", "geometry_msgs/PoseStamped", ns,
                       {"header": rec.header(ns, "odom"), "pose": pose})  # fmt: skip
             rec.write("/sonar", "sensor_msgs/Range", ns, sonar_range(rec, ns, "base_link", 1.0))
