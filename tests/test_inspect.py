@@ -11,15 +11,16 @@ import pytest
 
 from gridmap_cli.robot import preset_names
 from tests.helpers import run
-from tests.readers.mcap_helpers import DATA, Recording, merge_mcaps, sonar_range
-from tests.readers.test_mcap_log import (
+from tests.readers.mcap_helpers import (
+    DATA,
+    Recording,
     S,
     drive,
-    ros2_sonar_log,
-    ros2_sonar_messages,
+    merge_mcaps,
+    sonar_range,
     static_tf,
-    write_json_log,
 )
+from tests.readers.test_mcap_log import ros2_sonar_log, ros2_sonar_messages, write_json_log
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 real = pytest.mark.skipif(not DATA.is_dir(), reason="../shared/data/mcap is not present")

@@ -19,6 +19,7 @@ from mcap.writer import Writer
 from gridmap_cli.writers.ros2_msgdefs import message_definition
 
 DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mcap"
+S = 1_000_000_000
 
 
 def merge_mcaps(sources: Iterable[Path], target: Path) -> None:
@@ -245,3 +246,36 @@ def sonar_range(rec: Recording, ns: int, frame: str, value: float, fov: float = 
         "max_range": rmax,
         "range": value,
     }
+
+
+def drive(rec: Recording, steps: int = 11, topic: str = "/odom", child: str = "base_link") -> None:
+    """Odometry along x at 0.1 m per 0.1 s from t = 1 s."""
+    for k in range(steps):
+        ns = S + k * S // 10
+        rec.write(topic, "nav_msgs/Odometry", ns, odometry(rec, ns, 0.1 * k, 0.0, 0.0, child=child))
+
+
+def static_tf(rec: Recording, *transforms: dict[str, object], topic: str = "/tf_static") -> None:
+    """Static transforms (from :meth:`Recording.transform`) at t = 1 s."""
+    type_name = "tf2_msgs/TFMessage" if rec.ros == 2 else "tf/tfMessage"
+    rec.write(topic, type_name, S, {"transforms": list(transforms)})
+
+
+def one_sonar_log(
+    path: Path,
+    frame: str = "s0",
+    mount: tuple[str, str] | None = ("base_link", "s0"),
+    topics: tuple[str, ...] = ("/sonar",),
+    odom_topics: dict[str, int] | None = None,
+) -> Path:
+    """ROS 2: an identity static transform ``mount`` (parent, child; None: no TF), odometry
+    (:func:`drive` on each of ``odom_topics``, topic -> messages; default 11 on /odom) and one
+    1 m reading of sonar ``frame`` at t = 1 s on each of ``topics``."""
+    with Recording(path) as rec:
+        if mount is not None:
+            static_tf(rec, rec.transform(0, *mount, 0.0, 0.0, 0.0))
+        for topic, steps in (odom_topics or {"/odom": 11}).items():
+            drive(rec, steps=steps, topic=topic)
+        for topic in topics:
+            rec.write(topic, "sensor_msgs/Range", S, sonar_range(rec, S, frame, 1.0))
+    return path

@@ -21,21 +21,16 @@ from gridmap_cli.readers.mcap_log import float32_decimal, read_mcap, read_mcap_l
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot
 from tests.helpers import names, run
-from tests.readers.mcap_helpers import Recording, odometry, sonar_range, turn
-
-S = 1_000_000_000
-
-
-def drive(rec: Recording, steps: int = 11, topic: str = "/odom", child: str = "base_link") -> None:
-    """Odometry along x at 0.1 m per 0.1 s from t = 1 s."""
-    for k in range(steps):
-        ns = S + k * S // 10
-        rec.write(topic, "nav_msgs/Odometry", ns, odometry(rec, ns, 0.1 * k, 0.0, 0.0, child=child))
-
-
-def static_tf(rec: Recording, *transforms: dict[str, object], topic: str = "/tf_static") -> None:
-    type_name = "tf2_msgs/TFMessage" if rec.ros == 2 else "tf/tfMessage"
-    rec.write(topic, type_name, S, {"transforms": list(transforms)})
+from tests.readers.mcap_helpers import (
+    Recording,
+    S,
+    drive,
+    odometry,
+    one_sonar_log,
+    sonar_range,
+    static_tf,
+    turn,
+)
 
 
 def ros2_sonar_messages(rec: Recording) -> None:
@@ -92,12 +87,7 @@ def test_extensionless_mcap_is_found_by_its_magic(tmp_path: Path) -> None:
 
 
 def test_two_odometry_topics_are_ambiguous_and_listed(tmp_path: Path) -> None:
-    path = tmp_path / "two.mcap"
-    with Recording(path) as rec:
-        static_tf(rec, rec.transform(0, "base_link", "s0", 0.0, 0.0, 0.0))
-        drive(rec, topic="/wheel_odom")
-        drive(rec, steps=4, topic="/visual_odom")
-        rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "s0", 1.0))
+    path = one_sonar_log(tmp_path / "two.mcap", odom_topics={"/wheel_odom": 11, "/visual_odom": 4})
     with pytest.raises(InputFileError) as err:
         read_log(path)
     assert str(err.value) == (
@@ -133,39 +123,33 @@ def test_range_topic_flag_picks_topics_and_rejects_other_types(tmp_path: Path) -
 
 
 def test_one_frame_on_two_topics_must_be_chosen(tmp_path: Path) -> None:
-    path = tmp_path / "dup.mcap"
-    with Recording(path) as rec:
-        static_tf(rec, rec.transform(0, "base_link", "s0", 0.0, 0.0, 0.0))
-        drive(rec)
-        rec.write("/raw", "sensor_msgs/Range", S, sonar_range(rec, S, "s0", 1.0))
-        rec.write("/filtered", "sensor_msgs/Range", S, sonar_range(rec, S, "s0", 1.0))
+    path = one_sonar_log(tmp_path / "dup.mcap", topics=("/raw", "/filtered"))
     with pytest.raises(InputFileError, match=r"'s0' publishes on both /raw and /filtered"):
         read_log(path)
 
 
-def test_missing_mount_frame_is_named_and_nothing_is_written(tmp_path: Path) -> None:
-    path = tmp_path / "nomount.mcap"
-    with Recording(path) as rec:
-        static_tf(rec, rec.transform(0, "base_link", "sonar_a", 0.0, 0.0, 0.0))
-        drive(rec)
-        rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "sonar_b", 1.0))
-    code, _, err = run("build", str(path), "-o", str(tmp_path / "map.png"))
-    assert code == 1
-    assert err.strip() == (
-        f"Error: {path}: sensor frame 'sonar_b' (/sonar): mounting pose unknown: no transform "
-        "from 'base_link' to it on /tf_static, and no --robot describing it"
+@pytest.mark.parametrize(
+    ("frame", "mount", "why"),
+    [
+        ("sonar_b", ("base_link", "sonar_a"), "no transform from 'base_link' to it on /tf_static"),
+        ("sonar_a", ("camera_rig", "sonar_a"),
+         "its transforms lead to 'camera_rig', not to the base frame 'base_link' (--base-frame)"),
+    ],
+)  # fmt: skip
+def test_unknown_mounting_says_what_is_missing_and_nothing_is_written(
+    tmp_path: Path, frame: str, mount: tuple[str, str], why: str
+) -> None:
+    path = one_sonar_log(tmp_path / "nomount.mcap", frame=frame, mount=mount)
+    message = (
+        f"{path}: sensor frame '{frame}' (/sonar): mounting pose unknown: {why}, and no --robot "
+        "describing it"
     )
-    assert names(tmp_path) == {"nomount.mcap"}
-
-
-def test_mount_frame_hanging_off_another_tree_says_where_it_leads(tmp_path: Path) -> None:
-    path = tmp_path / "elsewhere.mcap"
-    with Recording(path) as rec:
-        static_tf(rec, rec.transform(0, "camera_rig", "sonar_a", 0.0, 0.0, 0.0))
-        drive(rec)
-        rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "sonar_a", 1.0))
-    with pytest.raises(InputFileError, match=r"its transforms lead to 'camera_rig', not to the"):
+    with pytest.raises(InputFileError) as err:
         read_log(path)
+    assert str(err.value) == message
+    code, _, stderr = run("build", str(path), "-o", str(tmp_path / "map.png"))
+    assert (code, stderr.strip()) == (1, f"Error: {message}")
+    assert names(tmp_path) == {"nomount.mcap"}
 
 
 def test_range_limits_that_change_keep_the_largest_of_each(tmp_path: Path) -> None:
@@ -188,10 +172,7 @@ def test_range_limits_that_change_keep_the_largest_of_each(tmp_path: Path) -> No
 
 
 def test_robot_description_mounts_sensors_the_tf_lacks(tmp_path: Path) -> None:
-    path = tmp_path / "robot.mcap"
-    with Recording(path) as rec:
-        drive(rec)
-        rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "sonar3", 1.0))
+    path = one_sonar_log(tmp_path / "robot.mcap", frame="sonar3", mount=None)
     p3at = load_robot("p3at")
     log = read_log(path, options=ReadOptions(robot=p3at))
     assert log.sensors is not None
