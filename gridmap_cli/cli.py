@@ -30,7 +30,7 @@ from gridmap_cli.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
 from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.readers.options import ReadOptions
-from gridmap_cli.robot import RobotDescription, load_robot, preset_names
+from gridmap_cli.robot import RobotDescription, load_robot, robot_from_log
 from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import MAP_MODES, check_map_outputs, write_map
@@ -102,23 +102,6 @@ def _check_output_folder(output: Path) -> None:
     folder = output.parent
     if not folder.is_dir():
         raise GridmapError(f"{output}: directory {folder} does not exist")
-
-
-def _robot_from_log(log: Path, metadata: dict[str, str]) -> RobotDescription | None:
-    """The robot a log names on its '# robot:' line: a preset, or a file beside the log."""
-    name = metadata.get("robot")
-    if not name:
-        return None
-    if name in preset_names():
-        return load_robot(name)
-    candidate = Path(name) if Path(name).is_absolute() else log.parent / name
-    if candidate.is_file():
-        return load_robot(str(candidate))
-    raise InputFileError(
-        log,
-        f"'# robot: {name}' is neither a preset ({', '.join(preset_names())}) nor a file "
-        f"beside the log; give --robot",
-    )
 
 
 def _topic_options(func: Callable[P, R]) -> Callable[P, R]:
@@ -307,7 +290,7 @@ def build(
 
     data = select_poses(fmt.read(log, read_options), pose)
     if robot_desc is None:
-        robot_desc = _robot_from_log(log, data.metadata)
+        robot_desc = robot_from_log(log, data.metadata)
     options = BuildOptions(
         resolution_m=resolution,
         mode=mode,
@@ -752,7 +735,7 @@ def convert(
     if robot_desc is None and writer.needs_sensors:
         known = {s.name for s in data.sensors or ()}
         if not set(data.sensor_names) <= known:
-            robot_desc = _robot_from_log(log, data.metadata)
+            robot_desc = robot_from_log(log, data.metadata)
     write_log(data, output, writer, robot_desc, encoding)
     if not quiet:
         what = writer.name + (f" ({encoding or 'json'})" if writer.name == "mcap" else "")
@@ -857,7 +840,7 @@ def evaluate(
         data = resolve_format(log_path, log_format).read(log_path)
         true_path = data.require_truth("evaluate needs the true path")
         if robot_desc is None:
-            robot_desc = _robot_from_log(log_path, data.metadata)
+            robot_desc = robot_from_log(log_path, data.metadata)
         sensors = sensors_for_log(data, robot_desc)
         if frame == "odometry":
             map_to_world = ev.odometry_frame_in_world(data)

@@ -11,15 +11,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.geometry import wrap_angle
+from gridmap_cli.odometry_error import travelled
 from gridmap_cli.readers import LogFormat
-from gridmap_cli.readers.mcap_channels import Survey, channel_spans
+from gridmap_cli.readers.mcap_channels import TF_TYPES
 from gridmap_cli.readers.mcap_log import McapRead, read_mcap
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import EPOCH_FROM_NS, PoseTrack, RangeLog, span_text
-from gridmap_cli.robot import RangeSensor, RobotDescription, load_robot, preset_names
+from gridmap_cli.robot import RangeSensor, RobotDescription, robot_from_log
 from gridmap_cli.sync import interpolate_pose
 
 
@@ -29,36 +30,38 @@ def describe_log(path: Path, fmt: LogFormat, options: ReadOptions) -> dict[str, 
     problem: str | None = None
     mcap: McapRead | None = None
     if fmt.name == "mcap":
-        try:
-            mcap = read_mcap(path, options)
-        except GridmapError as exc:
-            problem = str(exc)
-            mcap = read_mcap(path, options, strict=False)
+        mcap = read_mcap(path, options, strict=False, every_topic=True)
+        problem = None if mcap.problem is None else str(mcap.problem)
         log = mcap.log
-        out["mcap"] = _mcap_part(path, mcap.survey, mcap)
+        out["mcap"] = _mcap_part(mcap)
     else:
         log = fmt.read(path, options)
-    robot, robot_source = _robot(path, log, options)
-    out["log"] = _log_part(log, robot, mcap.mount_from if mcap is not None else None)
-    out["build"] = _build_part(fmt, log, mcap, robot, robot_source, problem)
+    robot, robot_source, robot_problem = _robot(path, log, options)
+    problem = problem or robot_problem  # build reads the log before it loads the robot
+    during = _during_odometry(log)
+    out["log"] = _log_part(log, during, robot, mcap.mount_from if mcap is not None else None)
+    out["build"] = _build_part(fmt, log, during, mcap, robot, robot_source, problem)
     return out
+
+
+def _during_odometry(log: RangeLog) -> npt.NDArray[np.bool_]:
+    """Which readings (shape (N,)) fall within the odometry's time span, as sync decides it."""
+    if not len(log.poses):
+        return np.zeros(len(log.readings), dtype=bool)
+    return interpolate_pose(log.poses, log.readings.stamp_ns)[3]
 
 
 def _robot(
     path: Path, log: RangeLog, options: ReadOptions
-) -> tuple[RobotDescription | None, str | None]:
+) -> tuple[RobotDescription | None, str | None, str | None]:
+    """The robot build would use, where it comes from, and the error build would stop at."""
     if options.robot is not None:
-        return options.robot, "--robot"
-    name = log.metadata.get("robot")
-    if not name:
-        return None, None
+        return options.robot, "--robot", None
     try:
-        if name in preset_names():
-            return load_robot(name), "the log's robot line"
-        candidate = Path(name) if Path(name).is_absolute() else path.parent / name
-        return load_robot(str(candidate)), "the log's robot line"
-    except GridmapError:
-        return None, None
+        robot = robot_from_log(path, log.metadata)
+    except GridmapError as exc:
+        return None, None, str(exc)
+    return robot, "the log's robot line" if robot is not None else None, None
 
 
 def _rate(count: int, span_ns: int) -> float | None:
@@ -86,12 +89,12 @@ def _use(topic: str, read: McapRead) -> str:
     return " + ".join(uses)
 
 
-def _mcap_part(path: Path, survey: Survey, read: McapRead) -> dict[str, Any]:
+def _mcap_part(read: McapRead) -> dict[str, Any]:
+    survey = read.survey
     span = (survey.end_ns or 0) - (survey.start_ns or 0)
-    spans = channel_spans(path)
     channels = []
     for c in survey.channels:
-        first, last = spans.get(c.topic, (0, 0))
+        first, last = read.spans.get(c.topic, (0, 0))
         channels.append(
             {
                 "topic": c.topic,
@@ -129,16 +132,15 @@ def _track_part(track: PoseTrack) -> dict[str, Any] | None:
         return None
     t = track.stamp_ns
     span = int(t[-1] - t[0])
-    steps = np.hypot(np.diff(track.x_m), np.diff(track.y_m))
-    turns = np.abs(wrap_angle(np.diff(track.theta_rad)))
+    distance, rotation = travelled(track)
     return {
         "count": n,
         "start_ns": int(t[0]),
         "end_ns": int(t[-1]),
         "duration_s": span / 1e9,
         "rate_hz": _rate(n, span),
-        "distance_m": round(float(steps.sum()), 3),
-        "rotation_deg": round(math.degrees(float(turns.sum())), 1),
+        "distance_m": round(float(distance[-1]), 3),
+        "rotation_deg": round(math.degrees(float(rotation[-1])), 1),
         "start_pose": [float(track.x_m[0]), float(track.y_m[0]), float(track.theta_rad[0])],
         "end_pose": [float(track.x_m[-1]), float(track.y_m[-1]), float(track.theta_rad[-1])],
     }
@@ -175,17 +177,25 @@ def _sensor_part(
 
 
 def _log_part(
-    log: RangeLog, robot: RobotDescription | None, mount_from: dict[str, str] | None
+    log: RangeLog,
+    valid: npt.NDArray[np.bool_],
+    robot: RobotDescription | None,
+    mount_from: dict[str, str] | None,
 ) -> dict[str, Any]:
     r = log.readings
     own = {s.name: s for s in log.sensors or ()}
     theirs = robot.by_name() if robot is not None else {}
-    counts = np.bincount(r.sensor, minlength=len(log.sensor_names))
+    described = [own.get(n) or theirs.get(n) for n in log.sensor_names]
+    n = len(log.sensor_names)
+    counts = np.bincount(r.sensor, minlength=n)
+    # no echo: at or beyond the sensor's maximum range; none counted for an unknown sensor
+    max_r = np.asarray([s.max_range_m if s else np.inf for s in described], dtype=np.float64)
+    known = np.asarray([s is not None for s in described], dtype=bool)
+    echo_less = known[r.sensor] & (r.range_m >= max_r[r.sensor])
+    no_echoes = np.bincount(r.sensor[echo_less], minlength=n)
     sensors = []
     for i, name in enumerate(log.sensor_names):
-        sensor = own.get(name) or theirs.get(name)
-        mine = r.range_m[r.sensor == i]
-        no_echo = int(np.count_nonzero(mine >= sensor.max_range_m)) if sensor else 0
+        no_echo = int(no_echoes[i])
         frame = name if name in (mount_from or {}) else name.rpartition("_")[0]
         source = (mount_from or {}).get(frame)
         sensors.append(
@@ -194,12 +204,8 @@ def _log_part(
     readings: dict[str, Any] | None = None
     if len(r):
         span = int(r.stamp_ns.max() - r.stamp_ns.min())
-        valid = np.zeros(len(r), dtype=bool)
-        if len(log.poses):
-            valid = interpolate_pose(log.poses, r.stamp_ns)[3]
         inside = int(np.count_nonzero(valid))
         below_min: int | None = None  # as build's sync counts them; None: a sensor is unknown
-        described = [own.get(n) or theirs.get(n) for n in log.sensor_names]
         if all(s is not None for s in described):
             min_r = np.asarray([s.min_range_m for s in described if s is not None])
             below_min = int(np.count_nonzero(valid & (r.range_m < min_r[r.sensor])))
@@ -208,7 +214,7 @@ def _log_part(
             "start_ns": int(r.stamp_ns.min()),
             "end_ns": int(r.stamp_ns.max()),
             "duration_s": span / 1e9,
-            "rate_hz": round(len(r) / (span / 1e9), 3) if span > 0 else None,
+            "rate_hz": _rate(len(r), span),
             "no_echo": sum(s["no_echo"] for s in sensors),
             "during_odometry": inside,
             "below_min_range": below_min,
@@ -225,6 +231,7 @@ def _log_part(
 def _build_part(
     fmt: LogFormat,
     log: RangeLog,
+    during_odometry: npt.NDArray[np.bool_],
     mcap: McapRead | None,
     robot: RobotDescription | None,
     robot_source: str | None,
@@ -273,10 +280,8 @@ def _build_part(
             f"no mounting pose for sensor{'s' if len(unknown) > 1 else ''} "
             f"{', '.join(unknown[:5])}{' ...' if len(unknown) > 5 else ''}: give --robot"
         )
-    if problem is None and len(log.readings) and len(log.poses):
-        inside = int(np.count_nonzero(interpolate_pose(log.poses, log.readings.stamp_ns)[3]))
-        if inside == 0:
-            problem = "no odometry during the range readings (recorded at different times?)"
+    if problem is None and len(log.readings) and len(log.poses) and not during_odometry.any():
+        problem = "no odometry during the range readings (recorded at different times?)"
     return {
         "odometry": odometry,
         "odometry_topic": odom_topic,
@@ -329,8 +334,7 @@ def _range_text(sensor: dict[str, Any]) -> str:
 
 def _unused(channel: dict[str, Any], build: dict[str, Any]) -> str:
     """'-', with the reason when a TF channel is left unread (odometry from a pose topic)."""
-    tf_types = ("tf2_msgs/TFMessage", "tf2_msgs/msg/TFMessage", "tf/tfMessage")
-    if channel["type"] in tf_types and build.get("odometry_topic"):
+    if channel["type"] in TF_TYPES and build.get("odometry_topic"):
         return f"- (odometry is {build['odometry_topic']})"
     return "-"
 

@@ -8,6 +8,7 @@ sonar ring exactly as ARIA's ``params/p3at.p`` and ``params/p3dx.p`` give it, co
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -15,7 +16,7 @@ from typing import Any
 
 import yaml
 
-from gridmap_cli.errors import RobotDescriptionError, UnknownRobotError
+from gridmap_cli.errors import InputFileError, RobotDescriptionError, UnknownRobotError
 
 SENSOR_KINDS = ("sonar", "laser")
 
@@ -63,12 +64,15 @@ def preset_names() -> list[str]:
     )
 
 
-def load_robot(spec: str) -> RobotDescription:
-    """Resolve ``--robot``: a preset name, a robot YAML file or an ARIA ``.p`` parameter file."""
+def load_robot(spec: str, folder: Path | None = None) -> RobotDescription:
+    """Resolve ``--robot``: a preset name, a robot YAML file or an ARIA ``.p`` parameter file.
+
+    A relative file name is taken in ``folder`` (the working directory when None).
+    """
     if spec in preset_names():
         res = resources.files("gridmap_cli") / "presets" / f"{spec}.yaml"
         return parse_robot_yaml(res.read_text(encoding="utf-8"), f"preset:{spec}")
-    path = Path(spec)
+    path = Path(spec) if folder is None else folder / spec
     if path.is_file():
         if path.suffix.lower() == ".p":
             # imported here: the ARIA reader builds RobotDescriptions, so it imports this module
@@ -81,6 +85,25 @@ def load_robot(spec: str) -> RobotDescription:
             raise RobotDescriptionError(path, f"cannot read: {exc}") from exc
         return parse_robot_yaml(text, str(path))
     raise UnknownRobotError(spec, preset_names())
+
+
+def robot_from_log(log: Path, metadata: Mapping[str, str]) -> RobotDescription | None:
+    """The robot a log names on its ``# robot:`` line: a preset, or a file beside the log.
+
+    None when the log names no robot. Raises :class:`InputFileError` naming the log when the
+    name is neither, and what :func:`load_robot` raises for a malformed description.
+    """
+    name = metadata.get("robot")
+    if not name:
+        return None
+    try:
+        return load_robot(name, folder=log.parent)
+    except UnknownRobotError as exc:
+        raise InputFileError(
+            log,
+            f"'# robot: {name}' is neither a preset ({', '.join(preset_names())}) nor a file "
+            "beside the log; give --robot",
+        ) from exc
 
 
 _SENSOR_KEYS = {

@@ -3,14 +3,24 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+from gridmap_cli.robot import preset_names
 from tests.helpers import run
-from tests.readers.mcap_helpers import DATA, merge_mcaps
-from tests.readers.test_mcap_log import ros2_sonar_log, write_json_log
+from tests.readers.mcap_helpers import (
+    DATA,
+    Recording,
+    S,
+    drive,
+    merge_mcaps,
+    sonar_range,
+    static_tf,
+)
+from tests.readers.test_mcap_log import ros2_sonar_log, ros2_sonar_messages, write_json_log
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 real = pytest.mark.skipif(not DATA.is_dir(), reason="../shared/data/mcap is not present")
@@ -59,7 +69,8 @@ def test_rosbag2_text_explains_channels_odometry_and_why_build_fails() -> None:
 def test_rosbag2_json() -> None:
     d = inspect_json(str(DATA / "rosbag2_turtlebot_odometry.mcap"))
     mcap = d["mcap"]
-    assert isinstance(mcap, dict)
+    assert (mcap["profile"], mcap["indexed"], mcap["messages"]) == ("ros2", True, 8197)
+    assert mcap["tf"] == []  # /tf is left unread: odometry is /odom, mounting /tf_static
     counts = {c["topic"]: (c["messages"], c["used_as"]) for c in mcap["channels"]}
     assert counts == {
         "/odom": (2639, "odometry"),
@@ -70,11 +81,11 @@ def test_rosbag2_json() -> None:
     assert len(mcap["static_frames"]) == 29
     assert "rplidar_link" in mcap["static_frames"]
     log = d["log"]
-    assert isinstance(log, dict)
+    assert (log["odometry"]["distance_m"], log["odometry"]["rotation_deg"]) == (34.322, 806.9)
     assert log["odometry"]["count"] == 2639
     assert log["readings"] is None
     build = d["build"]
-    assert isinstance(build, dict)
+    assert (build["ranges"], build["sensors"], build["robot"]) == ([], 0, None)
     assert build["odometry"] == "/odom (nav_msgs/Odometry)"
     assert build["frames"] == {"odom": "odom", "base": "base_link"}
     assert build["ready"] is False
@@ -86,14 +97,14 @@ def test_tiago_recordings_at_different_times(tmp_path: Path) -> None:
     merge_mcaps([DATA / "tiago_sonar_range_ros1.mcap", DATA / "tiago_odometry_ros1.mcap"], both)
     d = inspect_json(str(both))
     build = d["build"]
-    assert isinstance(build, dict)
+    assert (build["ranges"], build["sensors"], build["ready"]) == (["/sonar_base"], 3, False)
     assert build["frames"] == {"odom": "odom", "base": "base_footprint"}
     assert build["problem"].endswith(
         "sensor frame 'base_sonar_01_link' (/sonar_base): mounting pose unknown: the recording "
         "has no TF, and no --robot describing it"
     )
     log = d["log"]
-    assert isinstance(log, dict)
+    assert (log["odometry"]["count"], log["readings"]["count"]) == (1301, 609)
     assert [
         (s["name"], s["readings"], s["no_echo"], s["mounting_from"]) for s in log["sensors"]
     ] == [
@@ -120,18 +131,20 @@ def test_tiago_recordings_at_different_times(tmp_path: Path) -> None:
 def test_csv_sample() -> None:
     d = inspect_json(str(SAMPLES / "corridor_loop.csv"))
     log = d["log"]
-    assert isinstance(log, dict)
+    assert log["metadata"]["robot"] == "p3at"
     assert log["odometry"]["count"] == 1468
     assert log["odometry"]["duration_s"] == 146.7
     assert log["odometry"]["rate_hz"] == 10.0
     assert log["truth"]["count"] == 1468
     assert log["readings"]["count"] == 23488
+    assert log["readings"]["rate_hz"] == 160.102  # 23,487 intervals in 146.7 s, as for odometry
+    assert [s["no_echo"] for s in log["sensors"][:3]] == [201, 183, 1109]
     assert log["readings"]["during_odometry"] == 23488
     assert len(log["sensors"]) == 16
     assert log["sensors"][0]["mounting"] == {"x_m": 0.147, "y_m": 0.136, "yaw_deg": 90.0}
     assert {s["mounting_from"] for s in log["sensors"]} == {"robot"}
     build = d["build"]
-    assert isinstance(build, dict)
+    assert build["ranges"] == ["16 sensor columns: sonar0 .. sonar15"]
     assert build["robot"] == {"name": "p3at", "from": "the log's robot line", "needed": True}
     assert build["truth"] == "columns true_x, true_y, true_theta"
     assert build["ready"] is True
@@ -140,8 +153,8 @@ def test_csv_sample() -> None:
 def test_aria_sample_has_the_same_run_with_sonar_units_in_the_log() -> None:
     csv = inspect_json(str(SAMPLES / "corridor_loop.csv"))["log"]
     aria = inspect_json(str(SAMPLES / "corridor_loop.2d"))["log"]
-    assert isinstance(csv, dict) and isinstance(aria, dict)
-    assert aria["odometry"]["distance_m"] == csv["odometry"]["distance_m"]
+    assert aria["odometry"]["distance_m"] == csv["odometry"]["distance_m"] == 56.433
+    assert aria["odometry"]["rotation_deg"] == csv["odometry"]["rotation_deg"] == 284.5
     assert aria["readings"]["count"] == csv["readings"]["count"]
     assert {s["mounting_from"] for s in aria["sensors"]} == {"log"}
 
@@ -223,3 +236,78 @@ def test_broken_inputs_are_errors(tmp_path: Path) -> None:
     assert err.startswith(f"Error: {cut}: truncated or damaged MCAP file")
     code, _, err = run("inspect", str(SAMPLES / "hall.csv"), "--odom-topic", "/odom")
     assert code == 2
+
+
+def test_unknown_robot_line_is_the_error_build_stops_at(room_csv: Path, tmp_path: Path) -> None:
+    room_csv.write_text(room_csv.read_text().replace("# robot: p3dx", "# robot: r2d2"))
+    message = (
+        f"'# robot: r2d2' is neither a preset ({', '.join(preset_names())}) nor a file beside "
+        "the log; give --robot"
+    )
+    code, _, err = run("build", str(room_csv), "-o", str(tmp_path / "m.png"))
+    assert (code, err.strip()) == (1, f"Error: {room_csv}: {message}")
+    d = inspect_json(str(room_csv))
+    assert (d["build"]["ready"], d["build"]["problem"]) == (False, f"{room_csv}: {message}")
+    assert d["build"]["robot"] is None
+    assert text_lines(room_csv)[-1] == f"  -> build would fail: {message}"
+
+
+def test_channels_unused_by_build_have_their_time_span(tmp_path: Path) -> None:
+    path = tmp_path / "r.mcap"
+    with Recording(path) as rec:  # a camera, which gridmap cannot decode, beside the sonar log
+        raw = rec.writer._writer
+        schema = raw.register_schema("foxglove.CompressedImage", "protobuf", b"\x00")
+        camera = raw.register_channel("/camera", "protobuf", schema)
+        for k in range(5):
+            raw.add_message(camera, S + k * S // 4, b"\xff", S)
+        ros2_sonar_messages(rec)
+    channels = {c["topic"]: c for c in inspect_json(str(path))["mcap"]["channels"]}
+    camera_row = channels["/camera"]
+    assert (camera_row["first_ns"], camera_row["last_ns"]) == (S, 2 * S)
+    assert (camera_row["rate_hz"], camera_row["used_as"]) == (4.0, "")
+    assert (channels["/sonar"]["first_ns"], channels["/sonar"]["last_ns"]) == (
+        S + S // 10,
+        S + 7 * S // 10,
+    )
+
+
+def test_unindexed_file_says_so_and_still_has_channel_spans(tmp_path: Path) -> None:
+    path = tmp_path / "bare.mcap"
+    write_json_log(path, indexed=False)
+    assert "  no index: the file is read from start to end" in text_lines(path)
+    d = inspect_json(str(path))
+    odom = next(c for c in d["mcap"]["channels"] if c["topic"] == "/odom")
+    assert (odom["messages"], odom["first_ns"], odom["last_ns"]) == (3, S, S + S // 5)
+    assert (d["mcap"]["indexed"], d["build"]["ready"]) == (False, True)
+
+
+def test_laser_beams_fold_into_one_row_and_a_long_table_is_cut(tmp_path: Path) -> None:
+    path = tmp_path / "many.mcap"
+    frames = [f"s{i:02d}" for i in range(22)]
+    with Recording(path) as rec:
+        static_tf(rec, *(rec.transform(0, "base_link", f, 0.1 * i, 0.0, 0.0)
+                         for i, f in enumerate(frames)),
+                  rec.transform(0, "base_link", "laser", 0.2, 0.0, 0.0))  # fmt: skip
+        drive(rec)
+        for f in frames:
+            rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, f, 1.0))
+        scan = {
+            "header": rec.header(S, "laser"),
+            "angle_min": -0.5,
+            "angle_increment": 0.25,
+            "range_min": 0.1,
+            "range_max": 8.0,
+            "ranges": [1.0, 8.0, 2.0, math.inf, 3.0],
+        }
+        rec.write("/scan", "sensor_msgs/LaserScan", S, scan)
+    lines = text_lines(path)
+    start = lines.index("Sensors: 27")  # 22 sonars and 5 beams, in 23 rows: 8, a gap, 4
+    rows = [line.split() for line in lines[start + 1 : start + 15]]
+    assert rows[0][:3] == ["name", "kind", "x"]
+    assert [row[0] for row in rows[1:9]] == frames[:8]
+    assert rows[1] == ["s00", "sonar", "0.000", "0.000", "0.0", "28.6", "0.1-3", "1", "0", "TF"]
+    assert rows[9] == ["...", "11", "more", "..."]
+    assert [row[0] for row in rows[10:13]] == frames[-3:]
+    assert rows[13] == ["laser_0..4", "(5", "beams)", "laser", "0.200", "0.000", "-28.6..28.6",
+                        "0.0", "0.1-8", "5", "2", "TF"]  # fmt: skip
+    assert lines[start + 15] == ""

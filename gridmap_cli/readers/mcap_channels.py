@@ -22,7 +22,7 @@ from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.summary import Summary
 
-from gridmap_cli.errors import InputFileError, UsageError
+from gridmap_cli.errors import GridmapError, InputFileError, UsageError
 from gridmap_cli.readers.options import ReadOptions
 
 MAGIC = b"\x89MCAP0\r\n"
@@ -70,8 +70,6 @@ class ChannelInfo:
     schema_encoding: str
     message_encoding: str
     count: int
-    first_ns: int | None = None
-    last_ns: int | None = None
 
     @property
     def role(self) -> str:
@@ -240,6 +238,21 @@ def _survey_by_scan(path: Path, handle: IO[bytes], profile: str, library: str) -
     )
 
 
+class Refusals:
+    """Errors that stop a build: a strict read (``build``) raises the first one at once; a lenient
+    read (``inspect``) keeps it in :attr:`first` and reads on to show what the file holds."""
+
+    def __init__(self, strict: bool = True) -> None:
+        self.strict = strict
+        self.first: GridmapError | None = None
+
+    def refuse(self, error: GridmapError) -> None:
+        if self.strict:
+            raise error
+        if self.first is None:
+            self.first = error
+
+
 @dataclass(frozen=True)
 class Plan:
     """The topics a read uses.
@@ -267,11 +280,13 @@ class Plan:
         return list(dict.fromkeys(out))
 
 
-def plan_topics(survey: Survey, options: ReadOptions, strict: bool = True) -> Plan:
+def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None = None) -> Plan:
     """Choose the topics to read. Raises InputFileError / UsageError listing the topics.
 
-    ``strict=False`` (for ``inspect``) accepts a file with no odometry or no range topic.
+    No odometry or no range topic goes to ``refusals`` (default: strict, raise), so that a
+    lenient read (``inspect``) plans a file that has none.
     """
+    refuse = (refusals or Refusals()).refuse
     path = survey.path
     by_role: dict[str, list[ChannelInfo]] = {}
     for channel in survey.channels:
@@ -306,15 +321,14 @@ def plan_topics(survey: Survey, options: ReadOptions, strict: bool = True) -> Pl
                 + "; ".join(c.describe() for c in candidates)
                 + "; choose one with --odom-topic",
             )
-        if candidates:
-            odom_topic = candidates[0].topic
-        elif tf_topics or not strict:
-            odom_topic = None
-        else:
-            raise InputFileError(
-                path,
-                "no odometry: no nav_msgs/Odometry, geometry_msgs/PoseStamped or gridmap.Pose2D "
-                f"topic and no TF; {survey.listing()}",
+        odom_topic = candidates[0].topic if candidates else None
+        if not candidates and not tf_topics:
+            refuse(
+                InputFileError(
+                    path,
+                    "no odometry: no nav_msgs/Odometry, geometry_msgs/PoseStamped or "
+                    f"gridmap.Pose2D topic and no TF; {survey.listing()}",
+                )
             )
     truths = [c.topic for c in by_role.get("truth", []) if c.topic != odom_topic]
     truth_topic = truths[0] if len(truths) == 1 else None
@@ -334,11 +348,13 @@ def plan_topics(survey: Survey, options: ReadOptions, strict: bool = True) -> Pl
         range_topics = tuple(dict.fromkeys(ranges))
     else:
         range_topics = tuple(c.topic for c in by_role.get("range", []))
-        if not range_topics and strict:
-            raise InputFileError(
-                path,
-                "no range readings: no sensor_msgs/Range, LaserScan, PointCloud (sonar) or "
-                f"gridmap.RangeReading topic; {survey.listing()}",
+        if not range_topics:
+            refuse(
+                InputFileError(
+                    path,
+                    "no range readings: no sensor_msgs/Range, LaserScan, PointCloud (sonar) or "
+                    f"gridmap.RangeReading topic; {survey.listing()}",
+                )
             )
     sensors = by_role.get("sensors", [])
     return Plan(
@@ -351,19 +367,3 @@ def plan_topics(survey: Survey, options: ReadOptions, strict: bool = True) -> Pl
         odom_frame=options.odom_frame or "odom",
         base_frame=options.base_frame,
     )
-
-
-def channel_spans(path: Path) -> dict[str, tuple[int, int]]:
-    """First and last log time (ns) of each topic, from one pass over the undecoded messages."""
-    spans: dict[str, tuple[int, int]] = {}
-    try:
-        with open(path, "rb") as handle:
-            reader = open_reader(path, handle)
-            read_summary(path, reader)
-            for _schema, channel, message in reader.iter_messages(log_time_order=False):
-                t = message.log_time
-                first, last = spans.get(channel.topic, (t, t))
-                spans[channel.topic] = (min(first, t), max(last, t))
-    except DAMAGED as exc:
-        raise InputFileError(path, f"truncated or damaged MCAP data ({exc})") from exc
-    return spans

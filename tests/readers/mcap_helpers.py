@@ -1,12 +1,14 @@
 """Helpers for the MCAP reader tests: merging real recordings, ROS message definitions.
 
-The definitions below are the standard ROS message layouts written out (with their dependencies
-after ``MSG:`` separators, as rosbag and rosbag2 store them), so tests can write ROS 1 and ROS 2
-messages with the mcap support packages' writers.
+The ROS 2 definitions are those gridmap's own writer uses (``writers/ros2_msgdefs.py``), plus the
+few types it never writes; the ROS 1 ones are written out below. Both come with their
+dependencies after ``MSG:`` separators, as rosbag and rosbag2 store them, so tests can write ROS 1
+and ROS 2 messages with the mcap support packages' writers.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -14,7 +16,10 @@ from typing import Any
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
+from gridmap_cli.writers.ros2_msgdefs import message_definition
+
 DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mcap"
+S = 1_000_000_000
 
 
 def merge_mcaps(sources: Iterable[Path], target: Path) -> None:
@@ -54,6 +59,11 @@ def merge_mcaps(sources: Iterable[Path], target: Path) -> None:
         writer.finish()
 
 
+def turn(yaw: float) -> dict[str, float]:
+    """The quaternion of a rotation by ``yaw`` (rad) about z, as a message's nested dict."""
+    return {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}
+
+
 def stamp1(ns: int) -> dict[str, Any]:
     return {"secs": ns // 1_000_000_000, "nsecs": ns % 1_000_000_000}
 
@@ -64,14 +74,14 @@ def stamp2(ns: int) -> dict[str, Any]:
 
 _SEP = "\n" + "=" * 80 + "\nMSG: "
 
-# ROS 2 definitions (rosbag2 stores the full text: the type, then each dependency)
-_R2 = {
-    "builtin_interfaces/Time": "int32 sec\nuint32 nanosec",
-    "std_msgs/Header": "builtin_interfaces/Time stamp\nstring frame_id",
+# ROS 1 definitions (rosbag stores the full text: the type, then each dependency after a ``MSG:``
+# separator). Time is a builtin, the Header has a sequence number, Range has no variance.
+_R1 = {
+    "std_msgs/Header": "uint32 seq\ntime stamp\nstring frame_id",
     "geometry_msgs/Point": "float64 x\nfloat64 y\nfloat64 z",
     "geometry_msgs/Point32": "float32 x\nfloat32 y\nfloat32 z",
     "geometry_msgs/Vector3": "float64 x\nfloat64 y\nfloat64 z",
-    "geometry_msgs/Quaternion": "float64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1",
+    "geometry_msgs/Quaternion": "float64 x\nfloat64 y\nfloat64 z\nfloat64 w",
     "geometry_msgs/Pose": "geometry_msgs/Point position\ngeometry_msgs/Quaternion orientation",
     "geometry_msgs/PoseWithCovariance": "geometry_msgs/Pose pose\nfloat64[36] covariance",
     "geometry_msgs/Twist": "geometry_msgs/Vector3 linear\ngeometry_msgs/Vector3 angular",
@@ -80,10 +90,9 @@ _R2 = {
     "geometry_msgs/Quaternion rotation",
     "geometry_msgs/TransformStamped": "std_msgs/Header header\nstring child_frame_id\n"
     "geometry_msgs/Transform transform",
-    "geometry_msgs/PoseStamped": "std_msgs/Header header\ngeometry_msgs/Pose pose",
     "nav_msgs/Odometry": "std_msgs/Header header\nstring child_frame_id\n"
     "geometry_msgs/PoseWithCovariance pose\ngeometry_msgs/TwistWithCovariance twist",
-    "tf2_msgs/TFMessage": "geometry_msgs/TransformStamped[] transforms",
+    "tf/tfMessage": "geometry_msgs/TransformStamped[] transforms",
     "sensor_msgs/Range": "uint8 ULTRASOUND=0\nuint8 INFRARED=1\nstd_msgs/Header header\n"
     "uint8 radiation_type\nfloat32 field_of_view\nfloat32 min_range\nfloat32 max_range\n"
     "float32 range",
@@ -95,34 +104,42 @@ _R2 = {
     "sensor_msgs/ChannelFloat32[] channels",
 }
 
+# ROS 2 types that gridmap's writer has no definition of (writers/ros2_msgdefs.py holds the rest)
+_R2_MORE = {
+    "geometry_msgs/Point32": "float32 x\nfloat32 y\nfloat32 z",
+    "geometry_msgs/PoseStamped": "std_msgs/Header header\ngeometry_msgs/Pose pose",
+    "sensor_msgs/ChannelFloat32": "string name\nfloat32[] values",
+    "sensor_msgs/PointCloud": _R1["sensor_msgs/PointCloud"],
+}
 
-def _deps(name: str, table: dict[str, str], seen: list[str]) -> None:
-    for line in table[name].splitlines():
-        field_type = line.split()[0].split("[")[0]
-        if field_type in table and field_type not in seen:
-            seen.append(field_type)
-            _deps(field_type, table, seen)
+
+def _uses(text: str) -> list[str]:
+    """The message types (``pkg/Type``) a definition's fields use, in order."""
+    types = [line.split()[0].split("[")[0] for line in text.splitlines()]
+    return list(dict.fromkeys(t for t in types if "/" in t))
 
 
 def ros2_definition(name: str) -> str:
     """Full ROS 2 message definition text of ``pkg/Type`` with its dependencies."""
-    seen: list[str] = []
-    _deps(name, _R2, seen)
-    parts = [_R2[name]] + [f"{dep.replace('/', '/msg/', 1)}\n{_R2[dep]}" for dep in seen]
+    if name not in _R2_MORE:
+        return message_definition(name)
+    # each type used, with the types it uses in turn (none of them shares one here)
+    parts = [_R2_MORE[name]]
+    parts += [f"{dep}\n{_R2_MORE.get(dep) or message_definition(dep)}" for dep in _uses(parts[0])]
     return _SEP.join(parts)
 
 
-# ROS 1: time is a builtin and the Header has a sequence number
-_R1 = {k: v for k, v in _R2.items() if k != "builtin_interfaces/Time"}
-_R1["std_msgs/Header"] = "uint32 seq\ntime stamp\nstring frame_id"
-_R1["tf/tfMessage"] = _R2["tf2_msgs/TFMessage"]
-_R1["geometry_msgs/Quaternion"] = "float64 x\nfloat64 y\nfloat64 z\nfloat64 w"  # no defaults
+def _deps(name: str, seen: list[str]) -> None:
+    for dep in _uses(_R1[name]):
+        if dep not in seen:
+            seen.append(dep)
+            _deps(dep, seen)
 
 
 def ros1_definition(name: str) -> str:
     """Full ROS 1 message definition text (as rosbag stores it)."""
     seen: list[str] = []
-    _deps(name, _R1, seen)
+    _deps(name, seen)
     return _SEP.join([_R1[name]] + [f"{dep}\n{_R1[dep]}" for dep in seen])
 
 
@@ -176,15 +193,10 @@ class Recording:
     def transform(
         self, ns: int, parent: str, child: str, x: float, y: float, yaw: float, z: float = 0.0
     ) -> dict[str, Any]:
-        import math
-
         return {
             "header": self.header(ns, parent),
             "child_frame_id": child,
-            "transform": {
-                "translation": {"x": x, "y": y, "z": z},
-                "rotation": {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)},
-            },
+            "transform": {"translation": {"x": x, "y": y, "z": z}, "rotation": turn(yaw)},
         }
 
     def write(self, topic: str, type_name: str, log_time: int, values: dict[str, Any]) -> None:
@@ -216,17 +228,10 @@ class Recording:
 def odometry(rec: Recording, ns: int, x: float, y: float, yaw: float,
              frame: str = "odom", child: str = "base_link") -> dict[str, Any]:  # fmt: skip
     """An Odometry message as nested dicts."""
-    import math
-
     return {
         "header": rec.header(ns, frame),
         "child_frame_id": child,
-        "pose": {
-            "pose": {
-                "position": {"x": x, "y": y, "z": 0.0},
-                "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)},
-            }
-        },
+        "pose": {"pose": {"position": {"x": x, "y": y, "z": 0.0}, "orientation": turn(yaw)}},
     }
 
 
@@ -241,3 +246,36 @@ def sonar_range(rec: Recording, ns: int, frame: str, value: float, fov: float = 
         "max_range": rmax,
         "range": value,
     }
+
+
+def drive(rec: Recording, steps: int = 11, topic: str = "/odom", child: str = "base_link") -> None:
+    """Odometry along x at 0.1 m per 0.1 s from t = 1 s."""
+    for k in range(steps):
+        ns = S + k * S // 10
+        rec.write(topic, "nav_msgs/Odometry", ns, odometry(rec, ns, 0.1 * k, 0.0, 0.0, child=child))
+
+
+def static_tf(rec: Recording, *transforms: dict[str, object], topic: str = "/tf_static") -> None:
+    """Static transforms (from :meth:`Recording.transform`) at t = 1 s."""
+    type_name = "tf2_msgs/TFMessage" if rec.ros == 2 else "tf/tfMessage"
+    rec.write(topic, type_name, S, {"transforms": list(transforms)})
+
+
+def one_sonar_log(
+    path: Path,
+    frame: str = "s0",
+    mount: tuple[str, str] | None = ("base_link", "s0"),
+    topics: tuple[str, ...] = ("/sonar",),
+    odom_topics: dict[str, int] | None = None,
+) -> Path:
+    """ROS 2: an identity static transform ``mount`` (parent, child; None: no TF), odometry
+    (:func:`drive` on each of ``odom_topics``, topic -> messages; default 11 on /odom) and one
+    1 m reading of sonar ``frame`` at t = 1 s on each of ``topics``."""
+    with Recording(path) as rec:
+        if mount is not None:
+            static_tf(rec, rec.transform(0, *mount, 0.0, 0.0, 0.0))
+        for topic, steps in (odom_topics or {"/odom": 11}).items():
+            drive(rec, steps=steps, topic=topic)
+        for topic in topics:
+            rec.write(topic, "sensor_msgs/Range", S, sonar_range(rec, S, frame, 1.0))
+    return path

@@ -4,50 +4,53 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from mcap.writer import Writer
+from mcap.reader import SeekingReader
+from mcap.writer import IndexType, Writer
 
 from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.readers import read_log, resolve_format
-from gridmap_cli.readers.mcap_log import float32_decimal, read_mcap_log
+from gridmap_cli.readers.mcap_channels import survey_mcap
+from gridmap_cli.readers.mcap_log import float32_decimal, read_mcap, read_mcap_log
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot
 from tests.helpers import names, run
-from tests.readers.mcap_helpers import Recording, odometry, sonar_range
+from tests.readers.mcap_helpers import (
+    Recording,
+    S,
+    drive,
+    odometry,
+    one_sonar_log,
+    sonar_range,
+    static_tf,
+    turn,
+)
 
-S = 1_000_000_000
 
-
-def drive(rec: Recording, steps: int = 11, topic: str = "/odom", child: str = "base_link") -> None:
-    """Odometry along x at 0.1 m per 0.1 s from t = 1 s."""
-    for k in range(steps):
-        ns = S + k * S // 10
-        rec.write(topic, "nav_msgs/Odometry", ns, odometry(rec, ns, 0.1 * k, 0.0, 0.0, child=child))
-
-
-def static_tf(rec: Recording, *transforms: dict[str, object], topic: str = "/tf_static") -> None:
-    type_name = "tf2_msgs/TFMessage" if rec.ros == 2 else "tf/tfMessage"
-    rec.write(topic, type_name, S, {"transforms": list(transforms)})
+def ros2_sonar_messages(rec: Recording) -> None:
+    """A sonar mounted through an intermediate frame, readings of every kind."""
+    static_tf(
+        rec,
+        rec.transform(0, "base_link", "ring", 0.1, 0.0, 0.0),
+        rec.transform(0, "ring", "sonar_left", 0.0, 0.2, math.pi / 2),
+    )
+    drive(rec)
+    values = [1.0, 3.0, math.inf, math.nan, 0.05, -math.inf, 2.5]
+    for k, value in enumerate(values):
+        ns = S + (k + 1) * S // 10
+        rec.write("/sonar", "sensor_msgs/Range", ns, sonar_range(rec, ns, "sonar_left", value))
 
 
 def ros2_sonar_log(path: Path) -> Path:
-    """ROS 2: a sonar mounted through an intermediate frame, readings of every kind."""
+    """ROS 2: :func:`ros2_sonar_messages`."""
     with Recording(path) as rec:
-        static_tf(
-            rec,
-            rec.transform(0, "base_link", "ring", 0.1, 0.0, 0.0),
-            rec.transform(0, "ring", "sonar_left", 0.0, 0.2, math.pi / 2),
-        )
-        drive(rec)
-        values = [1.0, 3.0, math.inf, math.nan, 0.05, -math.inf, 2.5]
-        for k, value in enumerate(values):
-            ns = S + (k + 1) * S // 10
-            rec.write("/sonar", "sensor_msgs/Range", ns, sonar_range(rec, ns, "sonar_left", value))
+        ros2_sonar_messages(rec)
     return path
 
 
@@ -84,12 +87,7 @@ def test_extensionless_mcap_is_found_by_its_magic(tmp_path: Path) -> None:
 
 
 def test_two_odometry_topics_are_ambiguous_and_listed(tmp_path: Path) -> None:
-    path = tmp_path / "two.mcap"
-    with Recording(path) as rec:
-        static_tf(rec, rec.transform(0, "base_link", "s0", 0.0, 0.0, 0.0))
-        drive(rec, topic="/wheel_odom")
-        drive(rec, steps=4, topic="/visual_odom")
-        rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "s0", 1.0))
+    path = one_sonar_log(tmp_path / "two.mcap", odom_topics={"/wheel_odom": 11, "/visual_odom": 4})
     with pytest.raises(InputFileError) as err:
         read_log(path)
     assert str(err.value) == (
@@ -125,46 +123,56 @@ def test_range_topic_flag_picks_topics_and_rejects_other_types(tmp_path: Path) -
 
 
 def test_one_frame_on_two_topics_must_be_chosen(tmp_path: Path) -> None:
-    path = tmp_path / "dup.mcap"
-    with Recording(path) as rec:
-        static_tf(rec, rec.transform(0, "base_link", "s0", 0.0, 0.0, 0.0))
-        drive(rec)
-        rec.write("/raw", "sensor_msgs/Range", S, sonar_range(rec, S, "s0", 1.0))
-        rec.write("/filtered", "sensor_msgs/Range", S, sonar_range(rec, S, "s0", 1.0))
+    path = one_sonar_log(tmp_path / "dup.mcap", topics=("/raw", "/filtered"))
     with pytest.raises(InputFileError, match=r"'s0' publishes on both /raw and /filtered"):
         read_log(path)
 
 
-def test_missing_mount_frame_is_named_and_nothing_is_written(tmp_path: Path) -> None:
-    path = tmp_path / "nomount.mcap"
-    with Recording(path) as rec:
-        static_tf(rec, rec.transform(0, "base_link", "sonar_a", 0.0, 0.0, 0.0))
-        drive(rec)
-        rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "sonar_b", 1.0))
-    code, _, err = run("build", str(path), "-o", str(tmp_path / "map.png"))
-    assert code == 1
-    assert err.strip() == (
-        f"Error: {path}: sensor frame 'sonar_b' (/sonar): mounting pose unknown: no transform "
-        "from 'base_link' to it on /tf_static, and no --robot describing it"
+@pytest.mark.parametrize(
+    ("frame", "mount", "why"),
+    [
+        ("sonar_b", ("base_link", "sonar_a"), "no transform from 'base_link' to it on /tf_static"),
+        ("sonar_a", ("camera_rig", "sonar_a"),
+         "its transforms lead to 'camera_rig', not to the base frame 'base_link' (--base-frame)"),
+    ],
+)  # fmt: skip
+def test_unknown_mounting_says_what_is_missing_and_nothing_is_written(
+    tmp_path: Path, frame: str, mount: tuple[str, str], why: str
+) -> None:
+    path = one_sonar_log(tmp_path / "nomount.mcap", frame=frame, mount=mount)
+    message = (
+        f"{path}: sensor frame '{frame}' (/sonar): mounting pose unknown: {why}, and no --robot "
+        "describing it"
     )
+    with pytest.raises(InputFileError) as err:
+        read_log(path)
+    assert str(err.value) == message
+    code, _, stderr = run("build", str(path), "-o", str(tmp_path / "map.png"))
+    assert (code, stderr.strip()) == (1, f"Error: {message}")
     assert names(tmp_path) == {"nomount.mcap"}
 
 
-def test_mount_frame_hanging_off_another_tree_says_where_it_leads(tmp_path: Path) -> None:
-    path = tmp_path / "elsewhere.mcap"
+def test_range_limits_that_change_keep_the_largest_of_each(tmp_path: Path) -> None:
+    path = tmp_path / "limits.mcap"
     with Recording(path) as rec:
-        static_tf(rec, rec.transform(0, "camera_rig", "sonar_a", 0.0, 0.0, 0.0))
+        static_tf(rec, rec.transform(0, "base_link", "s0", 0.0, 0.0, 0.0))
         drive(rec)
-        rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "sonar_a", 1.0))
-    with pytest.raises(InputFileError, match=r"its transforms lead to 'camera_rig', not to the"):
-        read_log(path)
+        for k, (value, rmin, rmax) in enumerate(
+            ((2.5, 0.1, 3.0), (2.5, 0.2, 2.0), (0.15, 0.2, 2.0))
+        ):
+            ns = S + k * S // 10
+            rec.write("/sonar", "sensor_msgs/Range", ns,
+                      sonar_range(rec, ns, "s0", value, rmin=rmin, rmax=rmax))  # fmt: skip
+    log = read_log(path)
+    assert log.sensors is not None
+    assert (log.sensors[0].min_range_m, log.sensors[0].max_range_m) == (0.2, 3.0)
+    # each reading is judged by its own message's limits: 2.5 >= 2.0 is no echo, stored at the
+    # sensor's maximum; 0.15 is kept for sync, which drops it below the sensor's 0.2
+    assert log.readings.range_m.tolist() == [2.5, 3.0, 0.15]
 
 
 def test_robot_description_mounts_sensors_the_tf_lacks(tmp_path: Path) -> None:
-    path = tmp_path / "robot.mcap"
-    with Recording(path) as rec:
-        drive(rec)
-        rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "sonar3", 1.0))
+    path = one_sonar_log(tmp_path / "robot.mcap", frame="sonar3", mount=None)
     p3at = load_robot("p3at")
     log = read_log(path, options=ReadOptions(robot=p3at))
     assert log.sensors is not None
@@ -251,6 +259,27 @@ def test_rosaria_pointcloud_sonar_ranges_from_robot_geometry(tmp_path: Path) -> 
     assert log.readings.range_m.tolist() == pytest.approx(truth, abs=1e-6)  # float32 points
 
 
+def test_pointcloud_in_a_frame_of_its_own_is_moved_into_the_base_frame(tmp_path: Path) -> None:
+    # the same echoes as above, published in a frame 'ring' at (0.1, -0.05) turned 0.3 rad
+    p3at = load_robot("p3at")
+    sonars = [s for s in p3at.sensors if s.kind == "sonar"]
+    truth = [0.5 + 0.1 * i for i in range(len(sonars))]
+    tx, ty, yaw = 0.1, -0.05, 0.3
+    points = []
+    for s, r in zip(sonars, truth, strict=True):
+        bx, by = s.x_m + r * math.cos(s.yaw_rad) - tx, s.y_m + r * math.sin(s.yaw_rad) - ty
+        points.append({"x": math.cos(yaw) * bx + math.sin(yaw) * by,
+                       "y": -math.sin(yaw) * bx + math.cos(yaw) * by, "z": 0.0})  # fmt: skip
+    path = tmp_path / "ring.mcap"
+    with Recording(path, ros=1) as rec:
+        static_tf(rec, rec.transform(0, "base_link", "ring", tx, ty, yaw))
+        drive(rec)
+        rec.write("/RosAria/sonar", "sensor_msgs/PointCloud", S,
+                  {"header": rec.header(S, "ring"), "points": points})  # fmt: skip
+    log = read_log(path, options=ReadOptions(robot=p3at))
+    assert log.readings.range_m.tolist() == pytest.approx(truth, abs=1e-6)
+
+
 def test_laserscan_beams_take_the_frame_mount_and_scan_angles(tmp_path: Path) -> None:
     path = tmp_path / "scan.mcap"
     with Recording(path) as rec:
@@ -335,8 +364,61 @@ def test_absurd_coordinates_fail_the_build_cleanly(tmp_path: Path) -> None:
             rec.write("/sonar", "sensor_msgs/Range", ns, sonar_range(rec, ns, "base_link", 1.0))
     code, _, err = run("build", str(path), "-o", str(tmp_path / "map.png"))
     assert code == 1
-    assert err.startswith("Error: ")
+    # MapSizeError: x from the odometry, y the 1 m sonar cone (+-0.26 m) about the x axis
+    assert err.strip() == (
+        "Error: the data spans 1e+09 m x 0.519548 m (x 0..1e+09, y -0.259774..0.259774), "
+        "20000000029 x 20 cells at 0.05 m: more than 100000000 cells; check the log for absurd "
+        "coordinates or use a coarser --resolution"
+    )
     assert names(tmp_path) == {"absurd.mcap"}
+
+
+def _no_odometry(rec: Recording) -> None:
+    rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "s0", 1.0))
+
+
+def _unmounted_sonar_and_laser(rec: Recording) -> None:
+    drive(rec)
+    rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "s0", 1.0))
+    scan = {"header": rec.header(S, "laser"), "angle_min": 0.0, "angle_increment": 0.5,
+            "range_max": 8.0, "ranges": [1.0, 2.0]}  # fmt: skip
+    rec.write("/scan", "sensor_msgs/LaserScan", S, scan)
+
+
+def _cloud_without_robot(rec: Recording) -> None:
+    drive(rec)
+    cloud = {"header": rec.header(S, "base_link"), "points": [{"x": 1.0, "y": 0.0, "z": 0.0}]}
+    rec.write("/RosAria/sonar", "sensor_msgs/PointCloud", S, cloud)
+
+
+@pytest.mark.parametrize(
+    ("content", "error"),
+    [
+        (_no_odometry, "no odometry: no nav_msgs/Odometry, geometry_msgs/PoseStamped or "
+                       "gridmap.Pose2D topic and no TF; topics: /sonar (sensor_msgs/Range, 1 "
+                       "messages)"),
+        (_unmounted_sonar_and_laser, "sensor frame 's0' (/sonar): mounting pose unknown: the "
+                                     "recording has no TF, and no --robot describing it"),
+        (_cloud_without_robot, "/RosAria/sonar: sonar point clouds (as RosAria publishes them) "
+                               "need the sonar positions: give --robot (a preset, robot YAML or "
+                               "ARIA .p file)"),
+    ],
+)  # fmt: skip
+def test_lenient_read_keeps_the_first_error_the_strict_read_raises(
+    tmp_path: Path, content: Callable[[Recording], None], error: str
+) -> None:
+    path = tmp_path / "broken.mcap"
+    with Recording(path) as rec:
+        content(rec)
+    with pytest.raises(InputFileError) as err:
+        read_mcap(path)
+    assert str(err.value) == f"{path}: {error}"
+    lenient = read_mcap(path, strict=False)
+    assert str(lenient.problem) == str(err.value)
+    # and reads on: whatever it could not place gets a NaN mounting
+    for sensor in lenient.log.sensors or ():
+        assert math.isnan(sensor.x_m)
+    assert read_mcap(ros2_sonar_log(tmp_path / "fine.mcap"), strict=False).problem is None
 
 
 def test_truncated_file_is_a_clear_error_and_writes_nothing(tmp_path: Path) -> None:
@@ -359,14 +441,23 @@ def test_topic_flags_are_refused_for_csv_logs(room_csv: Path, tmp_path: Path) ->
 # ---------------------------------------------------------------- gridmap JSON channels
 
 
-def write_json_log(path: Path, truth: bool = True) -> None:
-    """gridmap's JSON layout (schemas/mcap-log.md): /sensors, /odom, /ground_truth, /range."""
+def write_json_log(path: Path, truth: bool = True, indexed: bool = True) -> None:
+    """gridmap's JSON layout (schemas/mcap-log.md): /sensors, /odom, /ground_truth, /range.
+
+    ``indexed=False`` writes no summary section (no index, no statistics) and no chunks, as a
+    streaming recorder may.
+    """
 
     def ts(ns: int) -> dict[str, int]:
         return {"sec": ns // S, "nsec": ns % S}
 
     with open(path, "wb") as handle:
-        w = Writer(handle)
+        if indexed:
+            w = Writer(handle)
+        else:
+            w = Writer(handle, index_types=IndexType.NONE, repeat_channels=False,
+                       repeat_schemas=False, use_chunking=False, use_statistics=False,
+                       use_summary_offsets=False)  # fmt: skip
         w.start(profile="", library="gridmap tests")
         ids = {}
         for topic, schema in (("/sensors", "gridmap.RangeSensor"), ("/odom", "gridmap.Pose2D"),
@@ -428,6 +519,29 @@ def test_gridmap_json_build_uses_ground_truth_with_pose_global(tmp_path: Path) -
     assert origins[1][1] - origins[0][1] == pytest.approx(1.0, abs=0.051)
 
 
+def test_a_file_without_summary_or_index_is_read_from_start_to_end(tmp_path: Path) -> None:
+    indexed, bare = tmp_path / "indexed.mcap", tmp_path / "bare.mcap"
+    write_json_log(indexed)
+    write_json_log(bare, indexed=False)
+    with open(bare, "rb") as handle:
+        assert SeekingReader(handle).get_summary() is None  # nothing but the data section
+    survey = survey_mcap(bare)
+    assert survey.indexed is False
+    assert [(c.topic, c.count) for c in survey.channels] == [
+        ("/sensors", 2), ("/odom", 3), ("/ground_truth", 3), ("/range", 6)
+    ]  # fmt: skip
+    assert (survey.message_count, survey.start_ns, survey.end_ns) == (14, S, S + S // 5)
+    assert survey.metadata == {"gridmap": {"robot": "p3at", "seed": "7"}}
+    want, got = read_log(indexed), read_log(bare)
+    for a, b in ((want.poses, got.poses), (want.truth, got.truth)):
+        assert a is not None and b is not None
+        assert np.array_equal(a.stamp_ns, b.stamp_ns) and np.array_equal(a.x_m, b.x_m)
+    for field_name in ("stamp_ns", "sensor", "range_m"):
+        assert np.array_equal(getattr(want.readings, field_name),
+                              getattr(got.readings, field_name))  # fmt: skip
+    assert (got.sensors, got.metadata) == (want.sensors, want.metadata)
+
+
 @given(st.integers(min_value=0, max_value=100_000))
 def test_float32_fields_read_back_as_the_millimetres_written(mm: int) -> None:
     written = mm / 1000
@@ -450,8 +564,7 @@ def test_posestamped_odometry_and_undecodable_other_topics(tmp_path: Path) -> No
     with Recording(path) as rec:
         for k in range(3):
             ns = S + k * S
-            turn = {"x": 0.0, "y": 0.0, "z": math.sin(0.25), "w": math.cos(0.25)}
-            pose = {"position": {"x": float(k), "y": 0.0, "z": 0.0}, "orientation": turn}
+            pose = {"position": {"x": float(k), "y": 0.0, "z": 0.0}, "orientation": turn(0.5)}
             rec.write("/pose", "geometry_msgs/PoseStamped", ns,
                       {"header": rec.header(ns, "odom"), "pose": pose})  # fmt: skip
             rec.write("/sonar", "sensor_msgs/Range", ns, sonar_range(rec, ns, "base_link", 1.0))
@@ -463,3 +576,15 @@ def test_posestamped_odometry_and_undecodable_other_topics(tmp_path: Path) -> No
     assert log.poses.x_m.tolist() == [0.0, 1.0, 2.0]
     assert log.poses.theta_rad.tolist() == pytest.approx([0.5, 0.5, 0.5])
     assert log.sensors is not None and log.sensors[0].x_m == 0.0  # frame = base frame
+
+
+def test_a_used_topic_without_a_decoder_is_an_error_naming_it(tmp_path: Path) -> None:
+    path = tmp_path / "proto.mcap"
+    with Recording(path) as rec:
+        drive(rec)
+        raw = rec.writer._writer
+        schema = raw.register_schema("sensor_msgs/msg/Range", "protobuf", b"\x00")
+        raw.add_message(raw.register_channel("/sonar", "protobuf", schema), S, b"\xff", S)
+    with pytest.raises(InputFileError) as err:
+        read_log(path)
+    assert str(err.value) == f"{path}: /sonar: cannot decode protobuf messages of sensor_msgs/Range"

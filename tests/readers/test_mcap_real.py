@@ -92,10 +92,9 @@ def test_rosbag2_odometry_and_tf_chain_with_a_range_topic_added(tmp_path: Path) 
     assert log.poses.stamp_ns[0] == 928_800_000_000  # header stamp, not the log time
     assert np.all(np.diff(log.poses.stamp_ns) > 0)
     assert log.poses.x_m[0] == pytest.approx(-2.8019166340612314)
-    # quaternion (0, 0, 0.0846, -0.9964): heading 2 atan2(qz, qw) wrapped
-    assert log.poses.theta_rad[0] == pytest.approx(
-        math.remainder(2 * math.atan2(0.08457359616958599, -0.9964172353140746), 2 * math.pi)
-    )
+    # quaternion (0, 0, 0.0846, -0.9964), the same rotation as (0, 0, -0.0846, 0.9964): a turn
+    # of -9.703 degrees (-0.16935 rad) about z
+    assert log.poses.theta_rad[0] == pytest.approx(-0.1693494871, abs=1e-10)
     assert log.sensor_names == ("rplidar_link",)
     assert log.sensors is not None
     s = log.sensors[0]
