@@ -39,6 +39,7 @@ from mcap_ros1.decoder import DecoderFactory as Ros1DecoderFactory
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
 from gridmap_cli.errors import GridmapError, InputFileError
+from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.readers.mcap_channels import (
     DAMAGED,
     Plan,
@@ -52,7 +53,7 @@ from gridmap_cli.readers.mcap_channels import (
 )
 from gridmap_cli.readers.mcap_channels import sniff as sniff
 from gridmap_cli.readers.options import ReadOptions
-from gridmap_cli.readers.ros_frames import FrameTree, Transform, frame_name, wrapped, yaw_of
+from gridmap_cli.readers.ros_frames import FrameTree, Transform, frame_name, yaw_of
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor, RobotDescription
 
@@ -621,9 +622,10 @@ class _Accumulator:
                 for n in names
             ]  # fmt: skip
         x, y, yaw = mount or self._unmounted(base, frame)
+        yaws = wrap_angle(yaw + first + np.arange(len(names)) * step).tolist()
         return [
-            RangeSensor(name, x, y, wrapped(yaw + first + i * step), 0.0, rmin, rmax, "laser")
-            for i, name in enumerate(names)
+            RangeSensor(name, x, y, beam_yaw, 0.0, rmin, rmax, "laser")
+            for name, beam_yaw in zip(names, yaws, strict=True)
         ]
 
     def _cloud_sonars(self) -> list[RangeSensor]:

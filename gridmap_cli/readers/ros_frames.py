@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from gridmap_cli.geometry import wrap_angle
+
 #: (x, y, z, w) unit quaternion
 Quaternion = tuple[float, float, float, float]
 Vector = tuple[float, float, float]
@@ -25,11 +27,6 @@ def frame_name(frame_id: str) -> str:
     return frame_id.lstrip("/")
 
 
-def wrapped(theta_rad: float) -> float:
-    """An angle wrapped to [-pi, pi), as :func:`gridmap_cli.geometry.wrap_angle` does."""
-    return (theta_rad + math.pi) % (2.0 * math.pi) - math.pi
-
-
 def yaw_of(q: Quaternion) -> float:
     """Heading (rad, wrapped) of the x axis of a frame rotated by quaternion ``q``.
 
@@ -38,8 +35,9 @@ def yaw_of(q: Quaternion) -> float:
     """
     x, y, z, w = q
     if x == 0.0 and y == 0.0:
-        return wrapped(2.0 * math.atan2(z, w))
-    return wrapped(math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+        return float(wrap_angle(2.0 * math.atan2(z, w)))
+    # the rotated x axis is (1 - 2(y^2 + z^2), 2(xy + wz), 2(xz - wy)): its heading in the plane
+    return float(wrap_angle(math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))))
 
 
 def quaternion_of_yaw(theta_rad: float) -> Quaternion:
@@ -90,12 +88,7 @@ class Transform:
 
     def planar(self) -> tuple[float, float, float]:
         """(x_m, y_m, yaw_rad) of the child frame in the parent frame's plane."""
-        if self.rotation[0] == 0.0 and self.rotation[1] == 0.0:
-            yaw = yaw_of(self.rotation)
-        else:
-            axis = _rotate(self.rotation, (1.0, 0.0, 0.0))
-            yaw = wrapped(math.atan2(axis[1], axis[0]))
-        return self.translation[0], self.translation[1], yaw
+        return self.translation[0], self.translation[1], yaw_of(self.rotation)
 
 
 IDENTITY = Transform((0.0, 0.0, 0.0), IDENTITY_ROTATION)

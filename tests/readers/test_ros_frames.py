@@ -1,4 +1,4 @@
-"""Quaternions about z and back (gridmap_cli/readers/ros_frames.py), with hypothesis."""
+"""Quaternions and transform chains (gridmap_cli/readers/ros_frames.py), with hypothesis."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.readers.ros_frames import (
     IDENTITY,
     IDENTITY_ROTATION,
+    Transform,
     quaternion_of_yaw,
-    wrapped,
     yaw_of,
 )
 
@@ -23,7 +23,7 @@ ANGLES = st.floats(min_value=-1000.0, max_value=1000.0, allow_nan=False)
 def test_yaw_of_inverts_quaternion_of_yaw(theta: float) -> None:
     back = yaw_of(quaternion_of_yaw(theta))
     # compared as angles: at the seam, -pi and a value just below pi are 1e-16 apart
-    assert abs(wrapped(back - float(wrap_angle(theta)))) <= 1e-12
+    assert abs(float(wrap_angle(back - float(wrap_angle(theta))))) <= 1e-12
     assert -math.pi <= back < math.pi
 
 
@@ -40,3 +40,35 @@ def test_by_hand() -> None:
     assert (x, y) == (0.0, 0.0)
     assert math.isclose(z, math.sqrt(0.5)) and math.isclose(w, math.sqrt(0.5))
     assert yaw_of(quaternion_of_yaw(math.pi / 2)) == math.pi / 2
+
+
+def about(axis: tuple[float, float, float], angle: float) -> Transform:
+    s = math.sin(0.5 * angle)
+    return Transform(
+        (0.0, 0.0, 0.0), (axis[0] * s, axis[1] * s, axis[2] * s, math.cos(0.5 * angle))
+    )
+
+
+@given(st.floats(-3.0, 3.0), st.floats(-1.4, 1.4), st.floats(-3.0, 3.0))
+def test_a_tilted_sensor_keeps_the_heading_of_its_x_axis(
+    yaw: float, pitch: float, roll: float
+) -> None:
+    """Yaw, then pitch about the new y axis, then roll about the sensor's own x axis: the x axis
+    points at `yaw` in the floor plane whatever the pitch (below 90 deg) and the roll."""
+    chain = (
+        about((0.0, 0.0, 1.0), yaw)
+        .then(about((0.0, 1.0, 0.0), pitch))
+        .then(about((1.0, 0.0, 0.0), roll))
+    )
+    _, _, heading = chain.planar()
+    assert abs(float(wrap_angle(heading - yaw))) <= 1e-9
+
+
+def test_a_chain_composes_translations_in_3d() -> None:
+    """base -> mast (1 m up, turned 90 deg) -> sensor 0.5 m along the mast's x: in the base plane
+    the sensor stands at (0, 0.5), facing +y."""
+    mast = Transform((0.0, 0.0, 1.0), quaternion_of_yaw(math.pi / 2))
+    sensor = Transform((0.5, 0.0, 0.0), IDENTITY_ROTATION)
+    x, y, heading = mast.then(sensor).planar()
+    assert math.isclose(x, 0.0, abs_tol=1e-15) and math.isclose(y, 0.5)
+    assert math.isclose(heading, math.pi / 2)
