@@ -218,8 +218,13 @@ class FrequencyAccumulator:
     ``w * a`` to the hit mass of the cells its echo may have come from. The finished map is the
     posterior mean of a Beta prior updated by those counts: ``(hits + alpha) / (observations +
     alpha + beta)``. Unlike a log-odds sum, a thousand repeats of one reading do not make a cell
-    more certain than the frequency they agree on; they only outweigh the prior. The three sums
-    are :class:`SpanSums`, so order does not matter.
+    more certain than the frequency they agree on.
+
+    Nor do they outweigh the prior without bound: evidence arrives in groups, each with a cap,
+    and a group's looks in any cell are scaled down to at most its cap (its hits in proportion,
+    so the frequency it saw is kept) when the next group begins or the map is finished. Groups
+    must arrive one after the other: a cap already closed cannot come back. Sums are
+    :class:`SpanSums`, so order within a group does not matter.
     """
 
     def __init__(self, spec: GridSpec) -> None:
@@ -227,6 +232,10 @@ class FrequencyAccumulator:
         self._hits = SpanSums(spec, np.float64)
         self._looks = SpanSums(spec, np.float64)
         self._seen = SpanSums(spec, np.int64)
+        self._cap = math.inf
+        self._closed: set[float] = set()
+        self._closed_hits = np.zeros(spec.shape)
+        self._closed_looks = np.zeros(spec.shape)
 
     def add(
         self,
@@ -236,23 +245,49 @@ class FrequencyAccumulator:
         look: npt.NDArray[np.float64],
         hit: npt.NDArray[np.float64],
         seen: npt.NDArray[np.int64],
+        cap: float = math.inf,
     ) -> None:
         """Add to every cell of run k ``look[k]`` of observation mass, ``hit[k]`` of hit mass
-        and ``seen[k]`` looks counted (what makes a cell known); all arrays shape (S,).
+        and ``seen[k]`` looks counted (what makes a cell known); all arrays shape (S,). ``cap``
+        names the group (see the class docstring; ``inf``: no cap).
 
-        A ring is a disk's runs less the inner disk's, with every value negated.
+        A ring is a disk's runs less the inner disk's, with every value negated. Raises
+        ValueError for a group that was already closed.
         """
+        if cap != self._cap:
+            if cap in self._closed:
+                raise ValueError(f"evidence group with cap {cap} arrived after it was closed")
+            self._close_group()
+            self._cap = cap
         self._looks.add(row, col0, col1, look)
         self._hits.add(row, col0, col1, hit)
         self._seen.add(row, col0, col1, seen)
 
+    def _open_group(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """The open group's looks and hits, capped; the difference arrays can leave -1e-17
+        where a ring was added and taken away, so both are clipped at 0."""
+        looks = np.maximum(self._looks.total().astype(np.float64), 0.0)
+        hits = np.clip(self._hits.total().astype(np.float64), 0.0, looks)
+        if math.isfinite(self._cap):
+            scale = np.minimum(1.0, self._cap / np.maximum(looks, 1e-300))
+            looks, hits = looks * scale, hits * scale
+        return looks, hits
+
+    def _close_group(self) -> None:
+        looks, hits = self._open_group()
+        self._closed_looks += looks
+        self._closed_hits += hits
+        self._closed.add(self._cap)
+        self._hits = SpanSums(self.spec, np.float64)
+        self._looks = SpanSums(self.spec, np.float64)
+
     def hits(self) -> npt.NDArray[np.float64]:
-        """Hit mass per cell, shape (height, width)."""
-        return self._hits.total().astype(np.float64, copy=False)
+        """Hit mass per cell, every group capped, shape (height, width)."""
+        return self._closed_hits + self._open_group()[1]
 
     def looks(self) -> npt.NDArray[np.float64]:
-        """Observation mass per cell, shape (height, width)."""
-        return self._looks.total().astype(np.float64, copy=False)
+        """Observation mass per cell, every group capped, shape (height, width)."""
+        return self._closed_looks + self._open_group()[0]
 
     def observations(self) -> npt.NDArray[np.int64]:
         """Number of readings that reached each cell, shape (height, width)."""
@@ -268,9 +303,8 @@ class FrequencyAccumulator:
         alpha, beta = prior_counts
         if not (alpha > 0.0 and beta > 0.0 and math.isfinite(alpha + beta)):
             raise ValueError("prior counts must be positive numbers")
-        # the difference-array sums can leave -1e-17 where a ring was added and taken away
-        hits = np.maximum(self.hits(), 0.0)
-        looks = np.maximum(self.looks(), hits)
+        looks, hits = self._open_group()
+        looks, hits = looks + self._closed_looks, hits + self._closed_hits
         prob = (hits + alpha) / (looks + alpha + beta)
         prob[self.observations() == 0] = np.nan
         return OccupancyMap(self.spec, prob)

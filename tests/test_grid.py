@@ -143,3 +143,23 @@ def test_frequency_map_is_the_beta_posterior_mean() -> None:
     assert acc.occupancy_map((1.0, 3.0)).prob[0, 0] == pytest.approx(3.0 / 7.0)
     with pytest.raises(ValueError, match="prior counts"):
         acc.occupancy_map((0.0, 1.0))
+
+
+def test_a_group_of_looks_is_capped_keeping_its_frequency() -> None:
+    """100 looks with 50 hits in a group capped at 10 count as 10 looks and 5 hits:
+    p = (5 + 0.5) / (10 + 1) = 0.5; a second group (cap 4) of 8 looks, 0 hits adds 4 looks:
+    p = (5 + 0.5) / (14 + 1) = 0.3667. An uncapped group would have given (50.5) / 101."""
+    spec = GridSpec(0.0, 0.0, 1.0, 1, 1)
+    acc = FrequencyAccumulator(spec)
+    r = np.zeros(1, dtype=np.int64)
+    one = np.ones(1, dtype=np.int64)
+    for i in range(100):
+        acc.add(r, r, r, look=np.ones(1), hit=np.full(1, float(i % 2)), seen=one, cap=10.0)
+    assert acc.occupancy_map().prob[0, 0] == pytest.approx(0.5)
+    assert acc.looks()[0, 0] == pytest.approx(10.0) and acc.hits()[0, 0] == pytest.approx(5.0)
+    for _ in range(8):
+        acc.add(r, r, r, look=np.ones(1), hit=np.zeros(1), seen=one, cap=4.0)
+    assert acc.occupancy_map().prob[0, 0] == pytest.approx(5.5 / 15.0)
+    assert acc.observations()[0, 0] == 108  # the counts of looks are not capped
+    with pytest.raises(ValueError, match="after it was closed"):
+        acc.add(r, r, r, look=np.ones(1), hit=np.zeros(1), seen=one, cap=10.0)

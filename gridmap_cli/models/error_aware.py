@@ -50,13 +50,20 @@ class ErrorAwareParams:
 
     ``trust_length_m``: the pose error at which a reading counts half as much as one taken with a
     perfectly known pose (weight ``L^2 / (L^2 + f^2)``).
+    ``redundant_looks``: C, bounding what readings of one trust class (weights within a factor of
+    two, w in (2^-(k+1), 2^-k]) may add to a cell: C * 4^-k looks, i.e. C readings' worth at the
+    class's weight, counted once more at that weight because readings sharing a pose error
+    repeat one another's mistake; ``inf`` for no bound (docs/sensor-model.md).
     """
 
     trust_length_m: float = 0.3
+    redundant_looks: float = 30.0
 
     def __post_init__(self) -> None:
         if not (self.trust_length_m > 0 and math.isfinite(self.trust_length_m)):
             raise ValueError("the trust length must be a positive number of metres")
+        if not self.redundant_looks > 0:
+            raise ValueError("the redundant-looks bound must be a positive number")
 
 
 @dataclass(frozen=True)
@@ -146,26 +153,35 @@ class ErrorAwareSonarModel:
         spec = grid.spec
         wide = sector_rows(spec, ev.x_m, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m)
         narrow = sector_rows(spec, ev.x_m, ev.y_m, ev.theta_rad, ev.free_half_width_rad, ev.free_m)
-        mass = ev.weight * ev.hit
-        # the echo ring (free_m, look_m] of the wide wedge: the wide disk less its inner disk,
-        # looked at and maybe hit; and the narrow wedge up to free_m, looked through whichever
-        # way the pose erred. One call, so the grid is swept once per batch, not five times.
+        # the echo ring (free_m, look_m] of the wide wedge: the wide disk (sign +1) less its
+        # inner disk (-1), looked at and maybe hit; and the narrow wedge up to free_m (+1),
+        # looked through whichever way the pose erred
         outer = wide.spans(ev.look_m)
-        inner = wide.spans(ev.free_m)
-        free = narrow.spans(ev.free_m)
-        k = (outer.reading, inner.reading, free.reading)
-        grid.add(
-            np.concatenate([outer.row, inner.row, free.row]),
-            np.concatenate([outer.col0, inner.col0, free.col0]),
-            np.concatenate([outer.col1, inner.col1, free.col1]),
-            look=np.concatenate([ev.weight[k[0]], -ev.weight[k[1]], ev.weight[k[2]]]),
-            hit=np.concatenate([mass[k[0]], -mass[k[1]], np.zeros(len(k[2]))]),
-            seen=np.concatenate(
-                [
-                    np.ones(len(k[0]), np.int64),
-                    -np.ones(len(k[1]), np.int64),
-                    np.ones(len(k[2]), np.int64),
-                ]
-            ),
+        parts = (outer, wide.spans(ev.free_m), narrow.spans(ev.free_m))
+        sign = np.concatenate(
+            [np.full(len(p.row), v, np.int64) for p, v in zip(parts, (1, -1, 1), strict=True)]
         )
+        in_ring = np.concatenate(
+            [np.full(len(p.row), v) for p, v in zip(parts, (1.0, 1.0, 0.0), strict=True)]
+        )
+        reading = np.concatenate([p.reading for p in parts])
+        row = np.concatenate([p.row for p in parts])
+        col0 = np.concatenate([p.col0 for p in parts])
+        col1 = np.concatenate([p.col1 for p in parts])
+        # trust class k holds weights in (2^-(k+1), 2^-k] and adds at most C * 4^-k looks to a
+        # cell; readings arrive in time order and the weight only falls as the odometry drives
+        # on, so classes arrive one after another
+        trust_class = np.floor(-np.log2(ev.weight[reading])).astype(np.int64)
+        for k in np.unique(trust_class):
+            keep = trust_class == k
+            r = reading[keep]
+            grid.add(
+                row[keep],
+                col0[keep],
+                col1[keep],
+                look=sign[keep] * ev.weight[r],
+                hit=sign[keep] * in_ring[keep] * ev.weight[r] * ev.hit[r],
+                seen=sign[keep],
+                cap=self.params.redundant_looks * 4.0 ** -float(k),
+            )
         return outer.cells()

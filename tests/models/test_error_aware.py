@@ -195,3 +195,25 @@ def test_bearing_spread_narrows_what_was_looked_through_and_widens_the_echo() ->
     h = StandardSonarParams().band_half_m(0.05)
     a = h / math.hypot(h, 0.03) * math.radians(12.5) / (math.radians(12.5) + 0.1)
     assert spread.hits()[wide_echo] == pytest.approx(spread.looks()[wide_echo] * a)
+
+
+def test_many_late_readings_cannot_make_a_cell_confidently_free() -> None:
+    """Two thousand no-echo readings after 100 m of drift (f = 3 m, weight 0.0099, trust class
+    6) look through the same cells. Their weights alone add up to ~20 readings' worth and would
+    call the cells free (p < 0.25); bounded to C * 4^-6 = 30 / 4096 looks, they leave the cells
+    at the prior: p >= 0.5 / (1 + 30 / 4096).
+    """
+    late = readings([4.0] * 2000, [100.0] * 2000)
+    odo = Linear(a_f=0.03)
+    bounded = grid_of(odo, late).occupancy_map()
+    unbounded_grid = FrequencyAccumulator(SPEC)
+    ErrorAwareSonarModel(
+        StandardSonarParams(), ErrorAwareParams(redundant_looks=math.inf), odo, 0.05
+    ).accumulate(unbounded_grid, late)
+    unbounded = unbounded_grid.occupancy_map()
+    seen = ~np.isnan(bounded.prob)
+    assert seen.any()
+    assert np.nanmin(unbounded.prob) < 0.25
+    assert np.nanmin(bounded.prob) >= 0.5 / (1.0 + 30.0 / 4096.0) - 1e-9
+    with pytest.raises(ValueError, match="redundant-looks"):
+        ErrorAwareParams(redundant_looks=0.0)
