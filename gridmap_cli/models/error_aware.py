@@ -168,19 +168,23 @@ class ErrorAwareSonarModel:
         row = np.concatenate([p.row for p in parts])
         col0 = np.concatenate([p.col0 for p in parts])
         col1 = np.concatenate([p.col1 for p in parts])
+        w = ev.weight[reading]
+        look = sign * w
+        hit = look * in_ring * ev.hit[reading]
         # trust class k holds weights in (2^-(k+1), 2^-k] and adds at most C * 4^-k looks to a
         # cell; readings arrive in time order and the weight only falls as the odometry drives
-        # on, so classes arrive one after another
-        trust_class = np.floor(-np.log2(ev.weight[reading])).astype(np.int64)
-        for k in np.unique(trust_class):
-            keep = trust_class == k
-            r = reading[keep]
+        # on, so classes arrive one after another (a batch mostly holds one)
+        reading_class = np.floor(-np.log2(ev.weight)).astype(np.int64)
+        classes = np.unique(reading_class)
+        span_class = reading_class[reading] if len(classes) > 1 else None
+        for k in classes:
+            keep = slice(None) if span_class is None else span_class == k
             grid.add(
                 row[keep],
                 col0[keep],
                 col1[keep],
-                look=sign[keep] * ev.weight[r],
-                hit=sign[keep] * in_ring[keep] * ev.weight[r] * ev.hit[r],
+                look=look[keep],
+                hit=hit[keep],
                 seen=sign[keep],
                 cap=self.params.redundant_looks * 4.0 ** -float(k),
             )
