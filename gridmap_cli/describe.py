@@ -16,9 +16,10 @@ import numpy.typing as npt
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.odometry_error import travelled
 from gridmap_cli.readers import LogFormat
-from gridmap_cli.readers.mcap_channels import TF_TYPES
-from gridmap_cli.readers.mcap_log import McapRead, read_mcap
+from gridmap_cli.readers.mcap_log import read_mcap
 from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.ros_recording import RecordingRead
+from gridmap_cli.readers.ros_topics import TF_TYPES
 from gridmap_cli.records import EPOCH_FROM_NS, PoseTrack, RangeLog, span_text
 from gridmap_cli.robot import RangeSensor, RobotDescription, robot_from_log
 from gridmap_cli.sync import interpolate_pose
@@ -28,7 +29,7 @@ def describe_log(path: Path, fmt: LogFormat, options: ReadOptions) -> dict[str, 
     """Describe a log of any format. Raises what the reader raises for a broken CSV/ARIA file."""
     out: dict[str, Any] = {"file": str(path), "format": fmt.name, "bytes": path.stat().st_size}
     problem: str | None = None
-    mcap: McapRead | None = None
+    mcap: RecordingRead | None = None
     if fmt.name == "mcap":
         mcap = read_mcap(path, options, strict=False, every_topic=True)
         problem = None if mcap.problem is None else str(mcap.problem)
@@ -68,7 +69,7 @@ def _rate(count: int, span_ns: int) -> float | None:
     return round((count - 1) / (span_ns / 1e9), 3) if count > 1 and span_ns > 0 else None
 
 
-def _use(topic: str, read: McapRead) -> str:
+def _use(topic: str, read: RecordingRead) -> str:
     """What a read does with ``topic``, in words ('' when nothing)."""
     plan = read.plan
     if topic == plan.odom_topic:
@@ -89,7 +90,7 @@ def _use(topic: str, read: McapRead) -> str:
     return " + ".join(uses)
 
 
-def _mcap_part(read: McapRead) -> dict[str, Any]:
+def _mcap_part(read: RecordingRead) -> dict[str, Any]:
     survey = read.survey
     span = (survey.end_ns or 0) - (survey.start_ns or 0)
     channels = []
@@ -232,7 +233,7 @@ def _build_part(
     fmt: LogFormat,
     log: RangeLog,
     during_odometry: npt.NDArray[np.bool_],
-    mcap: McapRead | None,
+    mcap: RecordingRead | None,
     robot: RobotDescription | None,
     robot_source: str | None,
     problem: str | None,

@@ -1,9 +1,8 @@
-"""What an MCAP file holds (channels, types, counts, time span) and which topics gridmap uses.
+"""What an MCAP file holds: channels, types, counts, time span, metadata.
 
 The survey reads only the file's summary section (or, for a file written without one, walks the
-records once without decoding messages). The plan picks the odometry, ground-truth, TF and range
-topics by message type, or as ``--odom-topic`` / ``--range-topic`` say; an ambiguous or missing
-choice is an error that lists the topics with their types and message counts.
+records once without decoding messages). Which of the topics gridmap uses is decided by
+:mod:`gridmap_cli.readers.ros_topics`, alike for every ROS container.
 """
 
 from __future__ import annotations
@@ -11,7 +10,6 @@ from __future__ import annotations
 import struct
 from collections import Counter
 from collections.abc import Iterable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
@@ -22,23 +20,13 @@ from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.summary import Summary
 
-from gridmap_cli.errors import GridmapError, InputFileError, UsageError
-from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.errors import InputFileError
+from gridmap_cli.readers.ros_topics import ChannelInfo, Survey, fold_type
 
 MAGIC = b"\x89MCAP0\r\n"
 
-#: Message types gridmap reads, by role (ROS 2 names with ``/msg/`` removed).
-POSE_TYPES = ("nav_msgs/Odometry", "geometry_msgs/PoseStamped", "gridmap.Pose2D")
-TF_TYPES = ("tf/tfMessage", "tf2_msgs/TFMessage")
-RANGE_TYPES = (
-    "sensor_msgs/Range",
-    "sensor_msgs/LaserScan",
-    "sensor_msgs/PointCloud",
-    "gridmap.RangeReading",
-)
-SENSOR_TYPES = ("gridmap.RangeSensor",)
-#: Topic names holding TF that never changes.
-STATIC_TF_TOPICS = ("/tf_static", "tf_static")
+#: Metadata record holding gridmap's own key/value header (robot, world, seed...).
+METADATA_NAME = "gridmap"
 
 #: Exceptions the mcap library and its decoders raise on damaged input.
 DAMAGED = (McapError, struct.error, EOFError, ValueError, KeyError, IndexError, OSError)
@@ -51,71 +39,7 @@ def sniff(head: bytes) -> bool:
 
 def message_type(schema: Schema | None) -> str:
     """Type name, ROS 2 style folded (``nav_msgs/msg/Odometry`` -> ``nav_msgs/Odometry``)."""
-    if schema is None:
-        return ""
-    return schema.name.replace("/msg/", "/")
-
-
-def is_truth_topic(topic: str) -> bool:
-    """Pose topics named like ground truth are the reference track, not odometry."""
-    return "ground_truth" in topic
-
-
-@dataclass(frozen=True)
-class ChannelInfo:
-    """One channel of an MCAP file. ``count`` is the number of messages on it."""
-
-    topic: str
-    type_name: str
-    schema_encoding: str
-    message_encoding: str
-    count: int
-
-    @property
-    def role(self) -> str:
-        """What gridmap uses it for: odometry, truth, tf, tf_static, range, sensors or ''."""
-        if self.type_name in POSE_TYPES:
-            return "truth" if is_truth_topic(self.topic) else "odometry"
-        if self.type_name in TF_TYPES:
-            return "tf_static" if self.topic in STATIC_TF_TOPICS else "tf"
-        if self.type_name == "sensor_msgs/PointCloud":
-            # PointCloud carries anything; RosAria's sonar topic is the one gridmap knows
-            return "range" if "sonar" in self.topic else ""
-        if self.type_name in RANGE_TYPES:
-            return "range"
-        if self.type_name in SENSOR_TYPES:
-            return "sensors"
-        return ""
-
-    def describe(self) -> str:
-        return f"{self.topic} ({self.type_name or 'no schema'}, {self.count} messages)"
-
-
-@dataclass(frozen=True)
-class Survey:
-    """An MCAP file's header, channels and time span (log times, ns)."""
-
-    path: str
-    profile: str
-    library: str
-    channels: tuple[ChannelInfo, ...]
-    start_ns: int | None
-    end_ns: int | None
-    message_count: int
-    metadata: dict[str, dict[str, str]]
-    indexed: bool
-
-    def topic(self, name: str) -> ChannelInfo | None:
-        for channel in self.channels:
-            if channel.topic == name:
-                return channel
-        return None
-
-    def listing(self) -> str:
-        """All topics with their types and counts, for error messages."""
-        if not self.channels:
-            return "the file has no channels"
-        return "topics: " + "; ".join(c.describe() for c in self.channels)
+    return "" if schema is None else fold_type(schema.name)
 
 
 def open_reader(
@@ -235,135 +159,4 @@ def _survey_by_scan(path: Path, handle: IO[bytes], profile: str, library: str) -
         message_count=sum(counts.values()),
         metadata=metadata,
         indexed=False,
-    )
-
-
-class Refusals:
-    """Errors that stop a build: a strict read (``build``) raises the first one at once; a lenient
-    read (``inspect``) keeps it in :attr:`first` and reads on to show what the file holds."""
-
-    def __init__(self, strict: bool = True) -> None:
-        self.strict = strict
-        self.first: GridmapError | None = None
-
-    def refuse(self, error: GridmapError) -> None:
-        if self.strict:
-            raise error
-        if self.first is None:
-            self.first = error
-
-
-@dataclass(frozen=True)
-class Plan:
-    """The topics a read uses.
-
-    ``odom_topic`` is a pose topic, or None when odometry comes from TF (``tf_topics``,
-    ``odom_frame`` -> base frame). ``static_topics`` hold the sensor mounting (for ROS 1
-    recordings with no static topic: the ``tf_topics``).
-    """
-
-    odom_topic: str | None
-    truth_topic: str | None
-    range_topics: tuple[str, ...]
-    tf_topics: tuple[str, ...]
-    static_topics: tuple[str, ...]
-    sensors_topic: str | None
-    odom_frame: str
-    base_frame: str | None
-
-    def topics(self) -> list[str]:
-        """Every topic the read decodes: /tf only when it carries odometry or mounting."""
-        out = [t for t in (self.odom_topic, self.truth_topic, self.sensors_topic) if t]
-        out += [*self.range_topics, *self.static_topics]
-        if self.odom_topic is None or not self.static_topics:
-            out += self.tf_topics
-        return list(dict.fromkeys(out))
-
-
-def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None = None) -> Plan:
-    """Choose the topics to read. Raises InputFileError / UsageError listing the topics.
-
-    No odometry or no range topic goes to ``refusals`` (default: strict, raise), so that a
-    lenient read (``inspect``) plans a file that has none.
-    """
-    refuse = (refusals or Refusals()).refuse
-    path = survey.path
-    by_role: dict[str, list[ChannelInfo]] = {}
-    for channel in survey.channels:
-        if channel.count > 0:
-            by_role.setdefault(channel.role, []).append(channel)
-    tf_topics = tuple(c.topic for c in by_role.get("tf", []))
-    static_topics = tuple(c.topic for c in by_role.get("tf_static", []))
-
-    odom_topic: str | None
-    if options.odom_topic is not None:
-        chosen = survey.topic(options.odom_topic)
-        if chosen is None:
-            raise UsageError(
-                f"{path}: --odom-topic {options.odom_topic}: no such topic; {survey.listing()}"
-            )
-        if chosen.type_name in TF_TYPES:
-            odom_topic = None
-            tf_topics = (chosen.topic,)
-        elif chosen.type_name in POSE_TYPES:
-            odom_topic = chosen.topic
-        else:
-            raise UsageError(
-                f"{path}: --odom-topic {chosen.topic} is {chosen.type_name or 'untyped'}, not a "
-                f"pose type ({', '.join(POSE_TYPES)}) or TF"
-            )
-    else:
-        candidates = by_role.get("odometry", [])
-        if len(candidates) > 1:
-            raise InputFileError(
-                path,
-                "more than one odometry topic: "
-                + "; ".join(c.describe() for c in candidates)
-                + "; choose one with --odom-topic",
-            )
-        odom_topic = candidates[0].topic if candidates else None
-        if not candidates and not tf_topics:
-            refuse(
-                InputFileError(
-                    path,
-                    "no odometry: no nav_msgs/Odometry, geometry_msgs/PoseStamped or "
-                    f"gridmap.Pose2D topic and no TF; {survey.listing()}",
-                )
-            )
-    truths = [c.topic for c in by_role.get("truth", []) if c.topic != odom_topic]
-    truth_topic = truths[0] if len(truths) == 1 else None
-
-    if options.range_topics:
-        ranges = []
-        for name in options.range_topics:
-            chosen = survey.topic(name)
-            if chosen is None:
-                raise UsageError(f"{path}: --range-topic {name}: no such topic; {survey.listing()}")
-            if chosen.type_name not in RANGE_TYPES:
-                raise UsageError(
-                    f"{path}: --range-topic {name} is {chosen.type_name or 'untyped'}, not a "
-                    f"range type ({', '.join(RANGE_TYPES)})"
-                )
-            ranges.append(name)
-        range_topics = tuple(dict.fromkeys(ranges))
-    else:
-        range_topics = tuple(c.topic for c in by_role.get("range", []))
-        if not range_topics:
-            refuse(
-                InputFileError(
-                    path,
-                    "no range readings: no sensor_msgs/Range, LaserScan, PointCloud (sonar) or "
-                    f"gridmap.RangeReading topic; {survey.listing()}",
-                )
-            )
-    sensors = by_role.get("sensors", [])
-    return Plan(
-        odom_topic=odom_topic,
-        truth_topic=truth_topic,
-        range_topics=range_topics,
-        tf_topics=tf_topics,
-        static_topics=static_topics,
-        sensors_topic=sensors[0].topic if sensors else None,
-        odom_frame=options.odom_frame or "odom",
-        base_frame=options.base_frame,
     )

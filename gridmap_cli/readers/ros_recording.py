@@ -1,0 +1,153 @@
+"""ROS recordings, one or several files, read into the canonical record stream.
+
+A recording is one or more sources: MCAP files (:mod:`~gridmap_cli.readers.mcap_log`), ROS 1
+bags and rosbag2 folders (:mod:`~gridmap_cli.readers.bag_log`). Each source surveys its topics and
+yields its messages in log-time order; several sources are merged by log time into one stream
+(robots often record odometry and sensors into separate bags), so the topic plan and the message
+accumulator see one recording whatever the containers were.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+from gridmap_cli.errors import GridmapError, InputFileError
+from gridmap_cli.readers.mcap_channels import METADATA_NAME
+from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.ros_messages import MessageAccumulator
+from gridmap_cli.readers.ros_topics import ChannelInfo, Plan, Refusals, Survey, plan_topics
+from gridmap_cli.records import RangeLog
+
+#: One message: (file, topic, folded type name, log time in ns, decoded message or None).
+#: The message is None for topics that were not asked for (read only for their time spans).
+Message = tuple[str, str, str, int, Any]
+
+
+class RecordingSource(Protocol):
+    """One file (or rosbag2 folder) of a recording."""
+
+    path: Path
+
+    def survey(self) -> Survey:
+        """The source's topics, types, counts and time span."""
+        ...
+
+    def messages(self, topics: Sequence[str], every_topic: bool) -> Iterator[Message]:
+        """Messages in log-time order: those of ``topics`` decoded; with ``every_topic`` also
+        the others, undecoded (None)."""
+        ...
+
+
+@dataclass(frozen=True)
+class RecordingRead:
+    """A read recording: the canonical log, the survey, the topics and base frame chosen."""
+
+    log: RangeLog
+    survey: Survey
+    plan: Plan
+    base_frame: str
+    tf_pairs: dict[tuple[str, str], int]  # (parent, child) -> transforms seen on non-static TF
+    static_frames: tuple[str, ...]  # frames with a static transform below the base frame
+    mount_from: dict[str, str]  # sensor frame -> where its mounting came from: TF, robot, unknown
+    problem: GridmapError | None  # lenient read: the error a strict read raises, if any
+    spans: dict[str, tuple[int, int]]  # topic -> first and last log time (ns) of the messages read
+
+
+def merge_surveys(surveys: Sequence[Survey]) -> Survey:
+    """One survey of several files: their topics side by side, counts of a shared topic summed.
+
+    A topic that two files hold with different message types is an error naming both.
+    """
+    if len(surveys) == 1:
+        return surveys[0]
+    channels: dict[str, ChannelInfo] = {}
+    owner: dict[str, str] = {}
+    for survey in surveys:
+        for c in survey.channels:
+            known = channels.get(c.topic)
+            if known is None:
+                channels[c.topic] = c
+                owner[c.topic] = survey.path
+            elif known.type_name != c.type_name:
+                raise InputFileError(
+                    survey.path,
+                    f"topic {c.topic} is {c.type_name or 'untyped'} here but "
+                    f"{known.type_name or 'untyped'} in {owner[c.topic]}: the recordings do not "
+                    "belong together",
+                )
+            else:
+                channels[c.topic] = ChannelInfo(
+                    c.topic,
+                    c.type_name,
+                    c.schema_encoding,
+                    c.message_encoding,
+                    known.count + c.count,
+                )
+    starts = [s.start_ns for s in surveys if s.start_ns is not None]
+    ends = [s.end_ns for s in surveys if s.end_ns is not None]
+    metadata: dict[str, dict[str, str]] = {}
+    for survey in surveys:
+        for name, values in survey.metadata.items():
+            metadata.setdefault(name, {}).update(values)
+    return Survey(
+        path=" + ".join(s.path for s in surveys),
+        profile=", ".join(dict.fromkeys(s.profile for s in surveys)),
+        library=", ".join(dict.fromkeys(s.library for s in surveys)),
+        channels=tuple(channels.values()),
+        start_ns=min(starts) if starts else None,
+        end_ns=max(ends) if ends else None,
+        message_count=sum(s.message_count for s in surveys),
+        metadata=metadata,
+        indexed=all(s.indexed for s in surveys),
+    )
+
+
+def read_recording(
+    sources: Sequence[RecordingSource],
+    options: ReadOptions | None = None,
+    strict: bool = True,
+    every_topic: bool = False,
+) -> RecordingRead:
+    """Read one or several recording files as one recording.
+
+    ``strict=False`` (for ``inspect``) reads what is there where a strict read raises: no
+    odometry gives an empty track, a sensor with unknown mounting a NaN mounting pose, and
+    :attr:`RecordingRead.problem` is the error the strict read raises. Damaged data, malformed
+    messages and bad topic flags raise in both modes. ``every_topic`` also goes through the
+    messages of the topics gridmap does not use (without decoding them), for their time spans.
+    """
+    opts = options or ReadOptions()
+    refusals = Refusals(strict)
+    survey = merge_surveys([s.survey() for s in sources])
+    plan = plan_topics(survey, opts, refusals)
+    acc = MessageAccumulator(survey.path, plan, opts.robot, refusals)
+    spans: dict[str, list[int]] = {}
+    topics = plan.topics()
+    streams = [s.messages(topics, every_topic) for s in sources]
+    merged = streams[0] if len(streams) == 1 else heapq.merge(*streams, key=lambda m: m[3])
+    for path, topic, type_name, log_time, msg in merged:
+        span = spans.get(topic)
+        if span is None:
+            spans[topic] = [log_time, log_time]
+        else:
+            span[1] = log_time  # log-time order: the latest so far
+        if msg is not None:
+            acc.add(path, topic, type_name, log_time, msg)
+    log = acc.finish(survey.metadata.get(METADATA_NAME, {}))
+    base = acc.base_frame()
+    below = tuple(f for f in acc.tree.order if acc.tree.lookup(base, f) is not None)
+    return RecordingRead(
+        log,
+        survey,
+        plan,
+        base,
+        dict(acc.tf_pairs),
+        below,
+        acc.mount_from,
+        refusals.first,
+        {topic: (first, last) for topic, (first, last) in spans.items()},
+    )
