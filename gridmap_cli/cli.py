@@ -28,8 +28,9 @@ from gridmap_cli.models.error_aware import ErrorAwareParams
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
-from gridmap_cli.readers import format_names, resolve_format
+from gridmap_cli.readers import format_names, recording_sources, resolve_format
 from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.ros_recording import read_recording
 from gridmap_cli.robot import RobotDescription, load_robot, robot_from_log
 from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers import check_output
@@ -98,6 +99,14 @@ def _progress_bar(total: int, quiet: bool, desc: str) -> tqdm[Any]:
     )
 
 
+def _check_input(log: Path) -> None:
+    """A log must exist: a file, or a folder (rosbag2)."""
+    if not log.exists():
+        raise InputFileError(log, "no such file")
+    if not (log.is_file() or log.is_dir()):
+        raise InputFileError(log, "not a regular file or folder")
+
+
 def _check_output_folder(output: Path) -> None:
     folder = output.parent
     if not folder.is_dir():
@@ -148,7 +157,7 @@ def _read_options(
 
 
 @cli.command()
-@click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
+@click.argument("logs", metavar="LOG...", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option(
     "-o",
     "--output",
@@ -235,7 +244,7 @@ def _read_options(
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
 @_handle_errors
 def build(
-    log: Path,
+    logs: tuple[Path, ...],
     output: Path,
     robot: str | None,
     log_format: str | None,
@@ -258,7 +267,11 @@ def build(
     as_json: bool,
 ) -> None:
     """Build an occupancy-grid map from LOG and write it as a map_server image + YAML, or as an
-    OccupancyGrid in an MCAP file."""
+    OccupancyGrid in an MCAP file.
+
+    LOG is a CSV, ARIA .2d, MCAP, ROS 1 .bag file or a rosbag2 folder. Several ROS recordings
+    (say, odometry and scans recorded into separate bags) are merged by time into one.
+    """
     started = time.perf_counter()
     if not (0.0 <= free < occupied <= 1.0):
         raise UsageError(f"need 0 <= --free < --occupied <= 1, got {free} and {occupied}")
@@ -281,16 +294,19 @@ def build(
         check_map_outputs(output, map_mode, force)
     _check_output_folder(output)
     robot_desc = load_robot(robot) if robot else None
-    if not log.is_file():
-        raise InputFileError(log, "no such file" if not log.exists() else "not a regular file")
-    fmt = resolve_format(log, log_format)
+    for log in logs:
+        _check_input(log)
     read_options = _read_options(odom_topic, range_topics, odom_frame, base_frame, robot_desc)
-    if fmt.name != "mcap":
+    sources = recording_sources(logs, log_format)
+    if sources is None:
+        fmt = resolve_format(logs[0], log_format)
         read_options.refuse_topic_flags(fmt.name.upper())
-
-    data = select_poses(fmt.read(log, read_options), pose)
+        data = fmt.read(logs[0], read_options)
+    else:
+        data = read_recording(sources, read_options).log
+    data = select_poses(data, pose)
     if robot_desc is None:
-        robot_desc = robot_from_log(log, data.metadata)
+        robot_desc = robot_from_log(logs[0], data.metadata)
     options = BuildOptions(
         resolution_m=resolution,
         mode=mode,
@@ -417,7 +433,7 @@ def _summary_line(s: dict[str, Any]) -> str:
 
 
 @cli.command()
-@click.argument("log", type=click.Path(path_type=Path, dir_okay=False))
+@click.argument("log", type=click.Path(path_type=Path))
 @click.option("--robot", help="Robot preset, robot YAML file or ARIA .p file.")
 @click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
 @_topic_options
@@ -433,7 +449,8 @@ def inspect(
     base_frame: str | None,
     as_json: bool,
 ) -> None:
-    """Describe LOG (CSV, ARIA .2d or MCAP) and what build would make of it.
+    """Describe LOG (CSV, ARIA .2d, MCAP, ROS 1 bag or rosbag2 folder) and what build would
+    make of it.
 
     Channels or columns, message counts, time span, rates, distance travelled, sensors and
     their mounting poses, and the topics, frames and robot build would use.
@@ -441,11 +458,10 @@ def inspect(
     from gridmap_cli.describe import describe_log, render_text
 
     robot_desc = load_robot(robot) if robot else None
-    if not log.is_file():
-        raise InputFileError(log, "no such file" if not log.exists() else "not a regular file")
+    _check_input(log)
     fmt = resolve_format(log, log_format)
     read_options = _read_options(odom_topic, range_topics, odom_frame, base_frame, robot_desc)
-    if fmt.name != "mcap":
+    if fmt.sources is None:
         read_options.refuse_topic_flags(fmt.name.upper())
     description = describe_log(log, fmt, read_options)
     click.echo(json.dumps(description, indent=2) if as_json else render_text(description))

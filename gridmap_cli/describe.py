@@ -16,9 +16,8 @@ import numpy.typing as npt
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.odometry_error import travelled
 from gridmap_cli.readers import LogFormat
-from gridmap_cli.readers.mcap_log import read_mcap
 from gridmap_cli.readers.options import ReadOptions
-from gridmap_cli.readers.ros_recording import RecordingRead
+from gridmap_cli.readers.ros_recording import RecordingRead, read_recording
 from gridmap_cli.readers.ros_topics import TF_TYPES
 from gridmap_cli.records import EPOCH_FROM_NS, PoseTrack, RangeLog, span_text
 from gridmap_cli.robot import RangeSensor, RobotDescription, robot_from_log
@@ -27,11 +26,12 @@ from gridmap_cli.sync import interpolate_pose
 
 def describe_log(path: Path, fmt: LogFormat, options: ReadOptions) -> dict[str, Any]:
     """Describe a log of any format. Raises what the reader raises for a broken CSV/ARIA file."""
-    out: dict[str, Any] = {"file": str(path), "format": fmt.name, "bytes": path.stat().st_size}
+    size = sum(f.stat().st_size for f in path.iterdir()) if path.is_dir() else path.stat().st_size
+    out: dict[str, Any] = {"file": str(path), "format": fmt.name, "bytes": size}
     problem: str | None = None
     mcap: RecordingRead | None = None
-    if fmt.name == "mcap":
-        mcap = read_mcap(path, options, strict=False, every_topic=True)
+    if fmt.sources is not None:
+        mcap = read_recording(fmt.sources(path), options, strict=False, every_topic=True)
         problem = None if mcap.problem is None else str(mcap.problem)
         log = mcap.log
         out["mcap"] = _mcap_part(mcap)

@@ -43,10 +43,11 @@ class ReadOptions:
         return given
 
     def refuse_topic_flags(self, format_name: str) -> None:
-        """Raise :class:`UsageError` if MCAP-only flags were given for a ``format_name`` log."""
+        """Raise :class:`UsageError` if topic or frame flags were given for a non-ROS log."""
         given = self.topic_flags()
         if given:
             raise UsageError(
-                f"{', '.join(given)} only appl{'y' if len(given) > 1 else 'ies'} to MCAP logs, "
+                f"{', '.join(given)} only appl{'y' if len(given) > 1 else 'ies'} to ROS recordings "
+                f"(MCAP, bag, rosbag2), "
                 f"not to {format_name} logs"
             )

@@ -435,7 +435,11 @@ def test_truncated_file_is_a_clear_error_and_writes_nothing(tmp_path: Path) -> N
 def test_topic_flags_are_refused_for_csv_logs(room_csv: Path, tmp_path: Path) -> None:
     code, _, err = run("build", str(room_csv), "-o", str(tmp_path / "m.png"), "--range-topic", "x")
     assert code == 2
-    assert err.strip() == "Error: --range-topic only applies to MCAP logs, not to CSV logs"
+    assert (
+        err.strip()
+        == "Error: --range-topic only applies to ROS recordings (MCAP, bag, rosbag2), not to CSV "
+        "logs"
+    )
 
 
 # ---------------------------------------------------------------- gridmap JSON channels

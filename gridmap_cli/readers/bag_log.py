@@ -1,0 +1,207 @@
+"""Readers for ROS 1 bags (``.bag``) and rosbag2 folders (sqlite3 ``.db3`` or MCAP storage).
+
+Both are read without a ROS installation through the ``rosbags`` library, which deserialises
+messages with the definitions the recording stores (ROS 1 bags always store them; a rosbag2
+folder from before ROS 2 Iron may not, and then the ROS 2 Humble definitions of the standard
+messages are used). A rosbag2 folder with MCAP storage is read with the ``mcap`` library, file by
+file, like any MCAP recording. The messages then go the way every ROS recording goes
+(:mod:`~gridmap_cli.readers.ros_recording`): same topics, types and frame rules as MCAP, so a bag
+and the MCAP that ``mcap convert`` makes of it give the same canonical stream.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections import Counter
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from gridmap_cli.errors import InputFileError
+from gridmap_cli.readers.mcap_log import McapSource
+from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.ros_recording import (
+    Message,
+    RecordingRead,
+    RecordingSource,
+    read_recording,
+)
+from gridmap_cli.readers.ros_topics import ChannelInfo, Survey, fold_type
+from gridmap_cli.records import RangeLog
+
+#: The first line of every ROS 1 bag (format 2.0, the only one rosbag has written since 2010).
+BAG_MAGIC = b"#ROSBAG V2.0\n"
+#: The file naming a rosbag2 folder's storage, files and topics.
+ROSBAG2_METADATA = "metadata.yaml"
+
+
+def sniff(head: bytes) -> bool:
+    """True for a ROS 1 bag."""
+    return head.startswith(BAG_MAGIC)
+
+
+def is_rosbag2(path: Path) -> bool:
+    """True for a rosbag2 folder (a directory holding ``metadata.yaml``)."""
+    return path.is_dir() and (path / ROSBAG2_METADATA).is_file()
+
+
+def _damaged() -> tuple[type[BaseException], ...]:
+    """What ``rosbags`` raises on a damaged or unreadable recording (imported on first use)."""
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Bag1Error
+    from rosbags.rosbag2 import ReaderError as Bag2Error
+    from rosbags.serde import SerdeError
+
+    return (
+        AnyReaderError,
+        Bag1Error,
+        Bag2Error,
+        SerdeError,
+        struct.error,
+        EOFError,
+        ValueError,
+        KeyError,
+        IndexError,
+        AssertionError,
+        UnicodeDecodeError,
+    )
+
+
+class BagSource:
+    """A ROS 1 bag or a sqlite3 rosbag2 folder, read with ``rosbags``."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.kind = "rosbag2" if path.is_dir() else "ROS 1 bag"
+
+    def _reader(self) -> Any:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+
+        typestore = get_typestore(Stores.ROS2_HUMBLE if self.path.is_dir() else Stores.ROS1_NOETIC)
+        return AnyReader([self.path], default_typestore=typestore)
+
+    def _fail(self, exc: BaseException) -> InputFileError:
+        if isinstance(exc, OSError):
+            return InputFileError(self.path, f"cannot read: {exc.strerror or exc}")
+        return InputFileError(
+            self.path, f"truncated or damaged {self.kind} ({type(exc).__name__}: {exc})"
+        )
+
+    def survey(self) -> Survey:
+        try:
+            with self._reader() as reader:
+                counts: Counter[str] = Counter()
+                types: dict[str, Any] = {}
+                for c in reader.connections:
+                    counts[c.topic] += c.msgcount
+                    types.setdefault(c.topic, c)
+                ros2 = self.path.is_dir()
+                channels = tuple(
+                    ChannelInfo(
+                        topic=topic,
+                        type_name=fold_type(c.msgtype),
+                        schema_encoding="ros2msg" if ros2 else "ros1msg",
+                        message_encoding="cdr" if ros2 else "ros1",
+                        count=counts[topic],
+                    )
+                    for topic, c in types.items()
+                )
+                total = sum(counts.values())
+                return Survey(
+                    path=str(self.path),
+                    profile="ros2" if ros2 else "ros1",
+                    library="rosbag2 (sqlite3)" if ros2 else "rosbag (format 2.0)",
+                    channels=channels,
+                    start_ns=reader.start_time if total else None,
+                    end_ns=reader.end_time - 1 if total else None,  # rosbags: just after the last
+                    message_count=total,
+                    metadata={},
+                    indexed=True,
+                )
+        except OSError as exc:
+            raise self._fail(exc) from exc
+        except _damaged() as exc:
+            raise self._fail(exc) from exc
+
+    def messages(self, topics: Sequence[str], every_topic: bool) -> Iterator[Message]:
+        wanted = set(topics)
+        name = str(self.path)
+        try:
+            with self._reader() as reader:
+                connections = [
+                    c for c in reader.connections if every_topic or c.topic in wanted
+                ]  # fmt: skip
+                for con, log_time, raw in reader.messages(connections=connections):
+                    type_name = fold_type(con.msgtype)
+                    if con.topic not in wanted:
+                        yield name, con.topic, type_name, log_time, None
+                        continue
+                    try:
+                        msg = reader.deserialize(raw, con.msgtype)
+                    except _damaged() as exc:
+                        raise InputFileError(
+                            self.path,
+                            f"{con.topic}: malformed {type_name} message at log time "
+                            f"{log_time / 1e9:.9f} s ({type(exc).__name__}: {exc})",
+                        ) from exc
+                    yield name, con.topic, type_name, log_time, msg
+        except InputFileError:
+            raise
+        except OSError as exc:
+            raise self._fail(exc) from exc
+        except _damaged() as exc:
+            raise self._fail(exc) from exc
+
+
+def rosbag2_sources(folder: Path) -> list[RecordingSource]:
+    """The sources of a rosbag2 folder: its MCAP files, or the folder itself (sqlite3)."""
+    meta_path = folder / ROSBAG2_METADATA
+    try:
+        meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))
+        info = meta["rosbag2_bagfile_information"]
+        storage = str(info.get("storage_identifier", ""))
+        files = [str(f) for f in info.get("relative_file_paths") or []]
+    except OSError as exc:
+        raise InputFileError(meta_path, f"cannot read: {exc.strerror or exc}") from exc
+    except (yaml.YAMLError, KeyError, TypeError, AttributeError) as exc:
+        raise InputFileError(
+            meta_path, f"not a rosbag2 metadata file ({type(exc).__name__}: {exc})"
+        ) from exc
+    if storage == "mcap":
+        missing = [f for f in files if not (folder / f).is_file()]
+        if missing or not files:
+            raise InputFileError(
+                meta_path, f"names MCAP files that are not in the folder: {', '.join(missing)}"
+            )
+        return [McapSource(folder / f) for f in files]
+    if storage not in ("sqlite3", ""):
+        raise InputFileError(
+            meta_path, f"unknown rosbag2 storage '{storage}' (gridmap reads sqlite3 and mcap)"
+        )
+    return [BagSource(folder)]
+
+
+def sources_of(path: Path) -> list[RecordingSource]:
+    """The recording sources of a ``.bag`` file or a rosbag2 folder."""
+    if path.is_dir():
+        return rosbag2_sources(path)
+    return [BagSource(path)]
+
+
+def read_bag(
+    source: str | Path,
+    options: ReadOptions | None = None,
+    strict: bool = True,
+    every_topic: bool = False,
+) -> RecordingRead:
+    """Read a ROS 1 bag or rosbag2 folder (see :func:`~gridmap_cli.readers.ros_recording.
+    read_recording` for the arguments)."""
+    return read_recording(sources_of(Path(source)), options, strict, every_topic)
+
+
+def read_bag_log(source: str | Path, options: ReadOptions | None = None) -> RangeLog:
+    """Read a ROS 1 bag or rosbag2 folder into the canonical record stream."""
+    return read_bag(source, options).log
