@@ -453,7 +453,8 @@ def inspect(
     make of it.
 
     Channels or columns, message counts, time span, rates, distance travelled, sensors and
-    their mounting poses, and the topics, frames and robot build would use.
+    their mounting poses, and the topics, frames and robot build would use. Exits 1, after
+    the description, when build would fail: the reason is build's own error.
     """
     from gridmap_cli.describe import describe_log, render_text
 
@@ -465,6 +466,10 @@ def inspect(
         read_options.refuse_topic_flags(fmt.name.upper())
     description = describe_log(log, fmt, read_options)
     click.echo(json.dumps(description, indent=2) if as_json else render_text(description))
+    if not description["build"]["ready"]:
+        # the description is printed; the verdict is the line build would print, and its exit
+        click.echo(f"Error: {description['build']['problem']}", err=True)
+        sys.exit(1)
 
 
 @cli.command()

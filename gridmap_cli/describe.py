@@ -2,6 +2,10 @@
 
 :func:`describe_log` returns plain data (the ``--json`` output); :func:`render_text` turns it
 into the text a person reads. Nothing here prints.
+
+The verdict (``build.ready``, ``build.problem``) is build's own: the description runs the checks
+build runs (read, robot, :func:`~gridmap_cli.pipeline.plan_build`, with build's default options)
+and reports the first error build would stop at, word for word, not a parallel set of rules.
 """
 
 from __future__ import annotations
@@ -15,7 +19,9 @@ import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.odometry_error import travelled
+from gridmap_cli.pipeline import BuildOptions, plan_build
 from gridmap_cli.readers import LogFormat
+from gridmap_cli.readers.aria_log import LASER_MAX_RANGE_M
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros_recording import RecordingRead, read_recording
 from gridmap_cli.readers.ros_topics import TF_TYPES
@@ -39,10 +45,25 @@ def describe_log(path: Path, fmt: LogFormat, options: ReadOptions) -> dict[str, 
         log = fmt.read(path, options)
     robot, robot_source, robot_problem = _robot(path, log, options)
     problem = problem or robot_problem  # build reads the log before it loads the robot
+    if problem is None:
+        problem = _build_problem(log, robot)
     during = _during_odometry(log)
     out["log"] = _log_part(log, during, robot, mcap.mount_from if mcap is not None else None)
-    out["build"] = _build_part(fmt, log, during, mcap, robot, robot_source, problem)
+    out["build"] = _build_part(fmt, log, mcap, robot, robot_source, problem)
     return out
+
+
+def _build_problem(log: RangeLog, robot: RobotDescription | None) -> str | None:
+    """The error build would stop at once it has read the log and found the robot, or None.
+
+    Build's own checks with its default options (``--mode standard``, 0.05 m cells): the
+    sensors' mounting, readings left after sync, the size of the map.
+    """
+    try:
+        plan_build(log, robot, BuildOptions())
+    except GridmapError as exc:
+        return str(exc)
+    return None
 
 
 def _during_odometry(log: RangeLog) -> npt.NDArray[np.bool_]:
@@ -229,10 +250,42 @@ def _log_part(
     }
 
 
+def _lasers(fmt: LogFormat, log: RangeLog, robot: RobotDescription | None) -> list[dict[str, Any]]:
+    """Each scanning laser build would map with (beams ``<laser>_<i>``): beams and range.
+
+    ``range_from`` says where the range comes from: the log, the robot description, or
+    ``assumed`` for an ARIA log without gridmap's range lines (ARIA writes none).
+    """
+    own = {s.name: s for s in log.sensors or () if not math.isnan(s.x_m)}
+    theirs = robot.by_name() if robot is not None else {}
+    lasers: dict[str, list[tuple[RangeSensor, str]]] = {}
+    for name in log.sensor_names:
+        sensor, source = (own[name], "log") if name in own else (theirs.get(name), "robot")
+        if sensor is not None and sensor.kind == "laser":
+            lasers.setdefault(name.rpartition("_")[0] or name, []).append((sensor, source))
+    out = []
+    for frame, beams in lasers.items():
+        rmin = min(s.min_range_m for s, _ in beams)
+        rmax = max(s.max_range_m for s, _ in beams)
+        sources = sorted({source for _, source in beams})
+        source = sources[0] if len(sources) == 1 else "log and robot"
+        if fmt.name == "aria" and source == "log" and (rmin, rmax) == (0.0, LASER_MAX_RANGE_M):
+            source = "assumed"
+        out.append(
+            {
+                "laser": frame,
+                "beams": len(beams),
+                "min_range_m": round(rmin, 6),
+                "max_range_m": round(rmax, 6),
+                "range_from": source,
+            }
+        )
+    return out
+
+
 def _build_part(
     fmt: LogFormat,
     log: RangeLog,
-    during_odometry: npt.NDArray[np.bool_],
     mcap: RecordingRead | None,
     robot: RobotDescription | None,
     robot_source: str | None,
@@ -271,18 +324,6 @@ def _build_part(
         odom_topic = None
     mounted = {s.name for s in log.sensors or () if not math.isnan(s.x_m)}
     described_by_log = bool(log.sensor_names) and mounted >= set(log.sensor_names)
-    unknown = [
-        n
-        for n in log.sensor_names
-        if n not in mounted and (robot is None or n not in robot.by_name())
-    ]
-    if problem is None and unknown:
-        problem = (
-            f"no mounting pose for sensor{'s' if len(unknown) > 1 else ''} "
-            f"{', '.join(unknown[:5])}{' ...' if len(unknown) > 5 else ''}: give --robot"
-        )
-    if problem is None and len(log.readings) and len(log.poses) and not during_odometry.any():
-        problem = "no odometry during the range readings (recorded at different times?)"
     return {
         "odometry": odometry,
         "odometry_topic": odom_topic,
@@ -290,6 +331,7 @@ def _build_part(
         "ranges": ranges,
         "truth": truth,
         "sensors": len(log.sensor_names),
+        "lasers": _lasers(fmt, log, robot),
         "robot": None
         if robot is None
         else {"name": robot.name, "from": robot_source, "needed": not described_by_log},
@@ -435,6 +477,8 @@ def render_text(d: dict[str, Any]) -> str:
     if b["frames"] and mcap is not None and (mcap["tf"] or mcap["static_frames"]):
         lines.append(f"  frames    odometry '{b['frames']['odom']}', base '{b['frames']['base']}'")
     lines.append(f"  ranges    {_some(b['ranges'], 6) or 'none'}")
+    for laser in b["lasers"]:
+        lines.append(f"  laser     {_laser_text(laser)}")
     if b["truth"]:
         lines.append(f"  truth     {b['truth']} (with --pose global)")
     lines.append(f"  sensors   {b['sensors']}")
@@ -452,6 +496,19 @@ def render_text(d: dict[str, Any]) -> str:
         problem = b["problem"].removeprefix(f"{d['file']}: ").split("; topics: ")[0]
         lines.append(f"  -> build would fail: {problem}")
     return "\n".join(lines)
+
+
+def _laser_text(laser: dict[str, Any]) -> str:
+    """``laser1: 181 beams, 0.02-8 m`` and where the range comes from when not the log."""
+    beams = laser["beams"]
+    text = (
+        f"{laser['laser']}: {beams} beam{'s' if beams != 1 else ''}, "
+        f"{_metres(laser['min_range_m'])}-{_metres(laser['max_range_m'])} m"
+    )
+    source = laser["range_from"]
+    if source == "assumed":
+        return text + " (the log gives no range: gridmap's default)"
+    return text if source == "log" else f"{text} (from the {source})"
 
 
 def _yaw_text(s: dict[str, Any]) -> str:

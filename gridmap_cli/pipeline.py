@@ -94,17 +94,23 @@ def _select(readings: SensorReadings, sl: slice | npt.NDArray[np.bool_]) -> Sens
     )
 
 
-def build_map(
-    log: RangeLog,
-    robot: RobotDescription | None,
-    options: BuildOptions,
-    progress: Callable[[int], object] | None = None,
-) -> BuildResult:
-    """Build an occupancy map from a canonical log.
+@dataclass(frozen=True)
+class BuildPlan:
+    """What build has settled before it maps a reading: the sync's result, each sensor model
+    with its share of the readings, and the grid that holds them all."""
 
-    ``progress`` is called with the number of readings just processed (one call per batch).
-    Raises :class:`NoDataError` when no reading can be mapped and :class:`MapSizeError` when the
-    data spans an absurd area.
+    sync: SyncStats
+    parts: list[tuple[SensorModel, SensorReadings]]
+    spec: GridSpec
+
+
+def plan_build(log: RangeLog, robot: RobotDescription | None, options: BuildOptions) -> BuildPlan:
+    """Every check :func:`build_map` makes before mapping, with the plan it maps by.
+
+    ``gridmap inspect`` calls this too, so that its verdict is build's own: the errors are
+    :func:`build_map`'s (a sensor without mounting, :class:`NoDataError` when no reading can be
+    mapped, :class:`MapSizeError` when the data spans an absurd area, a mode that cannot take
+    the log's sensors).
     """
     if options.mode not in MAPPING_MODES:
         raise GridmapError(f"unknown mapping mode '{options.mode}' (known: {MAPPING_MODES})")
@@ -118,10 +124,26 @@ def build_map(
     spec = GridSpec.covering(
         xmin, ymin, xmax, ymax, options.resolution_m, options.margin_m, options.max_cells
     )
+    return BuildPlan(stats, parts, spec)
+
+
+def build_map(
+    log: RangeLog,
+    robot: RobotDescription | None,
+    options: BuildOptions,
+    progress: Callable[[int], object] | None = None,
+) -> BuildResult:
+    """Build an occupancy map from a canonical log.
+
+    ``progress`` is called with the number of readings just processed (one call per batch).
+    Raises what :func:`plan_build` raises, before any mapping.
+    """
+    plan = plan_build(log, robot, options)
+    spec, stats = plan.spec, plan.sync
     grid: LogOddsAccumulator | FrequencyAccumulator
     grid = LogOddsAccumulator(spec) if options.mode == "standard" else FrequencyAccumulator(spec)
     updates = 0
-    for model, part in parts:
+    for model, part in plan.parts:
         for start in range(0, len(part), options.batch_size):
             batch = _select(part, slice(start, start + options.batch_size))
             updates += model.accumulate(grid, batch)

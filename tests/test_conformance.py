@@ -228,3 +228,45 @@ def test_convert_to_every_other_format_keeps_the_dump(
         dump = canonical_dump(log, log_robot(log))
         same = dump == reference
         assert same, first_difference(f"{source} -> {out.name}", dump, reference)
+
+
+@pytest.fixture(scope="module")
+def laser_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A short laser + sonar run (p3at-lms200) stored as CSV; thousands of its beams see nothing."""
+    loaded = load_map(SAMPLES / "worlds" / "corridor_loop.yaml")
+    log = simulate(
+        World(loaded.occupied_mask(), loaded.spec),
+        parse_path_yaml(PATH, "inline.yaml"),
+        load_robot("p3at-lms200"),
+        seed=2,
+        duration_s=20.0,
+    )
+    log.metadata["robot"] = "p3at-lms200"
+    path = tmp_path_factory.mktemp("laser") / "laser.csv"
+    save_csv_log(log, path)
+    return path
+
+
+def test_laser_no_echo_beams_survive_the_aria_format(laser_csv: Path, tmp_path: Path) -> None:
+    """CSV -> .2d (`gridmap convert`) keeps every laser beam, no echo included: the .2d carries
+    the laser's range (sick1minRange/sick1maxRange) and writes no echo as the maximum range,
+    where it used to write ARIA's 0 ("no reading"), which the reader then dropped."""
+    aria = tmp_path / "laser.2d"
+    code, _, err = run("convert", str(laser_csv), str(aria), "-q")
+    assert code == 0, err
+    assert "sick1minRange: 0\nsick1maxRange: 8000\n" in aria.read_text(encoding="ascii")
+    a, b = read_log(laser_csv), read_log(aria)
+    robot = log_robot(a)
+    laser = [i for i, n in enumerate(a.sensor_names) if n.startswith("laser1_")]
+    no_echo = np.isin(a.readings.sensor, laser) & (a.readings.range_m >= 8.0)
+    assert no_echo.sum() > 2000  # the run has plenty of them
+    assert len(b.readings) == len(a.readings)
+    dump = canonical_dump(b, robot)
+    reference = canonical_dump(a, robot)
+    assert dump == reference, first_difference("laser.2d", dump, reference)
+    images = []
+    for log in (a, b):
+        result = build_map(log, robot, BuildOptions())
+        image, _ = write_map(tmp_path / f"{len(images)}.pgm", result.map, mode="trinary")
+        images.append(image.read_bytes())
+    assert images[0] == images[1]

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from gridmap_cli.robot import preset_names
-from tests.helpers import run
+from tests.helpers import names, run
 from tests.readers.mcap_helpers import (
     DATA,
     Recording,
@@ -26,16 +27,19 @@ SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 real = pytest.mark.skipif(not DATA.is_dir(), reason="../shared/data/mcap is not present")
 
 
-def inspect_json(*args: str) -> Any:
-    code, out, err = run("inspect", *args, "--json")
-    assert code == 0, err
+def inspect_json(*args: str, code: int = 0) -> Any:
+    """``gridmap inspect ARGS --json``, parsed; ``code`` is the exit expected (1: build would
+    fail, the description printed all the same)."""
+    got, out, err = run("inspect", *args, "--json")
+    assert got == code, err
     return json.loads(out)
 
 
 @real
 def test_rosbag2_text_explains_channels_odometry_and_why_build_fails() -> None:
     code, out, err = run("inspect", str(DATA / "rosbag2_turtlebot_odometry.mcap"))
-    assert code == 0, err
+    assert code == 1, err
+    assert err.startswith("Error: ") and err.count("\n") == 1
     lines = out.splitlines()
     assert lines[0].endswith("MCAP log, 0.5 MB; profile 'ros2', written by mcap go v1.8.0; "
                              "libmcap 1.4.0")  # fmt: skip
@@ -67,7 +71,7 @@ def test_rosbag2_text_explains_channels_odometry_and_why_build_fails() -> None:
 
 @real
 def test_rosbag2_json() -> None:
-    d = inspect_json(str(DATA / "rosbag2_turtlebot_odometry.mcap"))
+    d = inspect_json(str(DATA / "rosbag2_turtlebot_odometry.mcap"), code=1)
     mcap = d["mcap"]
     assert (mcap["profile"], mcap["indexed"], mcap["messages"]) == ("ros2", True, 8197)
     assert mcap["tf"] == []  # /tf is left unread: odometry is /odom, mounting /tf_static
@@ -95,7 +99,7 @@ def test_rosbag2_json() -> None:
 def test_tiago_recordings_at_different_times(tmp_path: Path) -> None:
     both = tmp_path / "tiago.mcap"
     merge_mcaps([DATA / "tiago_sonar_range_ros1.mcap", DATA / "tiago_odometry_ros1.mcap"], both)
-    d = inspect_json(str(both))
+    d = inspect_json(str(both), code=1)
     build = d["build"]
     assert (build["ranges"], build["sensors"], build["ready"]) == (["/sonar_base"], 3, False)
     assert build["frames"] == {"odom": "odom", "base": "base_footprint"}
@@ -121,10 +125,10 @@ def test_tiago_recordings_at_different_times(tmp_path: Path) -> None:
             f"  - {{name: base_sonar_0{i}_link, x_m: 0, y_m: 0, yaw_deg: 0}}\n" for i in (1, 2, 3)
         )
     )
-    with_robot = inspect_json(str(both), "--robot", str(robot))
-    assert with_robot["build"]["problem"] == (
-        "no odometry during the range readings (recorded at different times?)"
-    )
+    with_robot = inspect_json(str(both), "--robot", str(robot), code=1)
+    problem = with_robot["build"]["problem"]  # build's own words, with the two time spans
+    assert problem.startswith(f"{both}: no odometry during the range readings: the 609 readings ")
+    assert problem.endswith(" (recorded at different times?)")
     assert {s["mounting_from"] for s in with_robot["log"]["sensors"]} == {"robot"}
 
 
@@ -175,9 +179,9 @@ def test_ros2_and_json_mcaps_are_ready(tmp_path: Path) -> None:
     assert out.splitlines()[-1] == "  -> ready to build"
 
 
-def text_lines(path: Path) -> list[str]:
-    code, out, err = run("inspect", str(path))
-    assert code == 0, err
+def text_lines(path: Path, code: int = 0) -> list[str]:
+    got, out, err = run("inspect", str(path))
+    assert got == code, err
     return out.splitlines()
 
 
@@ -246,10 +250,10 @@ def test_unknown_robot_line_is_the_error_build_stops_at(room_csv: Path, tmp_path
     )
     code, _, err = run("build", str(room_csv), "-o", str(tmp_path / "m.png"))
     assert (code, err.strip()) == (1, f"Error: {room_csv}: {message}")
-    d = inspect_json(str(room_csv))
+    d = inspect_json(str(room_csv), code=1)
     assert (d["build"]["ready"], d["build"]["problem"]) == (False, f"{room_csv}: {message}")
     assert d["build"]["robot"] is None
-    assert text_lines(room_csv)[-1] == f"  -> build would fail: {message}"
+    assert text_lines(room_csv, code=1)[-1] == f"  -> build would fail: {message}"
 
 
 def test_channels_unused_by_build_have_their_time_span(tmp_path: Path) -> None:
@@ -311,3 +315,206 @@ def test_laser_beams_fold_into_one_row_and_a_long_table_is_cut(tmp_path: Path) -
     assert rows[13] == ["laser_0..4", "(5", "beams)", "laser", "0.200", "0.000", "-28.6..28.6",
                         "0.0", "0.1-8", "5", "2", "TF"]  # fmt: skip
     assert lines[start + 15] == ""
+
+
+# ----------------------------------------------------------- inspect's verdict is build's own
+
+HEAD = "# robot: p3at\ntime,x,y,theta"
+
+
+def csv_log(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "run.csv"
+    path.write_text(text)
+    return path
+
+
+def aria_log(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "run.2d"
+    path.write_text(text)
+    return path
+
+
+def mcap_log(tmp_path: Path, readings_from_s: float, odometry: bool = True) -> Path:
+    """A sonar mounted by /tf_static, odometry from 1 to 2 s, and three readings from
+    ``readings_from_s`` (recorded at another time when that is past 2 s)."""
+    path = tmp_path / "run.mcap"
+    with Recording(path) as rec:
+        static_tf(rec, rec.transform(0, "base_link", "sonar", 0.1, 0.0, 0.0))
+        if odometry:
+            drive(rec)
+        for k in range(3):
+            ns = int(readings_from_s * S) + k * S // 10
+            rec.write("/sonar", "sensor_msgs/Range", ns, sonar_range(rec, ns, "sonar", 1.0))
+    return path
+
+
+SONAR_NO_UNITS = (
+    "LaserOdometryLog\nversion: 4\nlogTime: 0.1\nrobot: 0 0 0\nsonar: 500 5000\n"
+    "logTime: 0.2\nrobot: 40 0 0\nsonar: 460 1200\n"
+)
+
+# (name, the log, what build's error says after the file name)
+BUILD_FAILS = [
+    (
+        "no range columns",
+        lambda t: csv_log(t, f"{HEAD}\n0,0,0,0\n0.1,0.1,0,0\n"),
+        "the log holds no range readings",
+    ),
+    (
+        "every reading empty",
+        lambda t: csv_log(t, f"{HEAD},sonar0\n0,0,0,0,\n0.1,0.1,0,0,nan\n"),
+        "the log holds no range readings",
+    ),
+    (
+        "every reading below the minimum range",
+        lambda t: csv_log(t, f"{HEAD},sonar0\n0,0,0,0,0.1\n0.1,0.1,0,0,0.12\n"),
+        "none of the 2 range readings can be mapped (2 below their sensor's minimum range)",
+    ),
+    (
+        "a sensor the robot does not describe",
+        lambda t: csv_log(t, f"{HEAD},front\n0,0,0,0,1\n0.1,0.1,0,0,1.2\n"),
+        "sensor column 'front' not described by robot 'p3at' (it has sonar0, sonar1",
+    ),
+    (
+        "laser beams and a robot without a laser",
+        lambda t: csv_log(t, f"{HEAD},laser1_0\n0,0,0,0,1\n0.1,0.1,0,0,1.2\n"),
+        "sensor column 'laser1_0' not described by robot 'p3at'",
+    ),
+    (
+        "no robot for the sensors",
+        lambda t: csv_log(t, "time,x,y,theta,sonar0\n0,0,0,0,1\n0.1,0.1,0,0,1.2\n"),
+        "the log does not describe sensor 'sonar0'; give --robot",
+    ),
+    (
+        "ARIA sonar without sonarUnit lines and no robot",
+        lambda t: aria_log(t, SONAR_NO_UNITS),
+        "the log does not describe sensors 'sonar0', 'sonar1'; give --robot",
+    ),
+    (
+        "absurd coordinates",
+        lambda t: csv_log(t, f"{HEAD},sonar0\n0,0,0,0,1\n0.1,1e9,0,0,1.2\n"),
+        "the data spans 1e+09 m x 1.25 m",
+    ),
+    (
+        "readings outside the odometry's time span",
+        lambda t: mcap_log(t, 5.0),
+        "no odometry during the range readings: the 3 readings span 5.000 s to 5.200 s (0.2 s), "
+        "the odometry 1.000 s to 2.000 s (1.0 s) (recorded at different times?)",
+    ),
+    (
+        "no odometry",
+        lambda t: mcap_log(t, 1.0, odometry=False),
+        "no odometry: no nav_msgs/Odometry, geometry_msgs/PoseStamped or gridmap.Pose2D topic "
+        "and no TF; topics: /tf_static",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("make", "reason"), [(m, r) for _, m, r in BUILD_FAILS], ids=[n for n, _, _ in BUILD_FAILS]
+)
+def test_inspect_fails_with_builds_own_error(
+    tmp_path: Path, make: Callable[[Path], Path], reason: str
+) -> None:
+    """Whenever build refuses a log, inspect says so, exits 1 as build does, and gives build's
+    own error: on stderr as build prints it, as the text's last line and in the JSON."""
+    log = make(tmp_path)
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    code, _, err = run("build", str(log), "-o", str(out_dir / "map.png"))
+    assert code == 1
+    error = err.strip()
+    assert error.startswith("Error: ") and "\n" not in error
+    assert reason in error
+    assert names(out_dir) == set()  # build wrote nothing
+    message = error.removeprefix("Error: ")
+
+    code, out, err = run("inspect", str(log))
+    assert (code, err.strip()) == (1, error)
+    lines = out.splitlines()
+    assert lines[0].startswith(f"{log}: ")  # the description is printed all the same
+    assert "What build would use:" in lines
+    shown = message.removeprefix(f"{log}: ").split("; topics: ")[0]
+    assert lines[-1] == f"  -> build would fail: {shown}"
+    assert "ready to build" not in out
+
+    code, out, err = run("inspect", str(log), "--json")
+    assert (code, err.strip()) == (1, error)
+    build = json.loads(out)["build"]
+    assert (build["ready"], build["problem"]) == (False, message)
+
+
+def test_giving_the_missing_robot_makes_the_log_ready(tmp_path: Path) -> None:
+    log = aria_log(tmp_path, SONAR_NO_UNITS)
+    d = inspect_json(str(log), "--robot", "p3at")
+    assert (d["build"]["ready"], d["build"]["problem"]) == (True, None)
+    code, out, err = run("inspect", str(log), "--robot", "p3at")
+    assert (code, err, out.splitlines()[-1]) == (0, "", "  -> ready to build")
+
+
+# ------------------------------------------------------------------------ a laser's real range
+
+LASER = (
+    "gridmap-robot: 1\nname: scanner\nsensors:\n"
+    "  - {name: laser1, kind: laser, x_m: 0.2, y_m: 0.0, yaw_deg: 0, first_deg: -90, "
+    "last_deg: 90, samples: 181, min_range_m: 0.02, max_range_m: 8.0}\n"
+)
+
+
+def laser_csv(tmp_path: Path) -> Path:
+    (tmp_path / "scanner.yaml").write_text(LASER)
+    beams = ",".join(f"laser1_{i}" for i in range(181))
+    rows = "".join(f"{k / 10},{k / 10},0,0," + ",".join(["2.5"] * 180 + ["inf"]) + "\n"
+                   for k in range(3))  # fmt: skip
+    return csv_log(tmp_path, f"# robot: scanner.yaml\ntime,x,y,theta,{beams}\n{rows}")
+
+
+def test_a_lasers_range_is_shown_for_csv_and_aria(tmp_path: Path) -> None:
+    """The laser's range as build will use it: from the robot for a CSV log, from the log's
+    sick1minRange/sick1maxRange lines once converted to ARIA."""
+    csv = laser_csv(tmp_path)
+    lasers = inspect_json(str(csv))["build"]["lasers"]
+    assert lasers == [{"laser": "laser1", "beams": 181, "min_range_m": 0.02,
+                       "max_range_m": 8.0, "range_from": "robot"}]  # fmt: skip
+    assert "  laser     laser1: 181 beams, 0.02-8 m (from the robot)" in text_lines(csv)
+    aria = tmp_path / "run.2d"
+    code, _, err = run("convert", str(csv), str(aria), "-q")
+    assert code == 0, err
+    d = inspect_json(str(aria))
+    assert d["build"]["lasers"] == [{**lasers[0], "range_from": "log"}]
+    assert d["log"]["readings"]["no_echo"] == 3  # the last beam's 'inf', kept by the .2d
+    assert "  laser     laser1: 181 beams, 0.02-8 m" in text_lines(aria)
+
+
+def test_an_aria_log_without_range_lines_says_the_range_is_assumed(tmp_path: Path) -> None:
+    log = aria_log(
+        tmp_path,
+        "LaserOdometryLog\nversion: 2\nsick1pose: 0 0 0\nsick1conf: -90 90 3\n"
+        "time: 1.5\nrobot: 1000 -500 45\nsick1: 1000 0 2500\n",
+    )
+    d = inspect_json(str(log))
+    assert d["build"]["lasers"] == [{"laser": "laser1", "beams": 3, "min_range_m": 0.0,
+                                     "max_range_m": 32.0, "range_from": "assumed"}]  # fmt: skip
+    assert "  laser     laser1: 3 beams, 0-32 m (the log gives no range: gridmap's default)" in (
+        text_lines(log)
+    )
+
+
+def test_a_laserscans_range_is_shown_for_mcap(tmp_path: Path) -> None:
+    path = tmp_path / "scan.mcap"
+    with Recording(path) as rec:
+        static_tf(rec, rec.transform(0, "base_link", "laser", 0.2, 0.0, 0.0))
+        drive(rec)
+        scan = {
+            "header": rec.header(S, "laser"),
+            "angle_min": -0.5,
+            "angle_increment": 0.25,
+            "range_min": 0.05,
+            "range_max": 5.5,
+            "ranges": [1.0, 8.0, 2.0, math.inf, 3.0],
+        }
+        rec.write("/scan", "sensor_msgs/LaserScan", S, scan)
+    d = inspect_json(str(path))
+    assert d["build"]["lasers"] == [{"laser": "laser", "beams": 5, "min_range_m": 0.05,
+                                     "max_range_m": 5.5, "range_from": "log"}]  # fmt: skip
+    assert "  laser     laser: 5 beams, 0.05-5.5 m" in text_lines(path)

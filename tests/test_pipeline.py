@@ -6,15 +6,16 @@ the standard model put walls in the wrong place, erase them or paint arcs everyw
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from gridmap_cli.errors import NoDataError
+from gridmap_cli.errors import MapSizeError, NoDataError
 from gridmap_cli.mapfile import load_map
 from gridmap_cli.metrics import WallScores, wall_scores
-from gridmap_cli.pipeline import BuildOptions, build_map
+from gridmap_cli.pipeline import BuildOptions, build_map, plan_build
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import load_robot
 from gridmap_cli.sim.path import load_path
@@ -76,3 +77,19 @@ def test_readings_dropped_for_several_reasons_are_counted_in_the_error() -> None
     log = RangeLog("mem.csv", poses, readings, ("sonar0",))
     with pytest.raises(NoDataError, match="none of the 2 range readings can be mapped"):
         build_map(log, load_robot("p3at"), BuildOptions())
+
+
+def test_plan_build_makes_builds_checks_before_any_mapping() -> None:
+    """plan_build (what inspect runs) raises what build_map raises, and plans the same grid."""
+    poses = PoseTrack(np.array([0, 10], dtype=np.int64), np.array([0.0, 1e9]), np.zeros(2),
+                      np.zeros(2))  # fmt: skip
+    readings = RangeReadings(np.array([0, 10], dtype=np.int64), np.zeros(2, np.int32), np.ones(2))
+    absurd = RangeLog("mem.csv", poses, readings, ("sonar0",))
+    for check in (plan_build, build_map):
+        with pytest.raises(MapSizeError, match="check the log for absurd coordinates"):
+            check(absurd, load_robot("p3at"), BuildOptions())
+    fine = RangeLog("mem.csv", dataclasses.replace(poses, x_m=np.array([0.0, 1.0])), readings,
+                    ("sonar0",))  # fmt: skip
+    plan = plan_build(fine, load_robot("p3at"), BuildOptions())
+    result = build_map(fine, load_robot("p3at"), BuildOptions())
+    assert (plan.spec, plan.sync) == (result.map.spec, result.sync)

@@ -7,8 +7,10 @@ as ARIA's own documentation asks.
 
 Header tags: ``version:``, ``sick<N>pose: X Y Th`` / ``scan<N>pose: X Y [Z] Th`` (laser mounting,
 mm and degrees), ``sick<N>conf:`` / ``scan<N>conf: first_deg last_deg samples``,
-``locationTypes:``, and gridmap's sonar extension ``sonarUnit: n X Y Th`` (as a ``.p`` file's
-SonarUnit) and ``sonarMaxRange: mm``.
+``locationTypes:``, gridmap's laser range extension ``sick<N>maxRange: mm`` /
+``sick<N>minRange: mm`` (or ``scan<N>...``; ARIA writes no laser range, so without them a laser
+reaches :data:`LASER_MAX_RANGE_M` and its readings are taken as they are), and gridmap's sonar
+extension ``sonarUnit: n X Y Th`` (as a ``.p`` file's SonarUnit) and ``sonarMaxRange: mm``.
 
 Blocks start at ``time:`` (versions 1-2) or ``logTime:`` (3-4), seconds since the start of the log.
 A block holds ``robot: X Y Th`` (encoder pose, mm mm deg), optionally ``robotGlobal:`` (corrected
@@ -44,10 +46,11 @@ from gridmap_cli.robot import RangeSensor
 
 MAGIC = "LaserOdometryLog"
 
-#: ARIA writes no laser maximum range in the log; readings are end points or ranges that hit.
+#: ARIA writes no laser maximum range in the log; without gridmap's ``sick<N>maxRange:`` line a
+#: laser is taken to reach this far, and its readings are end points or ranges that hit.
 LASER_MAX_RANGE_M = 32.0
 
-_LASER_TAG = re.compile(r"^(sick|scan)(\d+)(pose|conf|id|name)?$", re.IGNORECASE)
+_LASER_TAG = re.compile(r"^(sick|scan)(\d+)(pose|conf|id|name|maxrange|minrange)?$", re.IGNORECASE)
 
 
 def sniff(head: bytes) -> bool:
@@ -61,6 +64,9 @@ class _Laser:
     pose: tuple[float, float, float] | None = None  # x_m, y_m, yaw_rad
     conf: tuple[float, float, int] | None = None  # first_rad, last_rad, samples
     line: int = 0
+    max_range_m: float | None = None  # gridmap's sick<N>maxRange:, None in ARIA's own logs
+    min_range_m: float = 0.0  # gridmap's sick<N>minRange:
+    range_line: int = 0  # where the later of the two range lines is, for errors
 
 
 @dataclass
@@ -188,6 +194,16 @@ class _Parser:
                         raise self.error(line, f"{tag}: samples must be a whole number >= 1")
                     laser.conf = (math.radians(first), math.radians(last), int(samples))
                     laser.line = line
+                elif kind == "maxrange":
+                    (mm,) = self.numbers(line, tag, values, 1)[:1]
+                    if mm <= 0:
+                        raise self.error(line, f"{tag}: must be positive, got {mm:g}")
+                    laser.max_range_m, laser.range_line = mm / 1000.0, line
+                elif kind == "minrange":
+                    (mm,) = self.numbers(line, tag, values, 1)[:1]
+                    if mm < 0:
+                        raise self.error(line, f"{tag}: must not be negative, got {mm:g}")
+                    laser.min_range_m, laser.range_line = mm / 1000.0, line
 
     def start_block(self, line: int, tag: str, values: str) -> _Block:
         try:
@@ -230,7 +246,7 @@ class _Parser:
             if block.robot is None:
                 raise self.error(block.line, "block has no 'robot:' pose")
         sensors, names, offsets = self.sensors(data)
-        readings = self.readings(data, sensors, offsets)
+        readings = self.readings(data, names, offsets)
         stamps = np.asarray([b.stamp_ns for b in data], dtype=np.int64)
         poses = PoseTrack.from_rows(stamps, [b.robot for b in data if b.robot is not None])
         truth = None
@@ -251,28 +267,11 @@ class _Parser:
     def sensors(
         self, data: list[_Block]
     ) -> tuple[list[RangeSensor | None], list[str], dict[str, int]]:
-        """Sensors in log order: every laser's beams, then the sonar units."""
+        """Sensors in the order of a block's lines as gridmap writes them (and of the robot
+        presets): the sonar units, then every laser's beams."""
         sensors: list[RangeSensor | None] = []
         names: list[str] = []
         offsets: dict[str, int] = {}
-        used = sorted({n for b in data for n in b.lasers})
-        for number in used:
-            laser = self.lasers.get(number)
-            if laser is None or laser.conf is None:
-                line = next(b.lasers[number][0] for b in data if number in b.lasers)
-                raise self.error(line, f"laser {number} readings but no sick{number}conf: header")
-            lx, ly, lth = laser.pose or (0.0, 0.0, 0.0)
-            first, last, samples = laser.conf
-            step = (last - first) / (samples - 1) if samples > 1 else 0.0
-            offsets[f"laser{number}"] = len(sensors)
-            for i in range(samples):
-                name = f"laser{number}_{i}"
-                names.append(name)
-                sensors.append(
-                    RangeSensor(
-                        name, lx, ly, lth + first + i * step, 0.0, 0.0, LASER_MAX_RANGE_M, "laser"
-                    )
-                )
         if any(b.sonar is not None for b in data):
             offsets["sonar"] = len(sensors)
             if self.sonar_units:
@@ -297,27 +296,41 @@ class _Parser:
                 for n in range(count):
                     names.append(f"sonar{n}")
                     sensors.append(None)
+        used = sorted({n for b in data for n in b.lasers})
+        for number in used:
+            laser = self.lasers.get(number)
+            if laser is None or laser.conf is None:
+                line = next(b.lasers[number][0] for b in data if number in b.lasers)
+                raise self.error(line, f"laser {number} readings but no sick{number}conf: header")
+            lx, ly, lth = laser.pose or (0.0, 0.0, 0.0)
+            first, last, samples = laser.conf
+            rmax = LASER_MAX_RANGE_M if laser.max_range_m is None else laser.max_range_m
+            if laser.min_range_m >= rmax:
+                raise self.error(
+                    laser.range_line,
+                    f"laser {number}: minimum range {laser.min_range_m * 1000.0:g} mm is not "
+                    f"below the maximum range {rmax * 1000.0:g} mm",
+                )
+            step = (last - first) / (samples - 1) if samples > 1 else 0.0
+            offsets[f"laser{number}"] = len(sensors)
+            for i in range(samples):
+                name = f"laser{number}_{i}"
+                names.append(name)
+                sensors.append(
+                    RangeSensor(
+                        name, lx, ly, lth + first + i * step, 0.0, laser.min_range_m, rmax, "laser"
+                    )
+                )
         return sensors, names, offsets
 
     def readings(
-        self, data: list[_Block], sensors: list[RangeSensor | None], offsets: dict[str, int]
+        self, data: list[_Block], names: list[str], offsets: dict[str, int]
     ) -> RangeReadings:
         stamps: list[np.ndarray] = []
         index: list[np.ndarray] = []
         ranges: list[np.ndarray] = []
-        n_sonar = len(sensors) - offsets.get("sonar", len(sensors))
+        n_sonar = sum(1 for name in names if name.startswith("sonar"))
         for block in data:
-            for number in sorted(block.lasers):
-                line, form, values = block.lasers[number]
-                base = offsets[f"laser{number}"]
-                laser = self.lasers[number]
-                assert laser.conf is not None
-                samples = laser.conf[2]
-                rng = self.laser_ranges(line, form, number, values, samples, laser)
-                keep = np.isfinite(rng)
-                stamps.append(np.full(int(keep.sum()), block.stamp_ns, dtype=np.int64))
-                index.append(base + np.nonzero(keep)[0])
-                ranges.append(rng[keep])
             if block.sonar is not None:
                 line, values = block.sonar
                 if len(values) != n_sonar:
@@ -332,6 +345,17 @@ class _Parser:
                 stamps.append(np.full(int(present.sum()), block.stamp_ns, dtype=np.int64))
                 index.append(offsets["sonar"] + np.nonzero(present)[0])
                 ranges.append(mm[present] / 1000.0)
+            for number in sorted(block.lasers):
+                line, form, values = block.lasers[number]
+                base = offsets[f"laser{number}"]
+                laser = self.lasers[number]
+                assert laser.conf is not None
+                samples = laser.conf[2]
+                rng = self.laser_ranges(line, form, number, values, samples, laser)
+                keep = np.isfinite(rng)
+                stamps.append(np.full(int(keep.sum()), block.stamp_ns, dtype=np.int64))
+                index.append(base + np.nonzero(keep)[0])
+                ranges.append(rng[keep])
         if not stamps:
             return RangeReadings(
                 np.empty(0, np.int64), np.empty(0, np.int32), np.empty(0, np.float64)
@@ -345,7 +369,21 @@ class _Parser:
     def laser_ranges(
         self, line: int, form: str, number: int, values: list[float], samples: int, laser: _Laser
     ) -> np.ndarray:
-        """Range per beam in metres, NaN where the laser ignored the reading."""
+        """Range per beam in metres, NaN where the laser ignored the reading.
+
+        With gridmap's ``sick<N>maxRange:`` line, a beam at or beyond that range is no echo and
+        comes back as exactly the maximum (as no echo is stored everywhere); without it the
+        ranges are taken as they are, as ARIA's own logs mean them.
+        """
+        rng = self.beam_ranges(line, form, number, values, samples, laser)
+        if laser.max_range_m is not None:
+            rng = np.minimum(rng, laser.max_range_m)  # NaN stays NaN
+        return rng
+
+    def beam_ranges(
+        self, line: int, form: str, number: int, values: list[float], samples: int, laser: _Laser
+    ) -> np.ndarray:
+        """Range per beam in metres as the line holds it, NaN where the laser ignored it."""
         tag = f"{form}{number}"
         if form == "sick":
             if len(values) != samples:

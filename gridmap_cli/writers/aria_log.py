@@ -4,6 +4,12 @@ Poses are written as ARIA does (mm, mm, degrees with two decimals), ranges in wh
 exact decimal seconds; a log at that resolution (as ``gridmap simulate`` makes them) therefore
 reads back bit-identical. Metadata goes into ``# key: value`` comment lines, which ARIA's own
 readers skip and gridmap's reader keeps.
+
+ARIA's loggers write no laser range, so each laser's range goes into gridmap's
+``sick<N>minRange:`` / ``sick<N>maxRange:`` header lines (tags ARIA's readers skip, as they skip
+every tag they do not know), and a beam with no echo is written as that maximum, rounded up to
+whole mm: what ArSickLogger's ``sick1:`` lines hold for a beam that saw nothing (the laser's
+out-of-range value), and what gridmap's reader turns back into no echo.
 """
 
 from __future__ import annotations
@@ -68,7 +74,9 @@ def write_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], handle: Text
     Sonar units must be named ``sonar0`` .. ``sonarN-1`` in order, as ARIA numbers them, and
     laser beams ``laser<N>_0`` .. in order, at one position and evenly spaced in angle (the
     ``sick<N>pose:`` and ``sick<N>conf:`` lines hold nothing else), or it is refused.
-    Laser beams with no return are written as 0, the way ARIA marks a reading it ignored.
+    Laser beams with no echo (at or beyond the laser's maximum range) are written as the
+    maximum range, which the ``sick<N>maxRange:`` header line gives, never as 0 (ARIA's "no
+    reading", which a reader drops).
     """
     names = list(log.sensor_names)
     if names != [s.name for s in sensors]:
@@ -92,11 +100,13 @@ def write_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], handle: Text
         raise GridmapError("the ARIA format needs robotGlobal poses at the odometry stamps")
     max_range = np.asarray([s.max_range_m for s in sensors], dtype=np.float64)
     mm = np.round(readings.range_m * 1000.0).astype(np.int64)
-    no_return = (readings.range_m >= max_range[readings.sensor]) & np.isin(
+    # no echo at the maximum in whole mm, rounded up so that it still reads as no echo
+    no_echo_mm = np.ceil(np.round(max_range * 1000.0, 6)).astype(np.int64)
+    no_echo = (readings.range_m >= max_range[readings.sensor]) & np.isin(
         readings.sensor, [c for laser in lasers.values() for c in laser.columns]
     )
     table = np.zeros((len(poses), len(names)), dtype=np.int64)  # 0 = no reading
-    table[row_of, readings.sensor] = np.where(no_return, 0, mm)
+    table[row_of, readings.sensor] = np.where(no_echo, no_echo_mm[readings.sensor], mm)
 
     handle.write("LaserOdometryLog\n#Created by gridmap\n")
     for key, value in log.metadata.items():
@@ -107,6 +117,8 @@ def write_aria_log(log: RangeLog, sensors: tuple[RangeSensor, ...], handle: Text
             f"sick{number}pose: {_num(laser.x_m * 1000.0)} {_num(laser.y_m * 1000.0)} 0\n"
             f"sick{number}conf: {_num(math.degrees(laser.first_yaw_rad))} "
             f"{_num(math.degrees(laser.last_yaw_rad))} {len(laser.columns)}\n"
+            f"sick{number}minRange: {_num(laser.range_min_m * 1000.0)}\n"
+            f"sick{number}maxRange: {_num(laser.range_max_m * 1000.0)}\n"
         )
     handle.write("locationTypes: robot" + (" robotGlobal\n" if truth is not None else "\n"))
     for unit, column in enumerate(sonar):

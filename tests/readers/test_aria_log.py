@@ -10,7 +10,7 @@ import pytest
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.readers import read_log, resolve_format
-from gridmap_cli.readers.aria_log import read_aria_log, sniff
+from gridmap_cli.readers.aria_log import LASER_MAX_RANGE_M, read_aria_log, sniff
 from gridmap_cli.robot import load_robot
 from gridmap_cli.sync import synchronise
 
@@ -112,6 +112,30 @@ def test_version_2_sick_ranges(tmp_path: Path) -> None:
     assert log.readings.range_m == pytest.approx([1.0, 2.5, 0.9, 1.2, 2.4])
 
 
+def test_laser_range_lines_make_beams_at_or_beyond_the_maximum_no_echo(tmp_path: Path) -> None:
+    """gridmap's sick1minRange/sick1maxRange lines give the laser's range; a beam at or beyond
+    the maximum is no echo, stored as exactly the maximum (0 is still no reading)."""
+    text = V2.replace(
+        "sick1conf: -90 90 3\n", "sick1conf: -90 90 3\nsick1minRange: 20\nsick1maxRange: 2400\n"
+    )
+    log = read_aria_log(write(tmp_path, text))
+    assert log.sensors is not None
+    assert {(s.min_range_m, s.max_range_m) for s in log.sensors} == {(0.02, 2.4)}
+    assert list(log.readings.sensor) == [0, 2, 0, 1, 2]
+    assert list(log.readings.range_m) == [1.0, 2.4, 0.9, 1.2, 2.4]
+
+
+def test_a_laser_log_without_range_lines_keeps_its_ranges(tmp_path: Path) -> None:
+    """ARIA's own logs say nothing of the laser's range: the ranges are taken as written and
+    the laser reaches LASER_MAX_RANGE_M, as before gridmap wrote range lines."""
+    log = read_aria_log(
+        write(tmp_path, V2.replace("sick1: 900 1200 2400", "sick1: 900 1200 40000"))
+    )
+    assert log.sensors is not None
+    assert {(s.min_range_m, s.max_range_m) for s in log.sensors} == {(0.0, LASER_MAX_RANGE_M)}
+    assert list(log.readings.range_m) == [1.0, 2.5, 0.9, 1.2, 40.0]
+
+
 def test_sonar_units_from_the_header(tmp_path: Path) -> None:
     log = read_aria_log(write(tmp_path, SONAR))
     assert log.sensor_names == ("sonar0", "sonar1")
@@ -176,6 +200,17 @@ NO_CONF = V4.replace("sick1conf: -90.00 90.00 5\n", "").replace("scan1conf: -90.
         (SONAR.replace("sonarUnit: 1 193", "sonarUnit: 0 193"), "0 193", "unit 0 declared twice"),
         ("LaserOdometryLog\nversion: 4\nsick1conf: -90 90 3\n", "sick1conf", "no reading blocks"),
         ("LaserOdometryLog\nrobot 1 2 3\n", "robot", "expected 'tag: values'"),
+        (V2.replace("sick1conf", "sick1maxRange: 0\nsick1conf"), "sick1max", "must be positive"),
+        (
+            V2.replace("sick1conf", "sick1minRange: -1\nsick1conf"),
+            "sick1min",
+            "sick1minRange: must not be negative",
+        ),
+        (
+            V2.replace("sick1conf", "sick1maxRange: 2000\nsick1minRange: 2000\nsick1conf"),
+            "sick1min",
+            "laser 1: minimum range 2000 mm is not below the maximum range 2000 mm",
+        ),
     ],
 )
 def test_malformed_logs_name_file_and_line(

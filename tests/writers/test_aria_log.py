@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from gridmap_cli.readers.aria_log import read_aria_log
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor, load_robot
 from gridmap_cli.writers.aria_log import write_aria_log
+from tests.helpers import run
 
 S = 1_000_000_000
 POSES = PoseTrack(
@@ -49,12 +51,13 @@ def test_sonar_and_laser_round_trip() -> None:
             (0, 0, 1.234),
             (0, 15, 4.335),  # sonar no echo: kept as a range at the maximum
             (0, laser0, 2.5),
-            (0, laser90, 8.0),  # laser no return: written as 0, read as no reading
+            (0, laser90, 8.0),  # laser no echo: written as the maximum, read as no echo
             (S // 10, laser90, 7.999),
         ],
     )
     text = written(log, robot.sensors)
     assert "sick1pose: 160 0 0\nsick1conf: -90 90 181\n" in text
+    assert "sick1minRange: 0\nsick1maxRange: 8000\n" in text
     assert "sonarUnit: 15 -144 136 90\nsonarMaxRange: 4335\n" in text
     assert "# seed: 1\n" in text
     back = read_aria_log(io.StringIO(text), "back.2d")
@@ -68,10 +71,12 @@ def test_sonar_and_laser_round_trip() -> None:
         (0, "sonar0", 1.234),
         (0, "sonar15", 4.335),
         (0, "laser1_0", 2.5),
+        (0, "laser1_90", 8.0),
         (S // 10, "laser1_90", 7.999),
     }
     assert back.sensors is not None
     beams = {s.name: s for s in back.sensors}
+    assert (beams["laser1_0"].min_range_m, beams["laser1_0"].max_range_m) == (0.0, 8.0)
     assert beams["laser1_0"].yaw_rad == pytest.approx(-math.pi / 2)
     assert beams["laser1_180"].yaw_rad == pytest.approx(math.pi / 2)
 
@@ -135,3 +140,48 @@ def test_laser_beams_out_of_order_are_refused() -> None:
     names = tuple(s.name for s in sensors)
     with pytest.raises(GridmapError, match=r"beams must be named laser1_0, laser1_1, \.\.\. in"):
         written(log_for(names, [(0, 0, 1.0)]), sensors)
+
+
+def laser_log(rows: list[tuple[int, int, float]]) -> tuple[RangeLog, tuple[RangeSensor, ...]]:
+    """A three-beam laser reaching 0.02-5.5005 m (not whole mm) and its beams' geometry."""
+    sensors = tuple(
+        RangeSensor(f"laser2_{i}", 0.1, 0.0, (i - 1) * 0.5, 0.0, 0.02, 5.5005, kind="laser")
+        for i in range(3)
+    )
+    return log_for(tuple(s.name for s in sensors), rows), sensors
+
+
+def test_laser_no_echo_is_written_at_the_maximum_and_read_back_as_no_echo() -> None:
+    """A beam at or beyond the maximum (the simulator's exact maximum, a CSV's larger value)
+    is no echo: written as the maximum rounded up to whole mm, so that it reads back at or
+    beyond sick2maxRange and the reader stores it as exactly the maximum."""
+    log, sensors = laser_log([(0, 0, 1.25), (0, 1, 5.5005), (0, 2, 9.0), (S // 10, 0, 5.4)])
+    text = written(log, sensors)
+    assert "sick2minRange: 20\nsick2maxRange: 5500.5\n" in text
+    assert "sick2: 1250 5501 5501\n" in text
+    back = read_aria_log(io.StringIO(text), "back.2d")
+    assert back.sensors is not None
+    assert {(s.min_range_m, s.max_range_m) for s in back.sensors} == {(0.02, 5.5005)}
+    assert list(back.readings.sensor) == [0, 1, 2, 0]
+    assert list(back.readings.range_m) == [1.25, 5.5005, 5.5005, 5.4]
+
+
+def test_an_infinite_laser_range_converts_to_the_maximum(tmp_path: Path) -> None:
+    """`gridmap convert` of a CSV whose no-echo beams are 'inf' keeps them as no echo."""
+    src = tmp_path / "scan.csv"
+    src.write_text(
+        "# robot: p3at-lms200\ntime,x,y,theta,"
+        + ",".join(f"laser1_{i}" for i in range(181))
+        + ",sonar0\n0.0,0,0,0,inf,"
+        + ",".join(["2.5"] * 179)
+        + ",inf,1.5\n"
+    )
+    out = tmp_path / "scan.2d"
+    code, _, err = run("convert", str(src), str(out), "-q")
+    assert code == 0, err
+    back = read_aria_log(out)
+    ranges = dict(zip((back.sensor_names[k] for k in back.readings.sensor),
+                      back.readings.range_m.tolist(), strict=True))  # fmt: skip
+    assert len(ranges) == 182
+    assert (ranges["laser1_0"], ranges["laser1_1"], ranges["laser1_180"]) == (8.0, 2.5, 8.0)
+    assert ranges["sonar0"] == 1.5
