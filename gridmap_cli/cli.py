@@ -139,13 +139,13 @@ def _selection_options(sensors: bool = True) -> Callable[[Callable[P, R]], Calla
         click.option(
             "--start",
             metavar="TIME",
-            help="Use the readings from TIME on: seconds from the log's start (its first pose "
-            "or reading), or an ISO 8601 time (2025-04-08T14:34:30Z; no offset means UTC).",
+            help="Use the log from TIME on: seconds from the log's start (its first pose or "
+            "reading), or an ISO 8601 time (2025-04-08T14:34:30Z; no offset means UTC).",
         ),
         click.option(
             "--end",
             metavar="TIME",
-            help="Use the readings before TIME (as --start).",
+            help="Use the log up to TIME, not including it (as --start).",
         ),
     ]
     if sensors:
