@@ -909,7 +909,7 @@ def evaluate(
     region = None
     if log_path is not None:
         data = resolve_format(log_path, log_format).read(log_path)
-        data.require_truth("evaluate needs the true path")
+        data.require_truth("evaluate needs the true path")  # before the robot is looked up
         if robot_desc is None:
             robot_desc = robot_from_log(log_path, data.metadata)
         selected = apply_selection(data, selection, robot_desc)
