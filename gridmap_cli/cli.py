@@ -32,6 +32,7 @@ from gridmap_cli.readers import format_names, recording_sources, resolve_format
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros_recording import read_recording
 from gridmap_cli.robot import RobotDescription, load_robot, robot_from_log
+from gridmap_cli.selection import EXCLUDE, Selection, apply_selection
 from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import MAP_MODES, check_map_outputs, write_map
@@ -140,6 +141,50 @@ def _topic_options(func: Callable[P, R]) -> Callable[P, R]:
     return func
 
 
+def _selection_options(sensors: bool = True) -> Callable[[Callable[P, R]], Callable[P, R]]:
+    """The choice of part of a log (``--sensors``, ``--start``, ``--end``), shared by the
+    commands that read one; calibrate, comparing poses only, takes the window alone."""
+    options = [
+        click.option(
+            "--start",
+            metavar="TIME",
+            help="Use the log from TIME on: seconds from the log's start (its first pose or "
+            "reading), or an ISO 8601 time (2025-04-08T14:34:30Z; no offset means UTC).",
+        ),
+        click.option(
+            "--end",
+            metavar="TIME",
+            help="Use the log up to TIME, not including it (as --start).",
+        ),
+    ]
+    if sensors:
+        options.insert(
+            0,
+            click.option(
+                "--sensors",
+                "sensor_patterns",
+                multiple=True,
+                metavar="PATTERN",
+                help="Use the sensors whose names match this shell-style pattern ('sonar*', "
+                f"'base_laser_link_*'); repeatable; '{EXCLUDE}PATTERN' leaves them out "
+                "(quote it); default: all.",
+            ),
+        )
+
+    def decorate(func: Callable[P, R]) -> Callable[P, R]:
+        for option in reversed(options):
+            func = option(func)
+        return func
+
+    return decorate
+
+
+def _warn(notes: tuple[str, ...], quiet: bool = False) -> None:
+    if not quiet:
+        for note in notes:
+            click.echo(f"Warning: {note}", err=True)
+
+
 def _read_options(
     odom_topic: str | None,
     range_topics: tuple[str, ...],
@@ -218,6 +263,7 @@ def _read_options(
     help="Map with the odometry, or with the log's global pose (ARIA robotGlobal, CSV true_*).",
 )
 @_topic_options
+@_selection_options()
 @click.option(
     "--odometry-error",
     "odometry_file",
@@ -259,6 +305,9 @@ def build(
     range_topics: tuple[str, ...],
     odom_frame: str | None,
     base_frame: str | None,
+    sensor_patterns: tuple[str, ...],
+    start: str | None,
+    end: str | None,
     odometry_file: Path | None,
     coefficients: tuple[str, ...],
     trust_length: float,
@@ -284,6 +333,7 @@ def build(
     error_aware, odometry_error = _error_aware_options(
         mode, odometry_file, coefficients, trust_length
     )
+    selection = Selection.parse(sensor_patterns, start, end)
     to_mcap = output.suffix.lower() == ".mcap"
     if to_mcap:
         source = click.get_current_context().get_parameter_source("map_mode")
@@ -307,6 +357,9 @@ def build(
     data = select_poses(data, pose)
     if robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
+    selected = apply_selection(data, selection, robot_desc)
+    _warn(selected.notes, quiet)
+    data = selected.log
     options = BuildOptions(
         resolution_m=resolution,
         mode=mode,
@@ -437,6 +490,7 @@ def _summary_line(s: dict[str, Any]) -> str:
 @click.option("--robot", help="Robot preset, robot YAML file or ARIA .p file.")
 @click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
 @_topic_options
+@_selection_options()
 @click.option("--json", "as_json", is_flag=True, help="Print the description as JSON.")
 @_handle_errors
 def inspect(
@@ -447,6 +501,9 @@ def inspect(
     range_topics: tuple[str, ...],
     odom_frame: str | None,
     base_frame: str | None,
+    sensor_patterns: tuple[str, ...],
+    start: str | None,
+    end: str | None,
     as_json: bool,
 ) -> None:
     """Describe LOG (CSV, ARIA .2d, MCAP, ROS 1 bag or rosbag2 folder) and what build would
@@ -455,16 +512,18 @@ def inspect(
     Channels or columns, message counts, time span, rates, distance travelled, sensors and
     their mounting poses, and the topics, frames and robot build would use. Exits 1, after
     the description, when build would fail: the reason is build's own error.
+    With --sensors, --start or --end: the part of LOG they select, as build would map it.
     """
     from gridmap_cli.describe import describe_log, render_text
 
+    selection = Selection.parse(sensor_patterns, start, end)
     robot_desc = load_robot(robot) if robot else None
     _check_input(log)
     fmt = resolve_format(log, log_format)
     read_options = _read_options(odom_topic, range_topics, odom_frame, base_frame, robot_desc)
     if fmt.sources is None:
         read_options.refuse_topic_flags(fmt.name.upper())
-    description = describe_log(log, fmt, read_options)
+    description = describe_log(log, fmt, read_options, selection)
     click.echo(json.dumps(description, indent=2) if as_json else render_text(description))
     if not description["build"]["ready"]:
         # the description is printed; the verdict is the line build would print, and its exit
@@ -603,6 +662,7 @@ def simulate(
     show_default=True,
     help="The sonar's relative range error k to write into the file (0.01 = 1 %).",
 )
+@_selection_options(sensors=False)
 @click.option("--force", is_flag=True, help="Overwrite an existing output.")
 @click.option("--json", "as_json", is_flag=True, help="Print the figures as JSON on stdout.")
 @_handle_errors
@@ -613,6 +673,8 @@ def calibrate(
     window_m: float,
     window_deg: float,
     sonar_error: float,
+    start: str | None,
+    end: str | None,
     force: bool,
     as_json: bool,
 ) -> None:
@@ -630,12 +692,14 @@ def calibrate(
         raise UsageError(f"--window-turn must be a positive number of degrees, got {window_deg}")
     if not (sonar_error >= 0.0 and math.isfinite(sonar_error)):
         raise UsageError(f"--sonar-error must be a finite number >= 0, got {sonar_error}")
+    selection = Selection.parse((), start, end)
     if output is not None:
         check_output(output, force)
         _check_output_folder(output)
     if not log.is_file():
         raise InputFileError(log, "no such file" if not log.exists() else "not a regular file")
     data = resolve_format(log, log_format).read(log)
+    data = apply_selection(data, selection, None, need_readings=False).log
     result = calibrate_log(data, window_m, math.radians(window_deg), sonar_error)
     if output is not None:
         save_odometry_error(
@@ -797,6 +861,7 @@ def convert(
     help="Frame of the map: odometry (built from odometry: the frame starts at the log's first "
     "true pose, needs --log) or world (built with --pose global).",
 )
+@_selection_options()
 @click.option("--json", "as_json", is_flag=True, help="Print the scores as JSON on stdout.")
 @click.option(
     "--plot",
@@ -812,6 +877,9 @@ def evaluate(
     log_format: str | None,
     robot: str | None,
     frame: str,
+    sensor_patterns: tuple[str, ...],
+    start: str | None,
+    end: str | None,
     as_json: bool,
     plot: Path | None,
     force: bool,
@@ -841,6 +909,9 @@ def evaluate(
             "a map in the odometry frame needs --log (its first true pose places the frame in "
             "the world); give --log, or --frame world for a map built with --pose global"
         )
+    selection = Selection.parse(sensor_patterns, start, end)
+    if selection and log_path is None:
+        raise UsageError("--sensors, --start and --end choose part of --log; give --log")
     if plot is not None:
         from gridmap_cli.evaluate_plot import check_plotting
 
@@ -859,9 +930,13 @@ def evaluate(
     region = None
     if log_path is not None:
         data = resolve_format(log_path, log_format).read(log_path)
-        true_path = data.require_truth("evaluate needs the true path")
+        data.require_truth("evaluate needs the true path")  # before the robot is looked up
         if robot_desc is None:
             robot_desc = robot_from_log(log_path, data.metadata)
+        selected = apply_selection(data, selection, robot_desc)
+        _warn(selected.notes)
+        data = selected.log
+        true_path = data.require_truth("evaluate needs the true path")
         sensors = sensors_for_log(data, robot_desc)
         if frame == "odometry":
             map_to_world = ev.odometry_frame_in_world(data)

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.errors import GridmapError
+from gridmap_cli.errors import GridmapError, InputFileError
 from gridmap_cli.odometry_error import travelled
 from gridmap_cli.pipeline import BuildOptions, plan_build
 from gridmap_cli.readers import LogFormat
@@ -25,13 +25,20 @@ from gridmap_cli.readers.aria_log import LASER_MAX_RANGE_M
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros_recording import RecordingRead, read_recording
 from gridmap_cli.readers.ros_topics import TF_TYPES
-from gridmap_cli.records import EPOCH_FROM_NS, PoseTrack, RangeLog, span_text
+from gridmap_cli.records import EPOCH_FROM_NS, PoseTrack, RangeLog, span_text, stamp_text
 from gridmap_cli.robot import RangeSensor, RobotDescription, robot_from_log
+from gridmap_cli.selection import Selected, Selection, apply_selection, names_text
 from gridmap_cli.sync import interpolate_pose
 
 
-def describe_log(path: Path, fmt: LogFormat, options: ReadOptions) -> dict[str, Any]:
-    """Describe a log of any format. Raises what the reader raises for a broken CSV/ARIA file."""
+def describe_log(
+    path: Path, fmt: LogFormat, options: ReadOptions, selection: Selection | None = None
+) -> dict[str, Any]:
+    """Describe a log of any format, or the part of it ``selection`` chooses.
+
+    Raises what the reader raises for a broken CSV/ARIA file, and what
+    :func:`~gridmap_cli.selection.apply_selection` raises for a selection the log cannot meet.
+    """
     size = sum(f.stat().st_size for f in path.iterdir()) if path.is_dir() else path.stat().st_size
     out: dict[str, Any] = {"file": str(path), "format": fmt.name, "bytes": size}
     problem: str | None = None
@@ -45,6 +52,15 @@ def describe_log(path: Path, fmt: LogFormat, options: ReadOptions) -> dict[str, 
         log = fmt.read(path, options)
     robot, robot_source, robot_problem = _robot(path, log, options)
     problem = problem or robot_problem  # build reads the log before it loads the robot
+    try:
+        selected = apply_selection(log, selection or Selection(), robot)
+    except InputFileError as exc:  # the log cannot be mapped: described whole, build's error
+        problem = problem or str(exc)
+        out["selection"], out["notes"] = None, []
+    else:
+        log = selected.log
+        out["selection"] = _selection_part(selection, selected) if selection else None
+        out["notes"] = list(selected.notes)
     if problem is None:
         problem = _build_problem(log, robot)
     during = _during_odometry(log)
@@ -64,6 +80,20 @@ def _build_problem(log: RangeLog, robot: RobotDescription | None) -> str | None:
     except GridmapError as exc:
         return str(exc)
     return None
+
+
+def _selection_part(selection: Selection, selected: Selected) -> dict[str, Any]:
+    names = selected.log.sensor_names
+    return {
+        "sensors": list(selection.sensors),
+        "start": selection.start.text if selection.start is not None else None,
+        "end": selection.end.text if selection.end is not None else None,
+        "start_ns": selected.start_ns,
+        "end_ns": selected.end_ns,
+        "sensors_selected": len(names),
+        "sensors_in_log": selected.sensors_before,
+        "sensor_names": names_text(names),
+    }
 
 
 def _during_odometry(log: RangeLog) -> npt.NDArray[np.bool_]:
@@ -431,6 +461,7 @@ def render_text(d: dict[str, Any]) -> str:
                 f"  mounting known for {len(frames)} frame{'s' if len(frames) > 1 else ''} "
                 f"below '{base}': {_some(frames, 6)}"
             )
+    lines += _selection_lines(d.get("selection"), d.get("notes") or [])
     log = d["log"]
     for key, title in (("odometry", "Odometry"), ("truth", "Ground truth")):
         track = log[key]
@@ -509,6 +540,24 @@ def _laser_text(laser: dict[str, Any]) -> str:
     if source == "assumed":
         return text + " (the log gives no range: gridmap's default)"
     return text if source == "log" else f"{text} (from the {source})"
+
+
+def _selection_lines(sel: dict[str, Any] | None, notes: list[str]) -> list[str]:
+    lines = [f"Warning: {note}" for note in notes]
+    if sel is None:
+        return lines
+    flags = [f"--sensors '{p}'" for p in sel["sensors"]]
+    flags += [f"--{k} {sel[k]}" for k in ("start", "end") if sel[k] is not None]
+    lines += ["", f"Selection ({' '.join(flags)}): the rest of this description is of it"]
+    lines.append(
+        f"  sensors   {sel['sensors_selected']} of {sel['sensors_in_log']}: "
+        f"{sel['sensor_names'] or 'none'}"
+    )
+    if sel["start_ns"] is not None or sel["end_ns"] is not None:
+        lo = stamp_text(sel["start_ns"]) if sel["start_ns"] is not None else "the start"
+        hi = stamp_text(sel["end_ns"]) if sel["end_ns"] is not None else "the end"
+        lines.append(f"  readings  from {lo} to {hi} (not including it)")
+    return lines
 
 
 def _yaw_text(s: dict[str, Any]) -> str:

@@ -183,7 +183,7 @@ def _error_aware_model(
         raise GridmapError(
             f"error-aware mode models sonar cones; {int(is_ray.sum())} readings come from "
             f"narrow-beam sensors ({', '.join(lasers[:3])}{' ...' if len(lasers) > 3 else ''}): "
-            "build this log with --mode standard"
+            f"build this log with --mode standard, or without them ({_leave_out(lasers)})"
         )
     if options.odometry_error is None:
         raise GridmapError(
@@ -192,6 +192,15 @@ def _error_aware_model(
     return ErrorAwareSonarModel(
         options.sonar, options.error_aware, options.odometry_error, options.resolution_m
     )
+
+
+def _leave_out(names: list[str]) -> str:
+    """The --sensors flags that leave ``names`` out, a laser's beams by one pattern."""
+    patterns = sorted(
+        {f"{base}_*" if sep and index.isdigit() else name
+         for name in names for base, sep, index in [name.rpartition("_")]}
+    )  # fmt: skip
+    return " ".join(f"--sensors '!{p}'" for p in patterns)
 
 
 def _why_empty(log: RangeLog, stats: SyncStats) -> str:

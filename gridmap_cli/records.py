@@ -81,6 +81,10 @@ class RangeLog:
     subset of ``sensor_names``, matched by name); the robot description supplies the rest.
     ``truth`` is a ground-truth (or reference) track in the world frame, when the log has one;
     ``build`` ignores it. ``metadata`` holds the log's own key/value header.
+    ``names_are_columns``: the sensor names are free-form table columns (CSV), so a name that
+    neither the log nor the robot describes may be some other measurement (a battery voltage):
+    :func:`gridmap_cli.selection.ignore_other_columns` leaves it out with a note. Elsewhere a
+    sensor is a sensor, and one without mounting geometry is an error.
     """
 
     source: str
@@ -90,6 +94,7 @@ class RangeLog:
     sensors: tuple[RangeSensor, ...] | None = None
     truth: PoseTrack | None = None
     metadata: dict[str, str] = field(default_factory=dict)
+    names_are_columns: bool = False
 
     def require_truth(self, purpose: str) -> PoseTrack:
         """The ground-truth track; :class:`InputFileError` naming the log if it has none.

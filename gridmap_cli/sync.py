@@ -2,8 +2,10 @@
 
 The robot pose at a reading's stamp is interpolated between the two odometry stamps around it
 (linear in x and y, along the shorter arc in theta) and composed with the sensor's mounting pose.
-Readings outside the odometry's time span, below the sensor's minimum range or from sensors the
-robot does not describe are counted and dropped, never silently mapped.
+Readings outside the odometry's time span or below the sensor's minimum range are counted and
+dropped, never silently mapped. A sensor that neither the log nor the robot describes is an error
+here: a CSV column that is no range sensor (a battery voltage) is left out before sync, with a
+note for the user (:func:`gridmap_cli.selection.ignore_other_columns`).
 """
 
 from __future__ import annotations

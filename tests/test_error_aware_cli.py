@@ -112,4 +112,12 @@ def test_error_aware_refuses_laser_logs(tmp_path: Path) -> None:
     )  # fmt: skip
     assert code == 1
     assert "narrow-beam" in stderr and "--mode standard" in stderr
+    assert "or without them (--sensors '!laser1_*')" in stderr
     assert names(out) == set()
+    # ... and its sonars alone map in error-aware mode
+    code, _, stderr = run(
+        "build", str(log), "-o", str(out / "m.png"), "--robot", "p3at-lms200",
+        "--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=0.01",
+        "--sensors", "!laser1_*",
+    )  # fmt: skip
+    assert code == 0, stderr

@@ -373,12 +373,13 @@ BUILD_FAILS = [
     (
         "a sensor the robot does not describe",
         lambda t: csv_log(t, f"{HEAD},front\n0,0,0,0,1\n0.1,0.1,0,0,1.2\n"),
-        "sensor column 'front' not described by robot 'p3at' (it has sonar0, sonar1",
+        "no column is a range sensor of robot 'p3at' (columns front; the robot has "
+        "sonar0..sonar15): give --robot",
     ),
     (
         "laser beams and a robot without a laser",
         lambda t: csv_log(t, f"{HEAD},laser1_0\n0,0,0,0,1\n0.1,0.1,0,0,1.2\n"),
-        "sensor column 'laser1_0' not described by robot 'p3at'",
+        "no column is a range sensor of robot 'p3at' (columns laser1_0; the robot has",
     ),
     (
         "no robot for the sensors",

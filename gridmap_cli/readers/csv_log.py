@@ -163,6 +163,7 @@ def _read(handle: TextIO, path: str) -> RangeLog:
         sensor_names=tuple(header[i] for i in sensor_cols),
         truth=truth,
         metadata=metadata,
+        names_are_columns=True,
     )
 
 
