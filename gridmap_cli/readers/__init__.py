@@ -110,6 +110,9 @@ def resolve_format(path: Path, name: str | None = None) -> LogFormat:
     gzipped = compressed.is_gzip(path)
     suffix = compressed.inner_suffix(path) if gzipped else path.suffix.lower()
     candidates = [f for f in FORMATS if f.text_reader is not None or not gzipped]
+    binary = [f for f in FORMATS if f not in candidates and suffix in f.extensions]
+    if binary:
+        raise InputFileError(path, f"gzip-compressed {binary[0].name} logs are not supported")
     for fmt in candidates:
         if suffix in fmt.extensions:
             return fmt

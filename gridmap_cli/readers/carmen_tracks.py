@@ -132,15 +132,16 @@ def chain_increments(
 def repair_stamps(stamps_ns: list[int]) -> tuple[list[int], int, int, int]:
     """Stamps made strictly increasing in their order: ``max(stamp, previous + 1 us)``.
 
-    Returns the stamps, how many went backwards, how many repeated the one before (both are
-    moved forward), and the largest move (ns).
+    Returns the stamps, how many went back from or repeated the log's stamp before them, and
+    the largest move (ns).
     """
     out: list[int] = []
     backwards = repeats = largest = 0
-    for stamp in stamps_ns:
+    for i, stamp in enumerate(stamps_ns):
+        if i:
+            backwards += stamp < stamps_ns[i - 1]
+            repeats += stamp == stamps_ns[i - 1]
         if out and stamp <= out[-1]:
-            backwards += stamp < out[-1]
-            repeats += stamp == out[-1]
             largest = max(largest, out[-1] + STAMP_STEP_NS - stamp)
             stamp = out[-1] + STAMP_STEP_NS
         out.append(stamp)
@@ -224,11 +225,12 @@ def build_tracks(path: str, events: list[Event], last_line: int) -> Tracks:
         if corrected
         else "raw log: ODOM is the robot's odometry"
     )
-    if backwards or repeats:
+    moved = sum(a != b for a, b in zip(fixed, (events[i].stamp_ns for i in timed), strict=True))
+    if moved:
         notes["stamps"] = (
-            f"of {len(timed)} stamps, {backwards} went backwards and {repeats} repeated the one "
-            f"before: moved forward (at most {largest / 1e9:.3g} s) so that time increases in "
-            "file order"
+            f"of {len(timed)} stamps, {backwards} went back and {repeats} repeated the one "
+            f"before; {moved} moved forward (at most {largest / 1e9:.3g} s) so that time "
+            "increases in file order"
         )
     return Tracks(odometry=_track(odo_stamps, odo_rows), truth=truth, event_stamps_ns=stamps,
                   notes=notes)  # fmt: skip
