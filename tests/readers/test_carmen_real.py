@@ -1,5 +1,5 @@
 """The CARMEN reader on the classic corrected data sets in ../shared/data/carmen (skipped when
-absent; ``GRIDMAP_SHARED_DATA`` points elsewhere, e.g. from a git worktree).
+absent).
 
 Facts asserted here were read from the files with zcat and awk (see SOURCES.md there).
 """
@@ -7,7 +7,6 @@ Facts asserted here were read from the files with zcat and awk (see SOURCES.md t
 from __future__ import annotations
 
 import math
-import os
 from functools import cache
 from pathlib import Path
 
@@ -18,8 +17,7 @@ from gridmap_cli.odometry_error import travelled
 from gridmap_cli.readers import read_log, resolve_format
 from gridmap_cli.records import RangeLog
 
-_DEFAULT = Path(__file__).resolve().parents[2].parent / "shared" / "data"
-DATA = Path(os.environ.get("GRIDMAP_SHARED_DATA", _DEFAULT)) / "carmen"
+DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "carmen"
 
 pytestmark = pytest.mark.skipif(not DATA.is_dir(), reason="../shared/data/carmen is not present")
 
