@@ -260,7 +260,8 @@ def _read_options(
     type=click.Choice(POSE_SOURCES),
     default="odometry",
     show_default=True,
-    help="Map with the odometry, or with the log's global pose (ARIA robotGlobal, CSV true_*).",
+    help="Map with the odometry, or with the log's global pose (ARIA robotGlobal, CSV true_*, "
+    "CARMEN's corrected poses or TRUEPOS).",
 )
 @_topic_options
 @_selection_options()

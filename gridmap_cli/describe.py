@@ -340,6 +340,17 @@ def _build_part(
         truth = "columns true_x, true_y, true_theta" if log.truth is not None else None
         frames = {}
         odom_topic = None
+    elif fmt.name == "carmen":
+        odometry = "ODOM lines: the chain of their increments (the robot's own odometry)"
+        lasers = sorted({n.rpartition("_")[0] for n in log.sensor_names})
+        ranges = [f"{laser} ({sum(n.startswith(laser + '_') for n in log.sensor_names)} beams)"
+                  for laser in lasers]  # fmt: skip
+        truth = None
+        if log.truth is not None:
+            truth = log.metadata.get("truth", "reference track").removesuffix(" (--pose global)")
+            truth = "reference track: " + truth
+        frames = {}
+        odom_topic = None
     else:
         odometry = "robot: lines (encoder pose)"
         lasers = [n for n in log.sensor_names if n.startswith("laser")]

@@ -20,7 +20,7 @@ from gridmap_cli.robot import RangeSensor
 #: Where each reader finds a log's ground truth, for the error when a log has none.
 TRUTH_SOURCES = (
     "CSV true_x, true_y, true_theta columns, ARIA robotGlobal: lines in every block, "
-    "or an MCAP pose topic named ground_truth"
+    "an MCAP pose topic named ground_truth, or a CARMEN log's TRUEPOS lines or corrected poses"
 )
 
 

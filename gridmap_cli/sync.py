@@ -70,9 +70,10 @@ POSE_SOURCES = ("odometry", "global")
 def select_poses(log: RangeLog, source: str) -> RangeLog:
     """The log with the pose track to map with: its odometry, or its global pose.
 
-    The global pose is the log's reference track: ARIA's ``robotGlobal:`` (a corrected pose) or
-    a CSV's ``true_*`` columns (ground truth). Mapping with it shows what the map would be with
-    the robot's pose known; mapping with odometry shows what the robot's own data gives.
+    The global pose is the log's reference track: ARIA's ``robotGlobal:`` (a corrected pose),
+    a CSV's ``true_*`` columns (ground truth) or a CARMEN log's corrected poses or TRUEPOS.
+    Mapping with it shows what the map would be with the robot's pose known; mapping with
+    odometry shows what the robot's own data gives.
     """
     if source == "odometry":
         return log
