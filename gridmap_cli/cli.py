@@ -115,26 +115,34 @@ def _check_output_folder(output: Path) -> None:
 
 
 def _topic_options(func: Callable[P, R]) -> Callable[P, R]:
-    """The MCAP topic and frame choices, shared by build and inspect."""
+    """The topic and frame choices of ROS recordings (MCAP, bag, rosbag2), for build and
+    inspect."""
     options = [
         click.option(
             "--odom-topic",
-            help="MCAP: pose topic to use as odometry, or /tf for its odom -> base transforms; "
+            help="ROS: pose topic to use as odometry, or /tf for its odom -> base transforms; "
             "default: the only Odometry/PoseStamped topic, else TF.",
         ),
         click.option(
             "--range-topic",
             "range_topics",
             multiple=True,
-            help="MCAP: range topic to map (repeatable); default: every Range, LaserScan, "
+            help="ROS: range topic to map (repeatable); default: every Range, LaserScan, "
             "RosAria sonar and gridmap range topic.",
         ),
-        click.option("--odom-frame", help="MCAP: odometry frame in TF [default: odom]."),
+        click.option("--odom-frame", help="ROS: odometry frame in TF [default: odom]."),
         click.option(
             "--base-frame",
-            help="MCAP: the robot's base frame; default: the odometry's child frame, else "
-            "base_link.",
+            help="ROS: the robot's base frame; default: the odometry's child frame, else the "
+            "lowest frame TF moves below the odometry frame, else base_link.",
         ),
+        click.option(
+            "--pose-topic",
+            help="ROS: the reference (corrected) pose topic for --pose global: PoseStamped, "
+            "PoseWithCovarianceStamped (/amcl_pose) or Odometry; default: a ground_truth topic, "
+            "else TF map -> base, else the one PoseWithCovarianceStamped topic.",
+        ),
+        click.option("--map-frame", help="ROS: the reference track's frame in TF [default: map]."),
     ]
     for option in reversed(options):
         func = option(func)
@@ -190,6 +198,8 @@ def _read_options(
     range_topics: tuple[str, ...],
     odom_frame: str | None,
     base_frame: str | None,
+    pose_topic: str | None,
+    map_frame: str | None,
     robot: RobotDescription | None,
 ) -> ReadOptions:
     return ReadOptions(
@@ -197,6 +207,8 @@ def _read_options(
         range_topics=tuple(range_topics),
         odom_frame=odom_frame,
         base_frame=base_frame,
+        pose_topic=pose_topic,
+        map_frame=map_frame,
         robot=robot,
     )
 
@@ -306,6 +318,8 @@ def build(
     range_topics: tuple[str, ...],
     odom_frame: str | None,
     base_frame: str | None,
+    pose_topic: str | None,
+    map_frame: str | None,
     sensor_patterns: tuple[str, ...],
     start: str | None,
     end: str | None,
@@ -347,7 +361,9 @@ def build(
     robot_desc = load_robot(robot) if robot else None
     for log in logs:
         _check_input(log)
-    read_options = _read_options(odom_topic, range_topics, odom_frame, base_frame, robot_desc)
+    read_options = _read_options(
+        odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
+    )
     sources = recording_sources(logs, log_format)
     if sources is None:
         fmt = resolve_format(logs[0], log_format)
@@ -502,6 +518,8 @@ def inspect(
     range_topics: tuple[str, ...],
     odom_frame: str | None,
     base_frame: str | None,
+    pose_topic: str | None,
+    map_frame: str | None,
     sensor_patterns: tuple[str, ...],
     start: str | None,
     end: str | None,
@@ -521,7 +539,9 @@ def inspect(
     robot_desc = load_robot(robot) if robot else None
     _check_input(log)
     fmt = resolve_format(log, log_format)
-    read_options = _read_options(odom_topic, range_topics, odom_frame, base_frame, robot_desc)
+    read_options = _read_options(
+        odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
+    )
     if fmt.sources is None:
         read_options.refuse_topic_flags(fmt.name.upper())
     description = describe_log(log, fmt, read_options, selection)

@@ -125,8 +125,11 @@ def _use(topic: str, read: RecordingRead) -> str:
     plan = read.plan
     if topic == plan.odom_topic:
         return "odometry"
+    truth_from = read.truth_from or ""
     if topic == plan.truth_topic:
-        return "ground truth"
+        return "ground truth" if topic in truth_from else ""
+    if topic == plan.reference_topic and truth_from.startswith(topic):
+        return "reference (--pose global)"
     if topic in plan.range_topics:
         return "range readings"
     if topic == plan.sensors_topic:
@@ -138,6 +141,8 @@ def _use(topic: str, read: RecordingRead) -> str:
         uses.append(f"odometry ({plan.odom_frame} -> {read.base_frame})")
     if topic in plan.tf_topics and not plan.static_topics:
         uses.append("sensor mounting")
+    if topic in plan.tf_topics and truth_from.startswith("TF "):
+        uses.append(f"reference ({truth_from.removeprefix('TF ')})")
     return " + ".join(uses)
 
 
@@ -331,7 +336,7 @@ def _build_part(
         else:
             odometry = None
         ranges = list(plan.range_topics)
-        truth = plan.truth_topic
+        truth = mcap.truth_from
         frames: dict[str, Any] = {"odom": plan.odom_frame, "base": mcap.base_frame}
         odom_topic = plan.odom_topic
     elif fmt.name == "csv":
@@ -474,7 +479,7 @@ def render_text(d: dict[str, Any]) -> str:
             )
     lines += _selection_lines(d.get("selection"), d.get("notes") or [])
     log = d["log"]
-    for key, title in (("odometry", "Odometry"), ("truth", "Ground truth")):
+    for key, title in (("odometry", "Odometry"), ("truth", "Ground truth / reference")):
         track = log[key]
         lines.append("")
         if track is None:

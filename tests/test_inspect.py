@@ -74,11 +74,18 @@ def test_rosbag2_json() -> None:
     d = inspect_json(str(DATA / "rosbag2_turtlebot_odometry.mcap"), code=1)
     mcap = d["mcap"]
     assert (mcap["profile"], mcap["indexed"], mcap["messages"]) == ("ros2", True, 8197)
-    assert mcap["tf"] == []  # /tf is left unread: odometry is /odom, mounting /tf_static
+    # /tf is read for the reference: map -> odom (AMCL) on top of odom -> base_link; the wheels
+    # turn, so their transforms are no mounting
+    assert mcap["tf"] == [
+        {"parent": "base_link", "child": "left_wheel", "transforms": 1862},
+        {"parent": "base_link", "child": "right_wheel", "transforms": 1862},
+        {"parent": "map", "child": "odom", "transforms": 921},
+        {"parent": "odom", "child": "base_link", "transforms": 2639},
+    ]
     counts = {c["topic"]: (c["messages"], c["used_as"]) for c in mcap["channels"]}
     assert counts == {
         "/odom": (2639, "odometry"),
-        "/tf": (5422, ""),
+        "/tf": (5422, "reference (map -> odom -> base_link)"),
         "/tf_static": (1, "sensor mounting"),
         "/amcl_pose": (135, ""),
     }
@@ -92,6 +99,8 @@ def test_rosbag2_json() -> None:
     assert (build["ranges"], build["sensors"], build["robot"]) == ([], 0, None)
     assert build["odometry"] == "/odom (nav_msgs/Odometry)"
     assert build["frames"] == {"odom": "odom", "base": "base_link"}
+    assert build["truth"] == "TF map -> odom -> base_link"
+    assert log["truth"]["count"] == 2611  # odometry stamps within the span of map -> odom
     assert build["ready"] is False
 
 
@@ -174,7 +183,7 @@ def test_ros2_and_json_mcaps_are_ready(tmp_path: Path) -> None:
     write_json_log(path)
     code, out, _ = run("inspect", str(path))
     assert code == 0
-    assert "  truth     /ground_truth (with --pose global)" in out.splitlines()
+    assert "  truth     /ground_truth (gridmap.Pose2D) (with --pose global)" in out.splitlines()
     assert "Log header: robot: p3at, seed: 7" in out.splitlines()
     assert out.splitlines()[-1] == "  -> ready to build"
 

@@ -19,14 +19,19 @@ class ReadOptions:
     ``odom_topic``: the pose topic to use as odometry (``/tf`` for the odom -> base transforms).
     ``range_topics``: the range topics to map (empty: every supported one).
     ``odom_frame``, ``base_frame``: TF frame names (default ``odom``, and the odometry message's
-    child frame or ``base_link``). ``robot``: the robot description (``--robot``), for sensor
-    mounting the log does not carry (and the sonar positions RosAria's point clouds need).
+    child frame or the lowest frame TF moves below the odometry frame, else ``base_link``).
+    ``pose_topic``: the reference (corrected) pose topic for ``--pose global``; ``map_frame``:
+    the frame of the reference track in TF (default ``map``). ``robot``: the robot description
+    (``--robot``), for sensor mounting the log does not carry (and the sonar positions RosAria's
+    point clouds need).
     """
 
     odom_topic: str | None = None
     range_topics: tuple[str, ...] = ()
     odom_frame: str | None = None
     base_frame: str | None = None
+    pose_topic: str | None = None
+    map_frame: str | None = None
     robot: RobotDescription | None = None
 
     def topic_flags(self) -> list[str]:
@@ -40,6 +45,10 @@ class ReadOptions:
             given.append("--odom-frame")
         if self.base_frame is not None:
             given.append("--base-frame")
+        if self.pose_topic is not None:
+            given.append("--pose-topic")
+        if self.map_frame is not None:
+            given.append("--map-frame")
         return given
 
     def refuse_topic_flags(self, format_name: str) -> None:

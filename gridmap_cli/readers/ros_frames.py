@@ -10,7 +10,11 @@ of the sensor's x axis).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Collection
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
 
 from gridmap_cli.geometry import wrap_angle
 
@@ -140,3 +144,183 @@ class FrameTree:
                 return current
             current = link[0]
         return current
+
+
+def _qmul_arrays(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """:func:`_qmul` on (N, 4) arrays of (x, y, z, w)."""
+    ax, ay, az, aw = a.T
+    bx, by, bz, bw = b.T
+    return np.stack(
+        (
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ),
+        axis=1,
+    )
+
+
+def _rotate_arrays(
+    q: npt.NDArray[np.float64], v: npt.NDArray[np.float64]
+) -> npt.NDArray[np.float64]:
+    """:func:`_rotate` on (N, 4) quaternions and (N, 3) vectors."""
+    x, y, z, w = q.T
+    vx, vy, vz = v.T
+    cx, cy, cz = y * vz - z * vy, z * vx - x * vz, x * vy - y * vx
+    ddx, ddy, ddz = y * cz - z * cy, z * cx - x * cz, x * cy - y * cx
+    return np.stack(
+        (vx + 2.0 * (w * cx + ddx), vy + 2.0 * (w * cy + ddy), vz + 2.0 * (w * cz + ddz)), axis=1
+    )
+
+
+@dataclass
+class TransformSeries:
+    """The transforms of one parent -> child pair on ``/tf``, as they arrive (any order)."""
+
+    stamps: list[int] = field(default_factory=list)
+    values: list[tuple[float, ...]] = field(default_factory=list)  # tx, ty, tz, qx, qy, qz, qw
+
+    def add(self, stamp_ns: int, transform: Transform) -> None:
+        self.stamps.append(stamp_ns)
+        self.values.append((*transform.translation, *transform.rotation))
+
+    def changes(self) -> bool:
+        """True if the transform ever differs from its first value: a moving joint."""
+        first = self.values[0]
+        return any(v != first for v in self.values)
+
+    def first(self) -> Transform:
+        v = self.values[0]
+        return Transform((v[0], v[1], v[2]), (v[3], v[4], v[5], v[6]))
+
+    def arrays(self) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+        """Stamps (N,), sorted and unique (a repeated stamp: the first transform wins), and the
+        transforms at them, (N, 7)."""
+        stamps = np.asarray(self.stamps, dtype=np.int64)
+        order = np.argsort(stamps, kind="stable")
+        stamps = stamps[order]
+        keep = np.ones(len(stamps), dtype=bool)
+        keep[1:] = stamps[1:] != stamps[:-1]
+        values = np.asarray(self.values, dtype=np.float64).reshape(-1, 7)[order[keep]]
+        return stamps[keep], values
+
+    def at(self, stamp_ns: npt.NDArray[np.int64]) -> npt.NDArray[np.float64]:
+        """Transforms (N, 7) at the given stamps, interpolated (translation linearly, rotation
+        along the shorter arc, normalised); NaN outside the series' time span. A stamp of the
+        series gives its transform exactly."""
+        stamps, values = self.arrays()
+        out = np.full((len(stamp_ns), 7), np.nan)
+        inside = (stamp_ns >= stamps[0]) & (stamp_ns <= stamps[-1])
+        t = stamp_ns[inside]
+        hi = np.clip(np.searchsorted(stamps, t, side="left"), 0, len(stamps) - 1)
+        exact = stamps[hi] == t
+        lo = np.maximum(hi - 1, 0)
+        span = (stamps[hi] - stamps[lo]).astype(np.float64)
+        w = np.where(exact | (span == 0), 0.0, (t - stamps[lo]) / np.where(span == 0, 1.0, span))
+        a = np.where(exact[:, None], values[hi], values[lo])
+        b = values[hi]
+        trans = a[:, :3] + w[:, None] * (b[:, :3] - a[:, :3])
+        qb = np.where((np.sum(a[:, 3:] * b[:, 3:], axis=1) < 0.0)[:, None], -b[:, 3:], b[:, 3:])
+        q = (1.0 - w)[:, None] * a[:, 3:] + w[:, None] * qb
+        q /= np.linalg.norm(q, axis=1)[:, None]
+        q = np.where((w == 0.0)[:, None], a[:, 3:], q)
+        out[inside] = np.concatenate((trans, q), axis=1)
+        return out
+
+
+#: One link of a chain: parent, child, and a fixed transform or a series over time.
+Link = tuple[str, str, "Transform | TransformSeries"]
+
+
+class TransformBuffer:
+    """Every transform of a recording: fixed ones (``/tf_static``, and ``/tf`` pairs that never
+    change) and moving ones (``/tf`` pairs that change), child frame -> parent.
+
+    :attr:`fixed` is the tree sensor mountings come from: a transform that changes over time is
+    never a mounting. Chains through moving links (odom -> base_footprint -> base_link, or
+    map -> odom -> base) are composed over time by :meth:`track`.
+    """
+
+    def __init__(self, fixed: FrameTree, series: dict[tuple[str, str], TransformSeries]) -> None:
+        self.fixed = fixed
+        self.series = series
+        self.moving = {pair for pair, s in series.items() if s.changes()}
+        # chains over time use a pair's series where /tf has one (a still robot's odometry
+        # never changes, yet it is odometry), the fixed tree elsewhere
+        self.links: dict[str, tuple[str, Transform | TransformSeries]] = {
+            child: (parent, s) for (parent, child), s in series.items()
+        }
+        for child, (parent, transform) in fixed.parent.items():
+            self.links.setdefault(child, (parent, transform))
+
+    def moves(self, top: str, bottom: str) -> bool:
+        """True if the chain from ``top`` down to ``bottom`` has a transform that changes."""
+        links = self.chain(top, bottom) or []
+        return any((parent, child) in self.moving for parent, child, _ in links)
+
+    def chain(self, top: str, bottom: str) -> list[Link] | None:
+        """The links from ``top`` down to ``bottom``, or None when ``bottom`` is not below."""
+        top, bottom = frame_name(top), frame_name(bottom)
+        links: list[Link] = []
+        current = bottom
+        for _ in range(len(self.links) + 1):
+            if current == top:
+                return links[::-1]
+            link = self.links.get(current)
+            if link is None:
+                return None
+            parent, transform = link
+            links.append((parent, current, transform))
+            current = parent
+        return None  # a cycle
+
+    def lowest_moving_child(self, top: str, sensors: Collection[str] = ()) -> str | None:
+        """Follow the moving transforms down from ``top`` while each frame has one moving child
+        that is not a sensor frame: the robot's base as TF odometry gives it (odom ->
+        base_footprint, not its fixed children; map -> odom -> base_link, not a panning laser).
+        None when ``top`` has no moving child."""
+        moving = list(self.moving) or list(self.series)
+        current, seen = frame_name(top), set()
+        while current not in seen:
+            seen.add(current)
+            children = [c for p, c in moving if p == current]
+            if len(children) != 1 or children[0] in sensors:
+                break
+            current = children[0]
+        return None if current == frame_name(top) else current
+
+    def track(
+        self, top: str, bottom: str
+    ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]] | None:
+        """The planar pose of ``bottom`` in ``top`` over time: stamps (N,) and (x, y, yaw) (N, 3).
+
+        Stamps are those of the series with the most stamps (the odometry's; the lowest of equals);
+        the other series are interpolated at them, and stamps outside any of their spans are
+        dropped. None when there is no chain, or no series in it.
+        """
+        links = self.chain(top, bottom)
+        if links is None:
+            return None
+        series = [(p, c, t) for p, c, t in links if isinstance(t, TransformSeries)]
+        if not series:
+            return None
+        # the densest series sets the rate (odom -> base, not a localiser's map -> odom)
+        densest = max(reversed(series), key=lambda link: len(set(link[2].stamps)))[2]
+        stamps, _ = densest.arrays()
+        n = len(stamps)
+        trans = np.zeros((n, 3))
+        rot = np.tile(np.array(IDENTITY_ROTATION), (n, 1))
+        for _, _, link in links:
+            if isinstance(link, TransformSeries):
+                values = link.at(stamps)
+                t, q = values[:, :3], values[:, 3:]
+            else:
+                t = np.tile(np.array(link.translation), (n, 1))
+                q = np.tile(np.array(link.rotation), (n, 1))
+            trans = trans + _rotate_arrays(rot, t)
+            rot = _qmul_arrays(rot, q)
+        ok = ~np.isnan(trans).any(axis=1) & ~np.isnan(rot).any(axis=1)
+        yaw = [yaw_of((float(q[0]), float(q[1]), float(q[2]), float(q[3]))) for q in rot[ok]]
+        planar = np.column_stack((trans[ok, 0], trans[ok, 1], np.asarray(yaw, dtype=np.float64)))
+        return stamps[ok], planar.reshape(-1, 3)

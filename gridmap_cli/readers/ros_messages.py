@@ -35,7 +35,14 @@ import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import wrap_angle
-from gridmap_cli.readers.ros_frames import FrameTree, Transform, frame_name, yaw_of
+from gridmap_cli.readers.ros_frames import (
+    FrameTree,
+    Transform,
+    TransformBuffer,
+    TransformSeries,
+    frame_name,
+    yaw_of,
+)
 from gridmap_cli.readers.ros_topics import Plan, Refusals
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor, RobotDescription
@@ -114,9 +121,12 @@ class MessageAccumulator:
         self.robot = robot
         self.odom = _Track()
         self.truth = _Track()
-        self.tf_odom: dict[str, _Track] = {}
+        self.reference = _Track()
+        self.tf_series: dict[tuple[str, str], TransformSeries] = {}  # (parent, child) on /tf
         self.tf_pairs: Counter[tuple[str, str]] = Counter()
-        self.tree = FrameTree()
+        self.tree = FrameTree()  # /tf_static, then (by finish) the /tf pairs that never change
+        self._buffer: TransformBuffer | None = None
+        self.truth_from: str | None = None  # where the reference track came from
         self.mount_from: dict[str, str] = {}  # sensor frame -> "TF", "robot" or "unknown"
         self.odom_children: Counter[str] = Counter()
         self.frame_topic: dict[str, str] = {}  # sensor frame -> topic it arrived on
@@ -131,13 +141,14 @@ class MessageAccumulator:
         self.r_key: list[int] = []
         self.r_range: list[float] = []
         self.r_f32: list[bool] = []
-        self.static_from_tf = not plan.static_topics
         self.range_topics = set(plan.range_topics)
+        self.topic_types: dict[str, str] = {}
 
     # ------------------------------------------------------------------ messages
     def add(self, source: str, topic: str, type_name: str, log_time: int, msg: Any) -> None:
         """Take one decoded message of ``topic`` from file ``source``."""
         self.message_path = source
+        self.topic_types[topic] = type_name
         try:
             self._dispatch(topic, type_name, log_time, msg)
         except InputFileError:
@@ -163,6 +174,8 @@ class MessageAccumulator:
             self._pose(self.odom, topic, type_name, log_time, msg)
         elif topic == self.plan.truth_topic:
             self._pose(self.truth, topic, type_name, log_time, msg)
+        elif topic == self.plan.reference_topic:
+            self._pose(self.reference, topic, type_name, log_time, msg)
         elif topic == self.plan.sensors_topic:
             self._json_sensor(msg)
         if topic not in self.range_topics:
@@ -183,7 +196,8 @@ class MessageAccumulator:
             child = str(msg.get("child_frame_id", ""))
         else:
             stamp = self._stamp(msg.header.stamp, log_time)
-            pose = msg.pose.pose if type_name == "nav_msgs/Odometry" else msg.pose
+            # Odometry and PoseWithCovarianceStamped wrap the pose with its covariance
+            pose = msg.pose if type_name == "geometry_msgs/PoseStamped" else msg.pose.pose
             x, y = float(pose.position.x), float(pose.position.y)
             theta = yaw_of(_quaternion(pose.orientation))
             child = str(getattr(msg, "child_frame_id", ""))
@@ -199,17 +213,15 @@ class MessageAccumulator:
     def _tf(self, topic: str, msg: Any, static: bool, log_time: int) -> None:
         for t in msg.transforms:
             parent, child = frame_name(t.header.frame_id), frame_name(t.child_frame_id)
-            if not static:
-                self.tf_pairs[(parent, child)] += 1
             transform = _transform(t.transform)
-            if parent == self.plan.odom_frame and not static:
-                x, y, _ = transform.translation
-                stamp = self._stamp(t.header.stamp, log_time)
-                self.tf_odom.setdefault(child, _Track()).add(
-                    stamp, x, y, yaw_of(transform.rotation)
-                )
-            elif static or self.static_from_tf:
+            if static:
                 self.tree.add(parent, child, transform)
+                continue
+            self.tf_pairs[(parent, child)] += 1
+            series = self.tf_series.get((parent, child))
+            if series is None:
+                series = self.tf_series[(parent, child)] = TransformSeries()
+            series.add(self._stamp(t.header.stamp, log_time), transform)
 
     def _claim(self, frame: str, topic: str) -> None:
         other = self.frame_topic.setdefault(frame, topic)
@@ -323,18 +335,32 @@ class MessageAccumulator:
         )
 
     # ------------------------------------------------------------------ result
+    def buffer(self) -> TransformBuffer:
+        """Every transform read: ``/tf`` pairs that never change join the fixed tree (ROS 1
+        recordings republish fixed joints on ``/tf``); those that change are never a mounting."""
+        if self._buffer is None:
+            for (parent, child), series in self.tf_series.items():
+                if not series.changes() and child not in self.tree:  # /tf_static wins
+                    self.tree.add(parent, child, series.first())
+            self._buffer = TransformBuffer(self.tree, self.tf_series)
+        return self._buffer
+
     def base_frame(self) -> str:
         if self.plan.base_frame:
             return frame_name(self.plan.base_frame)
         if self.odom_children:
             return self.odom_children.most_common(1)[0][0]
-        if self.plan.odom_topic is None and len(self.tf_odom) == 1:
-            return next(iter(self.tf_odom))
+        if self.plan.odom_topic is None:
+            lowest = self.buffer().lowest_moving_child(self.plan.odom_frame, self.frame_topic)
+            if lowest is not None:
+                return lowest
         return "base_link"
 
     def finish(self, metadata: dict[str, str]) -> RangeLog:
+        self.buffer()  # the fixed tree is complete from here on
         base = self.base_frame()
         poses = self._odometry(base)
+        truth = self._truth(base)
         sensors = self._sensors(base)
         if self.clouds:
             self._cloud_readings(base, sensors)
@@ -363,7 +389,7 @@ class MessageAccumulator:
             readings=readings,
             sensor_names=tuple(names),
             sensors=tuple(described) or None,
-            truth=self.truth.track() if self.truth.stamps else None,
+            truth=truth,
             metadata=dict(metadata),
         )
 
@@ -375,9 +401,10 @@ class MessageAccumulator:
             self.refusals.refuse(
                 InputFileError(self.path, f"{self.plan.odom_topic} holds no messages")
             )
-        elif base in self.tf_odom:
-            return self.tf_odom[base].track()
         else:
+            found = self.buffer().track(self.plan.odom_frame, base)
+            if found is not None and len(found[0]):
+                return _tf_track(*found)
             seen = sorted(self.tf_pairs)
             listing = ", ".join(f"{p} -> {c}" for p, c in seen[:12]) or "none"
             self.refusals.refuse(
@@ -389,6 +416,30 @@ class MessageAccumulator:
                 )
             )
         return PoseTrack.from_rows(np.empty(0, dtype=np.int64), [])
+
+    def _truth(self, base: str) -> PoseTrack | None:
+        """The reference track: a ground-truth or ``--pose-topic`` topic; else the TF chain
+        from the map frame (``--map-frame``) down to the base, composed over time; else the one
+        PoseWithCovarianceStamped topic (``/amcl_pose``)."""
+        if self.plan.truth_topic is not None and self.truth.stamps:
+            self.truth_from = f"{self.plan.truth_topic} ({self._type(self.plan.truth_topic)})"
+            return self.truth.track()
+        buffer = self.buffer()
+        if self.plan.map_frame != self.plan.odom_frame or self.plan.odom_topic is not None:
+            found = buffer.track(self.plan.map_frame, base)
+            if found is not None and len(found[0]):
+                chain = buffer.chain(self.plan.map_frame, base) or []
+                frames = [self.plan.map_frame] + [child for _, child, _ in chain]
+                self.truth_from = f"TF {' -> '.join(frames)}"
+                return _tf_track(*found)
+        if self.plan.reference_topic is not None and self.reference.stamps:
+            topic = self.plan.reference_topic
+            self.truth_from = f"{topic} ({self._type(topic)})"
+            return self.reference.track()
+        return None
+
+    def _type(self, topic: str) -> str:
+        return self.topic_types.get(topic, "")
 
     def _mount(self, base: str, frame: str) -> tuple[float, float, float] | None:
         """A frame's mounting (x, y, yaw) from TF, else from the robot's sensor of its name."""
@@ -410,8 +461,13 @@ class MessageAccumulator:
         return math.nan, math.nan, math.nan
 
     def _unknown_mount(self, base: str, frame: str) -> InputFileError:
-        where = ", ".join(self.plan.static_topics or self.plan.tf_topics)
-        if frame in self.tree:
+        where = ", ".join(dict.fromkeys((*self.plan.static_topics, *self.plan.tf_topics)))
+        if self.buffer().moves(base, frame):
+            tf_part = (
+                f"its transform from '{base}' changes over time (a moving joint), and gridmap "
+                "maps sensors with a fixed mounting"
+            )
+        elif frame in self.tree:
             tf_part = (
                 f"its transforms lead to '{self.tree.root_of(frame)}', not to the base frame "
                 f"'{base}' (--base-frame)"
@@ -515,6 +571,16 @@ class MessageAccumulator:
                 px, py = tx + c * px - s * py, ty + s * px + c * py
             n = len(points)
             self._extend(stamp, keys[:n], np.hypot(px - sx[:n], py - sy[:n]).tolist(), False)
+
+
+def _tf_track(stamp_ns: npt.NDArray[np.int64], planar: npt.NDArray[np.float64]) -> PoseTrack:
+    """A pose track from :meth:`TransformBuffer.track`'s stamps and (N, 3) planar poses."""
+    return PoseTrack(
+        stamp_ns=stamp_ns,
+        x_m=np.ascontiguousarray(planar[:, 0]),
+        y_m=np.ascontiguousarray(planar[:, 1]),
+        theta_rad=np.ascontiguousarray(planar[:, 2]),
+    )
 
 
 def float32_decimal(values: npt.ArrayLike) -> npt.NDArray[np.float64]:

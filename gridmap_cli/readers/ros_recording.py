@@ -55,6 +55,7 @@ class RecordingRead:
     mount_from: dict[str, str]  # sensor frame -> where its mounting came from: TF, robot, unknown
     problem: GridmapError | None  # lenient read: the error a strict read raises, if any
     spans: dict[str, tuple[int, int]]  # topic -> first and last log time (ns) of the messages read
+    truth_from: str | None  # where the reference track came from: a topic or a TF chain
 
 
 def merge_surveys(surveys: Sequence[Survey]) -> Survey:
@@ -150,4 +151,5 @@ def read_recording(
         acc.mount_from,
         refusals.first,
         {topic: (first, last) for topic, (first, last) in spans.items()},
+        acc.truth_from,
     )

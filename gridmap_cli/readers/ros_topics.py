@@ -23,6 +23,8 @@ RANGE_TYPES = (
     "gridmap.RangeReading",
 )
 SENSOR_TYPES = ("gridmap.RangeSensor",)
+#: Pose types that are a corrected (localised) pose, never odometry: AMCL's /amcl_pose.
+REFERENCE_TYPES = ("geometry_msgs/PoseWithCovarianceStamped",)
 #: Topic names holding TF that never changes.
 STATIC_TF_TOPICS = ("/tf_static", "tf_static")
 
@@ -49,9 +51,12 @@ class ChannelInfo:
 
     @property
     def role(self) -> str:
-        """What gridmap uses it for: odometry, truth, tf, tf_static, range, sensors or ''."""
+        """What gridmap uses it for: odometry, truth, reference, tf, tf_static, range, sensors
+        or ''."""
         if self.type_name in POSE_TYPES:
             return "truth" if is_truth_topic(self.topic) else "odometry"
+        if self.type_name in REFERENCE_TYPES:
+            return "reference"
         if self.type_name in TF_TYPES:
             return "tf_static" if self.topic in STATIC_TF_TOPICS else "tf"
         if self.type_name == "sensor_msgs/PointCloud":
@@ -114,8 +119,10 @@ class Plan:
     """The topics a read uses.
 
     ``odom_topic`` is a pose topic, or None when odometry comes from TF (``tf_topics``,
-    ``odom_frame`` -> base frame). ``static_topics`` hold the sensor mounting (for ROS 1
-    recordings with no static topic: the ``tf_topics``).
+    ``odom_frame`` -> base frame). ``static_topics`` hold the sensor mounting (and ``/tf`` pairs
+    that never change, as ROS 1 recordings publish fixed joints). The reference track is
+    ``truth_topic`` (``--pose-topic``, or a topic named ground_truth), else the TF chain from
+    ``map_frame`` to the base, else ``reference_topic`` (the one PoseWithCovarianceStamped).
     """
 
     odom_topic: str | None
@@ -126,12 +133,17 @@ class Plan:
     sensors_topic: str | None
     odom_frame: str
     base_frame: str | None
+    reference_topic: str | None = None
+    map_frame: str = "map"
 
     def topics(self) -> list[str]:
-        """Every topic the read decodes: /tf only when it carries odometry or mounting."""
+        """Every topic the read decodes: /tf unless a pose topic gives both the odometry and
+        the reference and /tf_static the mounting."""
         out = [t for t in (self.odom_topic, self.truth_topic, self.sensors_topic) if t]
         out += [*self.range_topics, *self.static_topics]
-        if self.odom_topic is None or not self.static_topics:
+        if self.reference_topic:
+            out.append(self.reference_topic)
+        if self.odom_topic is None or not self.static_topics or self.truth_topic is None:
             out += self.tf_topics
         return list(dict.fromkeys(out))
 
@@ -188,6 +200,25 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
             )
     truths = [c.topic for c in by_role.get("truth", []) if c.topic != odom_topic]
     truth_topic = truths[0] if len(truths) == 1 else None
+    references = [c.topic for c in by_role.get("reference", [])]
+    reference_topic = references[0] if len(references) == 1 else None
+    if options.pose_topic is not None:
+        chosen = survey.topic(options.pose_topic)
+        if chosen is None:
+            raise UsageError(
+                f"{path}: --pose-topic {options.pose_topic}: no such topic; {survey.listing()}"
+            )
+        if chosen.type_name not in POSE_TYPES + REFERENCE_TYPES:
+            raise UsageError(
+                f"{path}: --pose-topic {chosen.topic} is {chosen.type_name or 'untyped'}, not a "
+                f"pose type ({', '.join(POSE_TYPES + REFERENCE_TYPES)})"
+            )
+        if chosen.topic == odom_topic:
+            raise UsageError(
+                f"{path}: --pose-topic {chosen.topic} is the odometry; the reference track must "
+                "come from another topic"
+            )
+        truth_topic, reference_topic = chosen.topic, None
 
     if options.range_topics:
         ranges = []
@@ -222,4 +253,6 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
         sensors_topic=sensors[0].topic if sensors else None,
         odom_frame=options.odom_frame or "odom",
         base_frame=options.base_frame,
+        reference_topic=reference_topic,
+        map_frame=options.map_frame or "map",
     )

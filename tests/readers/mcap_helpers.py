@@ -93,6 +93,8 @@ _R1 = {
     "nav_msgs/Odometry": "std_msgs/Header header\nstring child_frame_id\n"
     "geometry_msgs/PoseWithCovariance pose\ngeometry_msgs/TwistWithCovariance twist",
     "tf/tfMessage": "geometry_msgs/TransformStamped[] transforms",
+    "geometry_msgs/PoseWithCovarianceStamped": "std_msgs/Header header\n"
+    "geometry_msgs/PoseWithCovariance pose",
     "sensor_msgs/Range": "uint8 ULTRASOUND=0\nuint8 INFRARED=1\nstd_msgs/Header header\n"
     "uint8 radiation_type\nfloat32 field_of_view\nfloat32 min_range\nfloat32 max_range\n"
     "float32 range",
@@ -108,6 +110,8 @@ _R1 = {
 _R2_MORE = {
     "geometry_msgs/Point32": "float32 x\nfloat32 y\nfloat32 z",
     "geometry_msgs/PoseStamped": "std_msgs/Header header\ngeometry_msgs/Pose pose",
+    "geometry_msgs/PoseWithCovarianceStamped": "std_msgs/Header header\n"
+    "geometry_msgs/PoseWithCovariance pose",
     "sensor_msgs/ChannelFloat32": "string name\nfloat32[] values",
     "sensor_msgs/PointCloud": _R1["sensor_msgs/PointCloud"],
 }

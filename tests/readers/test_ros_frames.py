@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -72,3 +74,22 @@ def test_a_chain_composes_translations_in_3d() -> None:
     x, y, heading = mast.then(sensor).planar()
     assert math.isclose(x, 0.0, abs_tol=1e-15) and math.isclose(y, 0.5)
     assert math.isclose(heading, math.pi / 2)
+
+
+def test_transform_series_gives_its_own_samples_exactly_and_nan_outside() -> None:
+
+    from gridmap_cli.readers.ros_frames import TransformSeries
+
+    series = TransformSeries()
+    a = Transform((1.0, 2.0, 0.0), quaternion_of_yaw(0.3))
+    b = Transform((3.0, 2.0, 0.0), quaternion_of_yaw(0.5))
+    series.add(20, b)
+    series.add(10, a)  # out of order: sorted
+    series.add(20, a)  # a repeated stamp: the first one wins
+    got = series.at(np.array([5, 10, 15, 20, 25], dtype=np.int64))
+    assert np.isnan(got[0]).all() and np.isnan(got[4]).all()
+    assert got[1].tolist() == [*a.translation, *a.rotation]
+    assert got[3].tolist() == [*b.translation, *b.rotation]
+    assert got[2, :3].tolist() == [2.0, 2.0, 0.0]
+    assert yaw_of(tuple(got[2, 3:].tolist())) == pytest.approx(0.4)  # type: ignore[arg-type]
+    assert series.changes()
