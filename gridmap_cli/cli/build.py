@@ -1,0 +1,318 @@
+"""``gridmap build``: logs in, a map_server map (or an MCAP OccupancyGrid) out."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import click
+import numpy as np
+
+from gridmap_cli.cli.common import (
+    check_input,
+    check_output_folder,
+    handle_errors,
+    make_read_options,
+    progress_bar,
+    selection_options,
+    topic_options,
+    warn,
+)
+from gridmap_cli.errors import UsageError
+from gridmap_cli.models.error_aware import ErrorAwareParams
+from gridmap_cli.models.standard import StandardSonarParams
+from gridmap_cli.odometry_error import OdometryError, load_odometry_error
+from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
+from gridmap_cli.readers import format_names, read_logs
+from gridmap_cli.robot import load_robot, robot_from_log
+from gridmap_cli.selection import Selection, apply_selection
+from gridmap_cli.sync import POSE_SOURCES, select_poses
+from gridmap_cli.writers import check_output
+from gridmap_cli.writers.map_image import MAP_MODES, check_map_outputs, write_map
+from gridmap_cli.writers.map_mcap import write_map_mcap
+
+
+@click.command()
+@click.argument("logs", metavar="LOG...", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Map to write: an image (.png or .pgm) with its YAML beside it, or an MCAP (.mcap) "
+    "holding a nav_msgs/msg/OccupancyGrid on /map.",
+)
+@click.option(
+    "--robot",
+    help="Robot preset (p3at, p3dx), robot YAML file or ARIA .p file; default: the log's own "
+    "'# robot:' line.",
+)
+@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@click.option(
+    "--resolution", type=float, default=0.05, show_default=True, help="Cell size in metres."
+)
+@click.option(
+    "--mode",
+    type=click.Choice(MAPPING_MODES),
+    default="standard",
+    show_default=True,
+    help="Mapping algorithm.",
+)
+@click.option(
+    "--map-mode",
+    type=click.Choice(MAP_MODES),
+    default="trinary",
+    show_default=True,
+    help="How occupancy is stored in the image (map_server modes).",
+)
+@click.option(
+    "--occupied",
+    type=float,
+    default=0.65,
+    show_default=True,
+    help="Probability at or above which a cell is occupied.",
+)
+@click.option(
+    "--free",
+    type=float,
+    default=0.25,
+    show_default=True,
+    help="Probability at or below which a cell is free.",
+)
+@click.option(
+    "--no-echo-free",
+    type=float,
+    default=StandardSonarParams.no_echo_free_m,
+    show_default=True,
+    help="Metres of free space a max-range (no echo) reading clears; 0 ignores them.",
+)
+@click.option(
+    "--pose",
+    type=click.Choice(POSE_SOURCES),
+    default="odometry",
+    show_default=True,
+    help="Map with the odometry, or with the log's global pose (ARIA robotGlobal, CSV true_*, "
+    "CARMEN's corrected poses or TRUEPOS).",
+)
+@topic_options
+@selection_options()
+@click.option(
+    "--odometry-error",
+    "odometry_file",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Error-aware mode: odometry-error YAML (what gridmap calibrate writes).",
+)
+@click.option(
+    "--odometry-coefficient",
+    "coefficients",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="Error-aware mode: set one f/g coefficient (docs/odometry-error.md names them), e.g. "
+    "range_m_per_m=0.01; overrides the file; repeatable.",
+)
+@click.option(
+    "--trust-length",
+    type=float,
+    default=ErrorAwareParams.trust_length_m,
+    show_default=True,
+    help="Error-aware mode: pose error (m) at which a reading counts half.",
+)
+@click.option("--force", is_flag=True, help="Overwrite existing outputs.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
+@handle_errors
+def build(
+    logs: tuple[Path, ...],
+    output: Path,
+    robot: str | None,
+    log_format: str | None,
+    resolution: float,
+    mode: str,
+    map_mode: str,
+    occupied: float,
+    free: float,
+    no_echo_free: float,
+    pose: str,
+    odom_topic: str | None,
+    range_topics: tuple[str, ...],
+    odom_frame: str | None,
+    base_frame: str | None,
+    pose_topic: str | None,
+    map_frame: str | None,
+    sensor_patterns: tuple[str, ...],
+    start: str | None,
+    end: str | None,
+    odometry_file: Path | None,
+    coefficients: tuple[str, ...],
+    trust_length: float,
+    force: bool,
+    quiet: bool,
+    as_json: bool,
+) -> None:
+    """Build an occupancy-grid map from LOG and write it as a map_server image + YAML, or as an
+    OccupancyGrid in an MCAP file.
+
+    LOG is a CSV, ARIA .2d, MCAP, ROS 1 .bag file or a rosbag2 folder. Several ROS recordings
+    (say, odometry and scans recorded into separate bags) are merged by time into one.
+    """
+    started = time.perf_counter()
+    if not (0.0 <= free < occupied <= 1.0):
+        raise UsageError(f"need 0 <= --free < --occupied <= 1, got {free} and {occupied}")
+    if not (resolution > 0.0 and math.isfinite(resolution)):
+        raise UsageError(f"--resolution must be a positive number of metres, got {resolution}")
+    try:
+        sonar = StandardSonarParams(no_echo_free_m=no_echo_free)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from exc
+    error_aware, odometry_error = _error_aware_options(
+        mode, odometry_file, coefficients, trust_length
+    )
+    selection = Selection.parse(sensor_patterns, start, end)
+    to_mcap = output.suffix.lower() == ".mcap"
+    if to_mcap:
+        source = click.get_current_context().get_parameter_source("map_mode")
+        if source is not None and source != click.core.ParameterSource.DEFAULT:
+            raise UsageError("--map-mode applies to map images; an MCAP map holds 0..100 and -1")
+        check_output(output, force)
+    else:
+        check_map_outputs(output, map_mode, force)
+    check_output_folder(output)
+    robot_desc = load_robot(robot) if robot else None
+    for log in logs:
+        check_input(log)
+    read_options = make_read_options(
+        odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
+    )
+    data = select_poses(read_logs(logs, log_format, read_options), pose)
+    if robot_desc is None:
+        robot_desc = robot_from_log(logs[0], data.metadata)
+    selected = apply_selection(data, selection, robot_desc)
+    warn(selected.notes, quiet)
+    data = selected.log
+    options = BuildOptions(
+        resolution_m=resolution,
+        mode=mode,
+        sonar=sonar,
+        error_aware=error_aware,
+        odometry_error=odometry_error,
+    )
+    with progress_bar(len(data.readings), quiet, "mapping") as bar:
+        result = build_map(data, robot_desc, options, progress=bar.update)
+    yaml_path: Path | None
+    if to_mcap:
+        # stamped at the last reading: the map is what the robot knew then
+        stamp = int(data.readings.stamp_ns[-1]) if len(data.readings) else 0
+        image_path = write_map_mcap(output, result.map, stamp_ns=stamp, force=force)
+        yaml_path = None
+    else:
+        image_path, yaml_path = write_map(
+            output, result.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free,
+            force=force,
+        )  # fmt: skip
+    elapsed = time.perf_counter() - started
+    summary = _summary(result, image_path, yaml_path, elapsed, occupied, free)
+    if as_json:
+        click.echo(json.dumps(summary, indent=2))
+    if not quiet:
+        click.echo(_summary_line(summary), err=True)
+
+
+def _error_aware_options(
+    mode: str, odometry_file: Path | None, coefficients: tuple[str, ...], trust_length: float
+) -> tuple[ErrorAwareParams, OdometryError | None]:
+    """The error-aware model's settings from build's flags (usage errors before any reading)."""
+    ctx = click.get_current_context()
+    trust_given = ctx.get_parameter_source("trust_length") != click.core.ParameterSource.DEFAULT
+    given = odometry_file is not None or bool(coefficients)
+    if mode != "error-aware":
+        if given or trust_given:
+            raise UsageError(
+                "--odometry-error, --odometry-coefficient and --trust-length apply to "
+                "--mode error-aware"
+            )
+        return ErrorAwareParams(), None
+    if not given:
+        raise UsageError(
+            "--mode error-aware needs the odometry error: --odometry-error FILE (gridmap "
+            "calibrate writes one) or --odometry-coefficient NAME=VALUE"
+        )
+    try:
+        params = ErrorAwareParams(trust_length_m=trust_length)
+    except ValueError as exc:
+        raise UsageError(f"--trust-length: {exc}") from exc
+    names = [f.name for f in dataclasses.fields(OdometryError)]
+    overrides: dict[str, float] = {}
+    for item in coefficients:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or name not in names:
+            raise UsageError(
+                f"--odometry-coefficient {item!r}: expected NAME=VALUE, NAME one of "
+                f"{', '.join(names)}"
+            )
+        try:
+            overrides[name] = float(text)
+        except ValueError:
+            raise UsageError(f"--odometry-coefficient {item!r}: {text!r} is not a number") from None
+    model = load_odometry_error(odometry_file) if odometry_file is not None else OdometryError()
+    try:
+        return params, dataclasses.replace(model, **overrides)
+    except ValueError as exc:
+        raise UsageError(f"--odometry-coefficient: {exc}") from exc
+
+
+def _summary(
+    result: BuildResult,
+    image: Path,
+    yaml_path: Path | None,
+    seconds: float,
+    occupied: float,
+    free: float,
+) -> dict[str, Any]:
+    spec = result.map.spec
+    prob = result.map.prob
+    known = ~np.isnan(prob)
+    return {
+        "image": str(image),
+        "yaml": str(yaml_path) if yaml_path is not None else None,
+        "readings": {
+            "total": result.sync.total,
+            "used": result.sync.used,
+            "skipped": result.sync.total - result.sync.used,
+            "outside_odometry": result.sync.outside_odometry,
+            "below_min_range": result.sync.below_min_range,
+        },
+        "map": {
+            "width": spec.width,
+            "height": spec.height,
+            "resolution": spec.resolution_m,
+            "origin": [spec.origin_x_m, spec.origin_y_m, 0.0],
+        },
+        "cells": {
+            "observed": int(known.sum()),
+            "occupied": int((prob[known] >= occupied).sum()),
+            "free": int((prob[known] <= free).sum()),
+        },
+        "cell_updates": result.cell_updates,
+        "seconds": round(seconds, 3),
+    }
+
+
+def _summary_line(s: dict[str, Any]) -> str:
+    r, m = s["readings"], s["map"]
+    skipped = ""
+    if r["skipped"]:
+        skipped = (
+            f" ({r['skipped']:,} skipped: {r['outside_odometry']:,} outside the odometry's time "
+            f"span, {r['below_min_range']:,} below minimum range)"
+        )
+    return (
+        f"gridmap: {r['used']:,} of {r['total']:,} readings mapped{skipped}; "
+        f"{m['width']} x {m['height']} cells at {m['resolution']} m "
+        f"({m['width'] * m['resolution']:.1f} x {m['height'] * m['resolution']:.1f} m) "
+        f"in {s['seconds']:.1f} s -> {s['image']}" + (f", {s['yaml']}" if s["yaml"] else "")
+    )

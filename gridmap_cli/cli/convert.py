@@ -1,0 +1,77 @@
+"""``gridmap convert``: a log from one format to another."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from gridmap_cli.cli.common import (
+    check_input,
+    check_output_folder,
+    handle_errors,
+)
+from gridmap_cli.convert import output_writer, write_log, writer_names
+from gridmap_cli.readers import format_names, resolve_format
+from gridmap_cli.robot import load_robot, robot_from_log
+from gridmap_cli.writers import check_output
+from gridmap_cli.writers.mcap_log import ENCODINGS
+
+
+@click.command()
+@click.argument("log", type=click.Path(path_type=Path))
+@click.argument("output", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "--format",
+    "out_format",
+    type=click.Choice(writer_names()),
+    help="Output format; default: from OUTPUT's extension (.csv, .2d, .mcap).",
+)
+@click.option("--input-format", type=click.Choice(format_names()), help="Format of LOG.")
+@click.option(
+    "--encoding",
+    type=click.Choice(ENCODINGS),
+    help="MCAP output only: gridmap's JSON channels (default) or standard ROS 2 messages.",
+)
+@click.option(
+    "--robot",
+    help="Robot preset, robot YAML or ARIA .p file for sensor geometry the log lacks "
+    "(.2d and MCAP outputs need it); default: the log's own robot.",
+)
+@click.option("--force", is_flag=True, help="Overwrite an existing output.")
+@click.option("-q", "--quiet", is_flag=True, help="No summary on stderr.")
+@handle_errors
+def convert(
+    log: Path,
+    output: Path,
+    out_format: str | None,
+    input_format: str | None,
+    encoding: str | None,
+    robot: str | None,
+    force: bool,
+    quiet: bool,
+) -> None:
+    """Convert LOG to OUTPUT between gridmap CSV, ARIA .2d and MCAP.
+
+    What the output format cannot hold is refused, never dropped (see schemas/*.md).
+    """
+    writer = output_writer(output, out_format, encoding)
+    check_output(output, force)
+    check_output_folder(output)
+    robot_desc = load_robot(robot) if robot else None
+    check_input(log)
+    fmt = resolve_format(log, input_format)
+    data = fmt.read(log)
+    if robot_desc is None and writer.needs_sensors:
+        known = {s.name for s in data.sensors or ()}
+        if not set(data.sensor_names) <= known:
+            robot_desc = robot_from_log(log, data.metadata)
+    write_log(data, output, writer, robot_desc, encoding)
+    if not quiet:
+        what = writer.name + (f" ({encoding or 'json'})" if writer.name == "mcap" else "")
+        click.echo(
+            f"gridmap: {fmt.name} -> {what}: {len(data.poses):,} poses, "
+            f"{len(data.readings):,} readings"
+            f"{', ground truth' if data.truth is not None else ''} -> {output}",
+            err=True,
+        )

@@ -1,0 +1,219 @@
+"""``gridmap evaluate``: a map scored against the true world."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import click
+import numpy as np
+
+from gridmap_cli.cli.common import (
+    check_input,
+    check_output_folder,
+    handle_errors,
+    selection_options,
+    warn,
+)
+from gridmap_cli.errors import InputFileError, UsageError
+from gridmap_cli.readers import format_names, resolve_format
+from gridmap_cli.robot import load_robot, robot_from_log
+from gridmap_cli.selection import Selection, apply_selection
+from gridmap_cli.writers import check_output
+
+if TYPE_CHECKING:
+    # scipy.ndimage (0.3 s) comes with it: imported when the command runs
+    from gridmap_cli.evaluate import Evaluation
+
+
+@click.command()
+@click.argument("map_yaml", metavar="MAP.yaml", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "--truth",
+    "truth_yaml",
+    required=True,
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Ground-truth world map (map_server YAML, e.g. samples/worlds/*.yaml).",
+)
+@click.option(
+    "--log",
+    "log_path",
+    type=click.Path(path_type=Path),
+    help="The log the map was built from (with ground truth): places the odometry frame in the "
+    "world and limits the scores to the cells its sensors could have sensed.",
+)
+@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@click.option(
+    "--robot",
+    help="Robot preset, YAML or ARIA .p file for the sensors of --log; default: its '# robot:'.",
+)
+@click.option(
+    "--frame",
+    type=click.Choice(["odometry", "world"]),
+    default="odometry",
+    show_default=True,
+    help="Frame of the map: odometry (built from odometry: the frame starts at the log's first "
+    "true pose, needs --log) or world (built with --pose global).",
+)
+@selection_options()
+@click.option("--json", "as_json", is_flag=True, help="Print the scores as JSON on stdout.")
+@click.option(
+    "--plot",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Write a PNG: the map with the true walls, and a reliability diagram (needs matplotlib).",
+)
+@click.option("--force", is_flag=True, help="Overwrite an existing --plot output.")
+@handle_errors
+def evaluate(
+    map_yaml: Path,
+    truth_yaml: Path,
+    log_path: Path | None,
+    log_format: str | None,
+    robot: str | None,
+    frame: str,
+    sensor_patterns: tuple[str, ...],
+    start: str | None,
+    end: str | None,
+    as_json: bool,
+    plot: Path | None,
+    force: bool,
+) -> None:
+    """Score the map MAP.yaml against the ground-truth world of --truth.
+
+    Scores (docs/evaluation.md): NLL and Brier score of the true occupancy under the map's
+    probabilities, reliability table and expected calibration error, occupied-cell precision,
+    recall and F1 within one cell, coverage. Unknown cells count as p = 0.5. With --log the
+    region scored is the world cells the log's sensors could have sensed from the true path;
+    without it, the whole world map.
+
+    A map built from odometry is in the odometry frame, which starts at the log's first true
+    pose: --log places it in the world. A map built with --pose global is in the world frame
+    already: give --frame world.
+    """
+    from gridmap_cli import evaluate as ev
+    from gridmap_cli.sync import sensors_for_log
+
+    for given, what in ((map_yaml, "MAP"), (truth_yaml, "--truth")):
+        if given.suffix.lower() not in (".yaml", ".yml"):
+            raise UsageError(
+                f"{given}: {what} must be a map's YAML file (the image is named inside it)"
+            )
+    if frame == "odometry" and log_path is None:
+        raise UsageError(
+            "a map in the odometry frame needs --log (its first true pose places the frame in "
+            "the world); give --log, or --frame world for a map built with --pose global"
+        )
+    selection = Selection.parse(sensor_patterns, start, end)
+    if selection and log_path is None:
+        raise UsageError("--sensors, --start and --end choose part of --log; give --log")
+    if plot is not None:
+        from gridmap_cli.evaluate_plot import check_plotting
+
+        check_plotting()
+        if plot.suffix.lower() != ".png":
+            raise UsageError(f"{plot}: --plot writes a PNG; name it .png")
+        check_output(plot, force)
+        check_output_folder(plot)
+    robot_desc = load_robot(robot) if robot else None
+    if log_path is not None:
+        check_input(log_path)
+    for given in (map_yaml, truth_yaml):
+        if not given.is_file():
+            raise InputFileError(given, "no such file" if not given.exists() else "not a file")
+    truth = ev.load_truth(truth_yaml)
+    pmap = ev.load_probability_map(map_yaml)
+    map_to_world = (0.0, 0.0, 0.0)
+    region = None
+    if log_path is not None:
+        data = resolve_format(log_path, log_format).read(log_path)
+        data.require_truth("evaluate needs the true path")  # before the robot is looked up
+        if robot_desc is None:
+            robot_desc = robot_from_log(log_path, data.metadata)
+        selected = apply_selection(data, selection, robot_desc)
+        warn(selected.notes)
+        data = selected.log
+        true_path = data.require_truth("evaluate needs the true path")
+        sensors = sensors_for_log(data, robot_desc)
+        if frame == "odometry":
+            map_to_world = ev.odometry_frame_in_world(data)
+        region = ev.sensed_region(truth.world, true_path, sensors)
+    result = ev.evaluate_map(pmap, truth.walls, truth.spec, region, map_to_world)
+    if plot is not None:
+        from gridmap_cli.evaluate_plot import plot_evaluation
+
+        plot_evaluation(
+            plot,
+            result,
+            truth.walls,
+            region if region is not None else np.ones(truth.spec.shape, dtype=bool),
+            truth.spec,
+            title=f"{map_yaml.name} vs {truth_yaml.name}",
+        )
+    if as_json:
+        doc = {
+            "map": str(map_yaml),
+            "truth": str(truth_yaml),
+            "log": str(log_path) if log_path else None,
+            "frame": frame,
+            "map_to_world": list(map_to_world),
+            "region": "sensed from the true path" if log_path else "whole world",
+            **result.as_dict(),
+        }
+        click.echo(json.dumps(_nan_to_none(doc), indent=2, allow_nan=False))
+    else:
+        click.echo(_evaluation_table(map_yaml, truth_yaml, log_path, map_to_world, result))
+    if plot is not None:
+        click.echo(f"gridmap: plot written to {plot}", err=True)
+
+
+def _nan_to_none(value: Any) -> Any:
+    """JSON has no NaN: undefined scores (an empty bin, no occupied cell) become null."""
+    if isinstance(value, float) and math.isnan(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _nan_to_none(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_nan_to_none(v) for v in value]
+    return value
+
+
+def _evaluation_table(
+    map_yaml: Path,
+    truth_yaml: Path,
+    log_path: Path | None,
+    map_to_world: tuple[float, float, float],
+    e: Evaluation,
+) -> str:
+    x, y, th = map_to_world
+    where = (
+        f"{e.cells:,} cells the sensors of {log_path.name} could have sensed"
+        if log_path
+        else f"all {e.cells:,} cells of the world"
+    )
+
+    def num(v: float, fmt: str) -> str:
+        return "n/a" if math.isnan(v) else format(v, fmt)
+
+    lines = [
+        f"{map_yaml} against {truth_yaml}",
+        f"map frame in the world: x {x:.3f} m, y {y:.3f} m, theta {math.degrees(th):.2f} deg",
+        f"scored over {where} ({e.occupied_cells:,} truly occupied)",
+        "",
+        f"NLL (nats per cell)   {e.nll:.4f}",
+        f"Brier score           {e.brier:.4f}",
+        f"ECE (10 bins)         {e.ece:.4f}",
+        f"occupied (p >= {e.occupied_thresh:g}), one cell of tolerance: precision "
+        f"{num(e.precision, '.3f')}, recall {num(e.recall, '.3f')}, F1 {num(e.f1, '.3f')} "
+        f"({e.predicted_occupied:,} cells called occupied)",
+        f"coverage              {e.coverage:.3f} of the region known",
+        "",
+        "reliability   cells   mean p   occupied",
+    ]
+    for b in e.reliability:
+        lines.append(
+            f"{b.lower:.1f}-{b.upper:.1f}  {b.count:8,d}   {num(b.mean_predicted, '6.3f'):>6s}"
+            f"   {num(b.observed_frequency, '6.3f'):>8s}"
+        )
+    return "\n".join(lines)

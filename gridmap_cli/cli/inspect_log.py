@@ -1,0 +1,70 @@
+"""``gridmap inspect``: what a log holds and what build would make of it."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import click
+
+from gridmap_cli.cli.common import (
+    check_input,
+    handle_errors,
+    make_read_options,
+    selection_options,
+    topic_options,
+)
+from gridmap_cli.readers import format_names, resolve_format
+from gridmap_cli.robot import load_robot
+from gridmap_cli.selection import Selection
+
+
+@click.command()
+@click.argument("log", type=click.Path(path_type=Path))
+@click.option("--robot", help="Robot preset, robot YAML file or ARIA .p file.")
+@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@topic_options
+@selection_options()
+@click.option("--json", "as_json", is_flag=True, help="Print the description as JSON.")
+@handle_errors
+def inspect(
+    log: Path,
+    robot: str | None,
+    log_format: str | None,
+    odom_topic: str | None,
+    range_topics: tuple[str, ...],
+    odom_frame: str | None,
+    base_frame: str | None,
+    pose_topic: str | None,
+    map_frame: str | None,
+    sensor_patterns: tuple[str, ...],
+    start: str | None,
+    end: str | None,
+    as_json: bool,
+) -> None:
+    """Describe LOG (CSV, ARIA .2d, MCAP, ROS 1 bag or rosbag2 folder) and what build would
+    make of it.
+
+    Channels or columns, message counts, time span, rates, distance travelled, sensors and
+    their mounting poses, and the topics, frames and robot build would use. Exits 1, after
+    the description, when build would fail: the reason is build's own error.
+    With --sensors, --start or --end: the part of LOG they select, as build would map it.
+    """
+    from gridmap_cli.describe import describe_log, render_text
+
+    selection = Selection.parse(sensor_patterns, start, end)
+    robot_desc = load_robot(robot) if robot else None
+    check_input(log)
+    fmt = resolve_format(log, log_format)
+    read_options = make_read_options(
+        odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
+    )
+    if fmt.sources is None:
+        read_options.refuse_topic_flags(fmt.name.upper())
+    description = describe_log(log, fmt, read_options, selection)
+    click.echo(json.dumps(description, indent=2) if as_json else render_text(description))
+    if not description["build"]["ready"]:
+        # the description is printed; the verdict is the line build would print, and its exit
+        click.echo(f"Error: {description['build']['problem']}", err=True)
+        sys.exit(1)
