@@ -19,8 +19,9 @@ from gridmap_cli.robot import RangeSensor
 
 #: Where each reader finds a log's ground truth, for the error when a log has none.
 TRUTH_SOURCES = (
-    "CSV true_x, true_y, true_theta columns, ARIA robotGlobal: lines in every block, "
-    "an MCAP pose topic named ground_truth, or a CARMEN log's TRUEPOS lines or corrected poses"
+    "CSV true_x, true_y, true_theta columns, ARIA robotGlobal: lines in every block, a CARMEN "
+    "log's TRUEPOS lines or corrected poses, or a ROS recording's reference: --pose-topic, a "
+    "ground_truth topic, TF map -> base or /amcl_pose"
 )
 
 

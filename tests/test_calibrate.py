@@ -121,9 +121,9 @@ def test_log_without_truth_is_refused(tmp_path: Path) -> None:
     assert code == 1
     assert err == (
         f"Error: {tmp_path / 'plain.csv'}: the log has no ground truth (CSV true_x, true_y, "
-        "true_theta columns, ARIA robotGlobal: lines in every block, an MCAP pose topic named "
-        "ground_truth, or a CARMEN log's TRUEPOS lines or corrected poses); calibrate compares "
-        "the odometry against it\n"
+        "true_theta columns, ARIA robotGlobal: lines in every block, a CARMEN log's TRUEPOS lines "
+        "or corrected poses, or a ROS recording's reference: --pose-topic, a ground_truth topic, "
+        "TF map -> base or /amcl_pose); calibrate compares the odometry against it\n"
     )
     assert names(tmp_path) == {"plain.csv"}
 

@@ -250,9 +250,9 @@ def test_pose_global_needs_a_global_track(room_csv: Path, tmp_path: Path) -> Non
     assert code == 1
     assert stderr.strip() == (
         f"Error: {room_csv}: the log has no ground truth (CSV true_x, true_y, true_theta "
-        "columns, ARIA robotGlobal: lines in every block, an MCAP pose topic named "
-        "ground_truth, or a CARMEN log's TRUEPOS lines or corrected poses); --pose global maps "
-        "with it"
+        "columns, ARIA robotGlobal: lines in every block, a CARMEN log's TRUEPOS lines or "
+        "corrected poses, or a ROS recording's reference: --pose-topic, a ground_truth topic, TF "
+        "map -> base or /amcl_pose); --pose global maps with it"
     )
     assert not (tmp_path / "m.png").exists()
 

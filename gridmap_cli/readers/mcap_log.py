@@ -3,7 +3,7 @@
 The file is streamed in log-time order through the ``mcap`` library's indexed reader, decoding
 only the topics the plan (:func:`~gridmap_cli.readers.ros_topics.plan_topics`) chose; the
 messages become the canonical stream as for every ROS container
-(:mod:`~gridmap_cli.readers.ros_messages`). ``docs/reading-mcap.md`` states the rules for users.
+(:mod:`~gridmap_cli.readers.ros_messages`). ``docs/reading-ros.md`` states the rules for users.
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ dicts for gridmap's JSON channels), and :meth:`MessageAccumulator.finish` turns 
   ``gridmap.RangeReading`` with ``gridmap.RangeSensor`` descriptions.
 
 Stamps are the messages' header stamps (``timestamp`` in JSON); a zero stamp falls back to the
-message's log time. Frame ids are compared without a leading ``/``. ``docs/reading-mcap.md``
+message's log time. Frame ids are compared without a leading ``/``. ``docs/reading-ros.md``
 states these rules for users.
 """
 
