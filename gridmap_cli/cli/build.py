@@ -32,7 +32,7 @@ from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers import check_output
-from gridmap_cli.writers.map_image import MAP_MODES, check_map_outputs, write_map
+from gridmap_cli.writers.map_image import IMAGE_FORMATS, MAP_MODES, check_map_outputs, write_map
 from gridmap_cli.writers.map_mcap import write_map_mcap
 
 
@@ -41,10 +41,21 @@ from gridmap_cli.writers.map_mcap import write_map_mcap
 @click.option(
     "-o",
     "--output",
-    required=True,
     type=click.Path(path_type=Path, dir_okay=False),
-    help="Map to write: an image (.png or .pgm) with its YAML beside it, or an MCAP (.mcap) "
-    "holding a nav_msgs/msg/OccupancyGrid on /map.",
+    help="Map to write: an image (.png, .pgm or .bmp) with its YAML beside it, or an MCAP "
+    "(.mcap) holding a nav_msgs/msg/OccupancyGrid on /map.",
+)
+@click.option(
+    "-f",
+    "basename",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="As map_saver_cli: write BASENAME.pgm (or --fmt) and BASENAME.yaml; instead of -o.",
+)
+@click.option(
+    "--fmt",
+    "image_format",
+    type=click.Choice(IMAGE_FORMATS),
+    help="As map_saver_cli: the image format for -f [default: pgm]; with -o it must match.",
 )
 @click.option(
     "--robot",
@@ -71,6 +82,8 @@ from gridmap_cli.writers.map_mcap import write_map_mcap
 )
 @click.option(
     "--occupied",
+    "--occ",
+    "occupied",
     type=float,
     default=0.65,
     show_default=True,
@@ -127,7 +140,9 @@ from gridmap_cli.writers.map_mcap import write_map_mcap
 @handle_errors
 def build(
     logs: tuple[Path, ...],
-    output: Path,
+    output: Path | None,
+    basename: Path | None,
+    image_format: str | None,
     robot: str | None,
     log_format: str | None,
     resolution: float,
@@ -160,6 +175,9 @@ def build(
     (say, odometry and scans recorded into separate bags) are merged by time into one.
     """
     started = time.perf_counter()
+    for log in logs:
+        check_input(log)
+    output = map_output(output, basename, image_format)
     if not (0.0 <= free < occupied <= 1.0):
         raise UsageError(f"need 0 <= --free < --occupied <= 1, got {free} and {occupied}")
     if not (resolution > 0.0 and math.isfinite(resolution)):
@@ -182,8 +200,6 @@ def build(
         check_map_outputs(output, map_mode, force)
     check_output_folder(output)
     robot_desc = load_robot(robot) if robot else None
-    for log in logs:
-        check_input(log)
     read_options = make_read_options(
         odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
     )
@@ -219,6 +235,18 @@ def build(
         click.echo(json.dumps(summary, indent=2))
     if not quiet:
         click.echo(_summary_line(summary), err=True)
+
+
+def map_output(output: Path | None, basename: Path | None, image_format: str | None) -> Path:
+    """The map to write: ``-o`` as given, or map_saver_cli's ``-f BASENAME`` + ``--fmt``."""
+    if (output is None) == (basename is None):
+        raise UsageError("give the map to write: -o FILE or -f BASENAME (one of them)")
+    if basename is not None:
+        return basename.with_name(f"{basename.name}.{image_format or 'pgm'}")
+    assert output is not None
+    if image_format is not None and output.suffix.lower() != f".{image_format}":
+        raise UsageError(f"--fmt {image_format} does not match -o {output}")
+    return output
 
 
 def _error_aware_options(

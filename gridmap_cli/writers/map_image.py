@@ -32,7 +32,9 @@ from gridmap_cli.writers import check_output
 from gridmap_cli.yamlfile import format_float
 
 MAP_MODES = ("trinary", "scale", "raw")
-IMAGE_SUFFIXES = (".pgm", ".png")
+IMAGE_SUFFIXES = (".pgm", ".png", ".bmp")
+#: The image formats as map_saver_cli's ``--fmt`` names them.
+IMAGE_FORMATS = tuple(s.lstrip(".") for s in IMAGE_SUFFIXES)
 
 #: Grey values of the map_server savers in trinary mode.
 OCCUPIED_GREY = 0
@@ -79,7 +81,8 @@ def check_map_outputs(image_path: Path, mode: str, force: bool) -> None:
     image, yaml_path = map_output_paths(image_path)
     if mode == "scale" and image.suffix.lower() != ".png":
         raise UsageError(
-            f"{image}: scale maps need a PNG (unknown cells are transparent, and PGM has no alpha)"
+            f"{image}: scale maps need a PNG (unknown cells are transparent; PGM and BMP have no "
+            "alpha)"
         )
     for path in (image, yaml_path):
         check_output(path, force)

@@ -1,0 +1,75 @@
+"""build takes map_saver_cli's habits: -f BASENAME, --fmt pgm|png|bmp, --occ/--free in 0..1."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from tests.helpers import names, run
+
+SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "corridor_loop.csv"
+
+
+def build(*args: str) -> tuple[int, str]:
+    code, _, err = run("build", str(SAMPLE), "-q", *args)
+    return code, err
+
+
+def test_f_basename_writes_a_pgm_and_yaml_like_o(tmp_path: Path) -> None:
+    assert build("-o", str(tmp_path / "a" / "map.pgm"))[0] == 1  # folder a/ does not exist
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    assert build("-o", str(tmp_path / "a" / "map.pgm")) == (0, "")
+    assert build("-f", str(tmp_path / "b" / "map")) == (0, "")
+    assert names(tmp_path / "b") == {"map.pgm", "map.yaml"}
+    for name in ("map.pgm", "map.yaml"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+
+
+@pytest.mark.parametrize("fmt", ["png", "bmp"])
+def test_fmt_picks_the_image_format_with_the_same_cells(tmp_path: Path, fmt: str) -> None:
+    assert build("-f", str(tmp_path / "map")) == (0, "")
+    assert build("-f", str(tmp_path / "other"), "--fmt", fmt) == (0, "")
+    image = tmp_path / f"other.{fmt}"
+    assert Image.open(image).format == fmt.upper()
+    grey = np.asarray(Image.open(image).convert("L"))
+    assert np.array_equal(grey, np.asarray(Image.open(tmp_path / "map.pgm")))
+    assert f"image: other.{fmt}\n" in (tmp_path / "other.yaml").read_text()
+
+
+def test_occ_is_occupied(tmp_path: Path) -> None:
+    assert build("-o", str(tmp_path / "a.pgm"), "--occ", "0.8", "--free", "0.3")[0] == 0
+    assert build("-o", str(tmp_path / "b.pgm"), "--occupied", "0.8", "--free", "0.3")[0] == 0
+    assert build("-o", str(tmp_path / "c.pgm"))[0] == 0
+    a, b, c = ((tmp_path / f"{n}.pgm").read_bytes() for n in "abc")
+    assert a == b != c
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        ((), "give the map to write: -o FILE or -f BASENAME (one of them)"),
+        (("-o", "{t}/m.pgm", "-f", "{t}/m"), "give the map to write: -o FILE or -f BASENAME"),
+        (("-o", "{t}/m.png", "--fmt", "pgm"), "--fmt pgm does not match -o {t}/m.png"),
+        (("-f", "{t}/m", "--fmt", "bmp", "--map-mode", "scale"), "scale maps need a PNG"),
+    ],
+)
+def test_bad_map_saver_flags_are_usage_errors(
+    tmp_path: Path, args: tuple[str, ...], message: str
+) -> None:
+    code, err = build(*(a.format(t=tmp_path) for a in args))
+    assert code == 2
+    assert err.startswith("Error: ") and err.count("\n") == 1
+    assert message.format(t=tmp_path) in err
+    assert names(tmp_path) == set()
+
+
+def test_a_missing_log_is_reported_before_an_existing_output(tmp_path: Path) -> None:
+    existing = tmp_path / "map.pgm"
+    existing.write_bytes(b"keep")
+    code, _, err = run("build", str(tmp_path / "missing.csv"), "-o", str(existing))
+    assert (code, err.strip()) == (1, f"Error: {tmp_path / 'missing.csv'}: no such file")
+    assert existing.read_bytes() == b"keep"
