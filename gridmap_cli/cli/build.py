@@ -175,8 +175,6 @@ def build(
     (say, odometry and scans recorded into separate bags) are merged by time into one.
     """
     started = time.perf_counter()
-    for log in logs:
-        check_input(log)
     output = map_output(output, basename, image_format)
     if not (0.0 <= free < occupied <= 1.0):
         raise UsageError(f"need 0 <= --free < --occupied <= 1, got {free} and {occupied}")
@@ -195,11 +193,16 @@ def build(
         source = click.get_current_context().get_parameter_source("map_mode")
         if source is not None and source != click.core.ParameterSource.DEFAULT:
             raise UsageError("--map-mode applies to map images; an MCAP map holds 0..100 and -1")
+    else:
+        check_map_outputs(output, map_mode, force=True)  # the name and mode, before any input
+    robot_desc = load_robot(robot) if robot else None
+    for log in logs:  # the command line first, then the inputs, then the outputs
+        check_input(log)
+    if to_mcap:
         check_output(output, force)
     else:
         check_map_outputs(output, map_mode, force)
     check_output_folder(output)
-    robot_desc = load_robot(robot) if robot else None
     read_options = make_read_options(
         odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
     )

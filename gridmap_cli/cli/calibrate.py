@@ -89,10 +89,10 @@ def calibrate(
     if not (sonar_error >= 0.0 and math.isfinite(sonar_error)):
         raise UsageError(f"--sonar-error must be a finite number >= 0, got {sonar_error}")
     selection = Selection.parse((), start, end)
+    check_input(log)
     if output is not None:
         check_output(output, force)
         check_output_folder(output)
-    check_input(log)
     data = resolve_format(log, log_format).read(log)
     data = apply_selection(data, selection, None, need_readings=False).log
     result = calibrate_log(data, window_m, math.radians(window_deg), sonar_error)

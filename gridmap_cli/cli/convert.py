@@ -56,10 +56,10 @@ def convert(
     What the output format cannot hold is refused, never dropped (see schemas/*.md).
     """
     writer = output_writer(output, out_format, encoding)
-    check_output(output, force)
-    check_output_folder(output)
     robot_desc = load_robot(robot) if robot else None
     check_input(log)
+    check_output(output, force)
+    check_output_folder(output)
     fmt = resolve_format(log, input_format)
     data = fmt.read(log)
     if robot_desc is None and writer.needs_sensors:

@@ -108,6 +108,11 @@ def evaluate(
     selection = Selection.parse(sensor_patterns, start, end)
     if selection and log_path is None:
         raise UsageError("--sensors, --start and --end choose part of --log; give --log")
+    if log_path is not None:
+        check_input(log_path)
+    for given in (map_yaml, truth_yaml):
+        if not given.is_file():
+            raise InputFileError(given, "no such file" if not given.exists() else "not a file")
     if plot is not None:
         from gridmap_cli.evaluate_plot import check_plotting
 
@@ -117,11 +122,6 @@ def evaluate(
         check_output(plot, force)
         check_output_folder(plot)
     robot_desc = load_robot(robot) if robot else None
-    if log_path is not None:
-        check_input(log_path)
-    for given in (map_yaml, truth_yaml):
-        if not given.is_file():
-            raise InputFileError(given, "no such file" if not given.exists() else "not a file")
     truth = ev.load_truth(truth_yaml)
     pmap = ev.load_probability_map(map_yaml)
     map_to_world = (0.0, 0.0, 0.0)

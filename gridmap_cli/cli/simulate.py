@@ -84,12 +84,12 @@ def simulate(
     if duration is not None and not (duration > 0.0 and math.isfinite(duration)):
         raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
     writer = output_writer(output, log_format, encoding)
-    check_output(output, force)
-    check_output_folder(output)
     robot_desc = load_robot(robot)
     for given in (world, path_file):
         if not given.is_file():
             raise InputFileError(given, "no such file")
+    check_output(output, force)
+    check_output_folder(output)
     loaded = load_map(world)
     waypoints = load_path(path_file)
     log = run_simulation(
