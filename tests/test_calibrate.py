@@ -203,3 +203,11 @@ def test_truth_that_never_overlaps_the_odometry_drives_nothing() -> None:
     with pytest.raises(CalibrationError) as caught:
         calibrate(apart)
     assert "the truth drives 0.00 m and turns 0 deg, 0 complete windows" in str(caught.value)
+
+
+def test_a_missing_log_is_reported_before_an_existing_output(tmp_path: Path) -> None:
+    existing = tmp_path / "odometry.yaml"
+    existing.write_text("keep\n")
+    code, _, err = run("calibrate", str(tmp_path / "missing.csv"), "-o", str(existing))
+    assert (code, err.strip()) == (1, f"Error: {tmp_path / 'missing.csv'}: no such file")
+    assert existing.read_text() == "keep\n"
