@@ -57,7 +57,7 @@ def output_writer(path: Path, name: str | None, encoding: str | None) -> LogWrit
             known = ", ".join(f"{w.name} ({w.extension})" for w in LOG_WRITERS)
             raise UsageError(
                 f"{path}: cannot tell the log format from the name; end it in one of {known} "
-                "or give --format"
+                "or give --to"
             )
     if encoding is not None:
         if chosen.name != "mcap":

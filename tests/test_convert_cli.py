@@ -88,7 +88,7 @@ def test_csv_to_aria_and_back(tmp_path: Path) -> None:
 def test_format_flag_overrides_the_name(tmp_path: Path) -> None:
     out = tmp_path / "run.log"
     code, _, err = run(
-        "convert", str(SAMPLES / "corridor_loop.csv"), str(out), "--format", "mcap", "-q"
+        "convert", str(SAMPLES / "corridor_loop.csv"), str(out), "--to", "mcap", "-q"
     )
     assert code == 0, err
     assert out.read_bytes()[:8] == b"\x89MCAP0\r\n"
@@ -99,7 +99,7 @@ def test_simulate_writes_mcap(tmp_path: Path) -> None:
     path = SAMPLES / "paths" / "corridor_loop.yaml"
     out = tmp_path / "sim.out"
     code, _, err = run(
-        "simulate", str(world), str(path), "-o", str(out), "--format", "mcap",
+        "simulate", str(world), str(path), "-o", str(out), "--to", "mcap",
         "--encoding", "ros2", "--duration", "2", "--quiet",
     )  # fmt: skip
     assert code == 0, err
@@ -206,7 +206,7 @@ def test_errors_are_one_line_and_leave_nothing(case: str, tmp_path: Path) -> Non
         expected_code = 2
         message = (
             f"{work / 'run.bag'}: cannot tell the log format from the name; end it in one of "
-            "csv (.csv), aria (.2d), mcap (.mcap) or give --format"
+            "csv (.csv), aria (.2d), mcap (.mcap) or give --to"
         )
     elif case == "encoding for csv":
         args = [sample, str(work / "run.csv"), "--encoding", "ros2"]

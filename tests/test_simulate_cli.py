@@ -307,7 +307,7 @@ def test_bad_input_gives_one_error_line_and_no_output(
         "missing world and unknown robot": f"unknown robot 'r2': not a preset ({robots}) and "
         "no such file",
         "not csv": f"{tmp_path / 'sim.txt'}: cannot tell the log format from the name; end it "
-        "in one of csv (.csv), aria (.2d), mcap (.mcap) or give --format",
+        "in one of csv (.csv), aria (.2d), mcap (.mcap) or give --to",
         "unknown robot": f"unknown robot 'r2': not a preset ({robots}) and no such file",
     }[case]
     if case == "missing world":

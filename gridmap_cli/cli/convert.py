@@ -22,12 +22,18 @@ from gridmap_cli.writers.mcap_log import ENCODINGS
 @click.argument("log", type=click.Path(path_type=Path))
 @click.argument("output", type=click.Path(path_type=Path, dir_okay=False))
 @click.option(
-    "--format",
+    "--to",
     "out_format",
     type=click.Choice(writer_names()),
-    help="Output format; default: from OUTPUT's extension (.csv, .2d, .mcap).",
+    help="Format of OUTPUT; default: from its extension (.csv, .2d, .mcap).",
 )
-@click.option("--input-format", type=click.Choice(format_names()), help="Format of LOG.")
+@click.option(
+    "--format",
+    "--input-format",
+    "input_format",
+    type=click.Choice(format_names()),
+    help="Format of LOG (as for every command); default: from its extension, else its content.",
+)
 @click.option(
     "--encoding",
     type=click.Choice(ENCODINGS),

@@ -30,10 +30,10 @@ from gridmap_cli.writers.mcap_log import ENCODINGS
     help="Log to write: .csv (gridmap CSV), .2d (ARIA with sonar lines) or .mcap.",
 )
 @click.option(
-    "--format",
+    "--to",
     "log_format",
     type=click.Choice(writer_names()),
-    help="Log format; default: from the output's extension.",
+    help="Format of the log to write; default: from the output's extension.",
 )
 @click.option(
     "--encoding",
