@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import time
 from pathlib import Path
@@ -16,6 +15,7 @@ from gridmap_cli.cli.common import (
     check_input,
     check_output_folder,
     handle_errors,
+    json_text,
     make_read_options,
     progress_bar,
     selection_options,
@@ -235,7 +235,7 @@ def build(
     elapsed = time.perf_counter() - started
     summary = _summary(result, image_path, yaml_path, elapsed, occupied, free)
     if as_json:
-        click.echo(json.dumps(summary, indent=2))
+        click.echo(json_text(summary))
     if not quiet:
         click.echo(_summary_line(summary), err=True)
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -14,6 +13,7 @@ from gridmap_cli.cli.common import (
     check_input,
     check_output_folder,
     handle_errors,
+    json_text,
     selection_options,
 )
 from gridmap_cli.errors import UsageError
@@ -61,6 +61,7 @@ if TYPE_CHECKING:
 @selection_options(sensors=False)
 @click.option("--force", is_flag=True, help="Overwrite an existing output.")
 @click.option("--json", "as_json", is_flag=True, help="Print the figures as JSON on stdout.")
+@click.option("-q", "--quiet", is_flag=True, help="No table on stdout (with -o: just write).")
 @handle_errors
 def calibrate(
     log: Path,
@@ -73,6 +74,7 @@ def calibrate(
     end: str | None,
     force: bool,
     as_json: bool,
+    quiet: bool,
 ) -> None:
     """Estimate the odometry-error coefficients of LOG against its ground truth.
 
@@ -108,8 +110,8 @@ def calibrate(
         )
     if as_json:
         doc = {"log": str(log), "output": str(output) if output else None, **result.as_dict()}
-        click.echo(json.dumps(doc, indent=2))
-    else:
+        click.echo(json_text(doc))
+    elif not quiet:
         click.echo(_calibration_table(str(log), result, output))
 
 

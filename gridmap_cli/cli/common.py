@@ -4,6 +4,9 @@ options several commands take (topics and frames, sensor and time selection)."""
 from __future__ import annotations
 
 import functools
+import json
+import math
+import numbers
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -175,3 +178,25 @@ def make_read_options(
         map_frame=map_frame,
         robot=robot,
     )
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with floats at 12 significant digits (54.02, not 54.01999999999933: the noise
+    of sums of decimals) and NaN/inf as null; numpy scalars and tuples become JSON's own."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Real):
+        number = float(value)
+        return float(f"{number:.12g}") if math.isfinite(number) else None
+    return value
+
+
+def json_text(doc: Any) -> str:
+    """The JSON every ``--json`` prints: indented, floats without binary noise, no NaN."""
+    return json.dumps(_plain(doc), indent=2, allow_nan=False)

@@ -10,6 +10,7 @@ from gridmap_cli.cli.common import (
     check_input,
     check_output_folder,
     handle_errors,
+    json_text,
 )
 from gridmap_cli.convert import output_writer, write_log, writer_names
 from gridmap_cli.readers import format_names, resolve_format
@@ -46,6 +47,7 @@ from gridmap_cli.writers.mcap_log import ENCODINGS
 )
 @click.option("--force", is_flag=True, help="Overwrite an existing output.")
 @click.option("-q", "--quiet", is_flag=True, help="No summary on stderr.")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 @handle_errors
 def convert(
     log: Path,
@@ -56,6 +58,7 @@ def convert(
     robot: str | None,
     force: bool,
     quiet: bool,
+    as_json: bool,
 ) -> None:
     """Convert LOG to OUTPUT between gridmap CSV, ARIA .2d and MCAP.
 
@@ -73,6 +76,18 @@ def convert(
         if not set(data.sensor_names) <= known:
             robot_desc = robot_from_log(log, data.metadata)
     write_log(data, output, writer, robot_desc, encoding)
+    if as_json:
+        summary = {
+            "input": str(log),
+            "input_format": fmt.name,
+            "output": str(output),
+            "format": writer.name,
+            "encoding": (encoding or "json") if writer.name == "mcap" else None,
+            "poses": len(data.poses),
+            "readings": len(data.readings),
+            "ground_truth": data.truth is not None,
+        }
+        click.echo(json_text(summary))
     if not quiet:
         what = writer.name + (f" ({encoding or 'json'})" if writer.name == "mcap" else "")
         click.echo(

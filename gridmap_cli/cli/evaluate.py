@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import click
 import numpy as np
@@ -14,6 +13,7 @@ from gridmap_cli.cli.common import (
     check_input,
     check_output_folder,
     handle_errors,
+    json_text,
     selection_options,
     warn,
 )
@@ -59,6 +59,7 @@ if TYPE_CHECKING:
 )
 @selection_options()
 @click.option("--json", "as_json", is_flag=True, help="Print the scores as JSON on stdout.")
+@click.option("-q", "--quiet", is_flag=True, help="No table on stdout (with --plot: just draw).")
 @click.option(
     "--plot",
     type=click.Path(path_type=Path, dir_okay=False),
@@ -77,6 +78,7 @@ def evaluate(
     start: str | None,
     end: str | None,
     as_json: bool,
+    quiet: bool,
     plot: Path | None,
     force: bool,
 ) -> None:
@@ -161,22 +163,11 @@ def evaluate(
             "region": "sensed from the true path" if log_path else "whole world",
             **result.as_dict(),
         }
-        click.echo(json.dumps(_nan_to_none(doc), indent=2, allow_nan=False))
-    else:
+        click.echo(json_text(doc))
+    elif not quiet:
         click.echo(_evaluation_table(map_yaml, truth_yaml, log_path, map_to_world, result))
-    if plot is not None:
+    if plot is not None and not quiet:
         click.echo(f"gridmap: plot written to {plot}", err=True)
-
-
-def _nan_to_none(value: Any) -> Any:
-    """JSON has no NaN: undefined scores (an empty bin, no occupied cell) become null."""
-    if isinstance(value, float) and math.isnan(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _nan_to_none(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_nan_to_none(v) for v in value]
-    return value
 
 
 def _evaluation_table(

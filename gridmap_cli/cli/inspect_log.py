@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -11,6 +10,7 @@ import click
 from gridmap_cli.cli.common import (
     check_input,
     handle_errors,
+    json_text,
     make_read_options,
     selection_options,
     topic_options,
@@ -63,7 +63,7 @@ def inspect(
     if fmt.sources is None:
         read_options.refuse_topic_flags(fmt.name.upper())
     description = describe_log(log, fmt, read_options, selection)
-    click.echo(json.dumps(description, indent=2) if as_json else render_text(description))
+    click.echo(json_text(description) if as_json else render_text(description))
     if not description["build"]["ready"]:
         # the description is printed; the verdict is the line build would print, and its exit
         click.echo(f"Error: {description['build']['problem']}", err=True)

@@ -11,6 +11,7 @@ import numpy as np
 from gridmap_cli.cli.common import (
     check_output_folder,
     handle_errors,
+    json_text,
 )
 from gridmap_cli.convert import output_writer, write_log, writer_names
 from gridmap_cli.errors import InputFileError, UsageError
@@ -53,6 +54,7 @@ from gridmap_cli.writers.mcap_log import ENCODINGS
 @click.option("--duration", type=float, help="Repeat laps until this many seconds have passed.")
 @click.option("--force", is_flag=True, help="Overwrite an existing output.")
 @click.option("-q", "--quiet", is_flag=True, help="No summary on stderr.")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
 @handle_errors
 def simulate(
     world: Path,
@@ -67,6 +69,7 @@ def simulate(
     duration: float | None,
     force: bool,
     quiet: bool,
+    as_json: bool,
 ) -> None:
     """Drive a simulated robot along PATH in WORLD and write a log with ground truth.
 
@@ -107,10 +110,22 @@ def simulate(
     if duration is not None:
         log.metadata["duration"] = repr(duration)
     write_log(log, output, writer, robot_desc, encoding)
+    zmax = np.asarray([s.max_range_m for s in robot_desc.sensors])
+    no_echo = int(np.count_nonzero(log.readings.range_m >= zmax[log.readings.sensor]))
+    span = (log.poses.stamp_ns[-1] - log.poses.stamp_ns[0]) / 1e9
+    if as_json:
+        summary = {
+            "output": str(output),
+            "format": writer.name,
+            "encoding": encoding if writer.name == "mcap" else None,
+            "duration_s": span,
+            "poses": len(log.poses),
+            "readings": len(log.readings),
+            "no_echo": no_echo,
+            "seed": seed,
+        }
+        click.echo(json_text(summary))
     if not quiet:
-        zmax = np.asarray([s.max_range_m for s in robot_desc.sensors])
-        no_echo = int(np.count_nonzero(log.readings.range_m >= zmax[log.readings.sensor]))
-        span = (log.poses.stamp_ns[-1] - log.poses.stamp_ns[0]) / 1e9
         click.echo(
             f"gridmap: simulated {span:.1f} s: {len(log.poses):,} poses, "
             f"{len(log.readings):,} readings ({no_echo:,} no echo) -> {output}",
