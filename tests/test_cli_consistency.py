@@ -3,9 +3,12 @@ numbers as people write them, --format always the input's format."""
 
 from __future__ import annotations
 
+import importlib
 import json
 import re
 from pathlib import Path
+
+import pytest
 
 from tests.helpers import names, run
 
@@ -75,3 +78,18 @@ def test_format_names_the_input_everywhere_and_to_the_output(tmp_path: Path) -> 
     code, stdout, _ = run("inspect", str(out), "--format", "mcap", "--json")
     assert json.loads(stdout)["format"] == "mcap"
     assert names(tmp_path) == {"run.txt", "run.bin"}
+
+
+def test_ctrl_c_exits_130_with_one_line_and_no_output(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    build_cli = importlib.import_module("gridmap_cli.cli.build")  # the module, not the command
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(build_cli, "build_map", interrupted)
+    code, _, err = run("build", str(CSV), "-o", str(tmp_path / "m.png"))
+    assert code == 130
+    assert err == "Error: interrupted (Ctrl-C); no output was written or changed\n"
+    assert names(tmp_path) == set()

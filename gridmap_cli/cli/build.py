@@ -41,14 +41,14 @@ from gridmap_cli.writers.map_mcap import write_map_mcap
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path, dir_okay=False),
+    type=click.Path(path_type=Path),
     help="Map to write: an image (.png, .pgm or .bmp) with its YAML beside it, or an MCAP "
     "(.mcap) holding a nav_msgs/msg/OccupancyGrid on /map.",
 )
 @click.option(
     "-f",
     "basename",
-    type=click.Path(path_type=Path, dir_okay=False),
+    type=click.Path(path_type=Path),
     help="As map_saver_cli: write BASENAME.pgm (or --fmt) and BASENAME.yaml; instead of -o.",
 )
 @click.option(
@@ -116,7 +116,7 @@ from gridmap_cli.writers.map_mcap import write_map_mcap
 @click.option(
     "--odometry-error",
     "odometry_file",
-    type=click.Path(path_type=Path, dir_okay=False),
+    type=click.Path(path_type=Path),
     help="Error-aware mode: odometry-error YAML (what gridmap calibrate writes).",
 )
 @click.option(

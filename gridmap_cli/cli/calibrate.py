@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path, dir_okay=False),
+    type=click.Path(path_type=Path),
     help="Odometry-error YAML to write (what build takes); default: print only.",
 )
 @click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")

@@ -30,6 +30,16 @@ class UsageFailure(click.ClickException):
     exit_code = 2
 
 
+class Interrupted(click.ClickException):
+    """Ctrl-C: exit 130 as shells expect (128 + SIGINT), one line, nothing half-written (every
+    output is written to a temporary file and renamed only when complete)."""
+
+    exit_code = 130
+
+    def __init__(self) -> None:
+        super().__init__("interrupted (Ctrl-C); no output was written or changed")
+
+
 def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
     """Turn library errors into one-line ``Error:`` messages; tracebacks only with --debug."""
 
@@ -37,6 +47,10 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
         try:
             return func(*args, **kwargs)
+        except KeyboardInterrupt as exc:
+            if debug_enabled():
+                raise
+            raise Interrupted() from exc
         except GridmapError as exc:
             if debug_enabled():
                 raise

@@ -21,7 +21,7 @@ from gridmap_cli.writers.mcap_log import ENCODINGS
 
 @click.command()
 @click.argument("log", type=click.Path(path_type=Path))
-@click.argument("output", type=click.Path(path_type=Path, dir_okay=False))
+@click.argument("output", type=click.Path(path_type=Path))
 @click.option(
     "--to",
     "out_format",

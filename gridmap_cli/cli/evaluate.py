@@ -29,12 +29,12 @@ if TYPE_CHECKING:
 
 
 @click.command()
-@click.argument("map_yaml", metavar="MAP.yaml", type=click.Path(path_type=Path, dir_okay=False))
+@click.argument("map_yaml", metavar="MAP.yaml", type=click.Path(path_type=Path))
 @click.option(
     "--truth",
     "truth_yaml",
     required=True,
-    type=click.Path(path_type=Path, dir_okay=False),
+    type=click.Path(path_type=Path),
     help="Ground-truth world map (map_server YAML, e.g. samples/worlds/*.yaml).",
 )
 @click.option(
@@ -62,7 +62,7 @@ if TYPE_CHECKING:
 @click.option("-q", "--quiet", is_flag=True, help="No table on stdout (with --plot: just draw).")
 @click.option(
     "--plot",
-    type=click.Path(path_type=Path, dir_okay=False),
+    type=click.Path(path_type=Path),
     help="Write a PNG: the map with the true walls, and a reliability diagram (needs matplotlib).",
 )
 @click.option("--force", is_flag=True, help="Overwrite an existing --plot output.")

@@ -21,13 +21,13 @@ from gridmap_cli.writers.mcap_log import ENCODINGS
 
 
 @click.command()
-@click.argument("world", type=click.Path(path_type=Path, dir_okay=False))
-@click.argument("path_file", metavar="PATH", type=click.Path(path_type=Path, dir_okay=False))
+@click.argument("world", type=click.Path(path_type=Path))
+@click.argument("path_file", metavar="PATH", type=click.Path(path_type=Path))
 @click.option(
     "-o",
     "--output",
     required=True,
-    type=click.Path(path_type=Path, dir_okay=False),
+    type=click.Path(path_type=Path),
     help="Log to write: .csv (gridmap CSV), .2d (ARIA with sonar lines) or .mcap.",
 )
 @click.option(
@@ -90,7 +90,7 @@ def simulate(
     robot_desc = load_robot(robot)
     for given in (world, path_file):
         if not given.is_file():
-            raise InputFileError(given, "no such file")
+            raise InputFileError(given, "not a regular file" if given.exists() else "no such file")
     check_output(output, force)
     check_output_folder(output)
     loaded = load_map(world)
