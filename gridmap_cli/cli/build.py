@@ -28,12 +28,21 @@ from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
 from gridmap_cli.readers import format_names, read_logs
+from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, MAP_MODES, check_map_outputs, write_map
 from gridmap_cli.writers.map_mcap import write_map_mcap
+from gridmap_cli.writers.preview import (
+    ODOMETRY_RGB,
+    REFERENCE_RGB,
+    DrawnTrack,
+    drawn,
+    placed_at,
+    write_preview,
+)
 
 
 @click.command()
@@ -134,6 +143,12 @@ from gridmap_cli.writers.map_mcap import write_map_mcap
     show_default=True,
     help="Error-aware mode: pose error (m) at which a reading counts half.",
 )
+@click.option(
+    "--draw-path",
+    is_flag=True,
+    help="Also write a preview PNG (MAP_path.png): the map with unknown in pale blue, the "
+    "odometry in red and the reference track in green; never the map_server image itself.",
+)
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -164,6 +179,7 @@ def build(
     odometry_file: Path | None,
     coefficients: tuple[str, ...],
     trust_length: float,
+    draw_path: bool,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -203,10 +219,14 @@ def build(
     else:
         check_map_outputs(output, map_mode, force)
     check_output_folder(output)
+    preview = output.with_name(f"{output.stem}_path.png") if draw_path else None
+    if preview is not None:
+        check_output(preview, force)
     read_options = make_read_options(
         odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
     )
-    data = select_poses(read_logs(logs, log_format, read_options), pose)
+    whole = read_logs(logs, log_format, read_options)
+    data = select_poses(whole, pose)
     if robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
     selected = apply_selection(data, selection, robot_desc)
@@ -232,12 +252,28 @@ def build(
             output, result.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free,
             force=force,
         )  # fmt: skip
+    if preview is not None:
+        write_preview(preview, result.map, _tracks(whole, data, pose))
     elapsed = time.perf_counter() - started
     summary = _summary(result, image_path, yaml_path, elapsed, occupied, free)
+    if preview is not None:
+        summary["preview"] = str(preview)
     if as_json:
         click.echo(json_text(summary))
     if not quiet:
         click.echo(_summary_line(summary), err=True)
+
+
+def _tracks(whole: RangeLog, mapped: RangeLog, pose: str) -> list[DrawnTrack]:
+    """The track the map was built with, where it is, and the log's other track (odometry or
+    reference) placed on it by their first common pose."""
+    if pose == "odometry":
+        tracks = [drawn(mapped.poses, ODOMETRY_RGB)]
+        other = placed_at(whole.truth, mapped.poses, REFERENCE_RGB) if whole.truth else None
+    else:
+        tracks = [drawn(mapped.poses, REFERENCE_RGB)]
+        other = placed_at(whole.poses, mapped.poses, ODOMETRY_RGB)
+    return [other, *tracks] if other is not None else tracks
 
 
 def map_output(output: Path | None, basename: Path | None, image_format: str | None) -> Path:
