@@ -11,6 +11,7 @@ and reports the first error build would stop at, word for word, not a parallel s
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +21,7 @@ import numpy.typing as npt
 from gridmap_cli.errors import GridmapError, InputFileError
 from gridmap_cli.odometry_error import travelled
 from gridmap_cli.pipeline import BuildOptions, plan_build
-from gridmap_cli.readers import LogFormat
+from gridmap_cli.readers import LogFormat, recording_sources
 from gridmap_cli.readers.aria_log import LASER_MAX_RANGE_M
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros_recording import RecordingRead, read_recording
@@ -32,19 +33,25 @@ from gridmap_cli.sync import interpolate_pose
 
 
 def describe_log(
-    path: Path, fmt: LogFormat, options: ReadOptions, selection: Selection | None = None
+    paths: Sequence[Path],
+    fmt: LogFormat,
+    options: ReadOptions,
+    selection: Selection | None = None,
 ) -> dict[str, Any]:
-    """Describe a log of any format, or the part of it ``selection`` chooses.
+    """Describe a log of any format (several ROS recordings as one, as build reads them), or the
+    part of it ``selection`` chooses. ``fmt`` is the format of the first.
 
     Raises what the reader raises for a broken CSV/ARIA file, and what
     :func:`~gridmap_cli.selection.apply_selection` raises for a selection the log cannot meet.
     """
-    size = sum(f.stat().st_size for f in path.iterdir()) if path.is_dir() else path.stat().st_size
-    out: dict[str, Any] = {"file": str(path), "format": fmt.name, "bytes": size}
+    path = paths[0]
+    size = sum(_bytes(p) for p in paths)
+    out: dict[str, Any] = {"file": " + ".join(map(str, paths)), "format": fmt.name, "bytes": size}
     problem: str | None = None
     mcap: RecordingRead | None = None
-    if fmt.sources is not None:
-        mcap = read_recording(fmt.sources(path), options, strict=False, every_topic=True)
+    sources = recording_sources(paths, fmt.name if len(paths) == 1 else None)
+    if sources is not None:
+        mcap = read_recording(sources, options, strict=False, every_topic=True)
         problem = None if mcap.problem is None else str(mcap.problem)
         log = mcap.log
         out["mcap"] = _mcap_part(mcap)
@@ -67,6 +74,13 @@ def describe_log(
     out["log"] = _log_part(log, during, robot, mcap.mount_from if mcap is not None else None)
     out["build"] = _build_part(fmt, log, mcap, robot, robot_source, problem)
     return out
+
+
+def _bytes(path: Path) -> int:
+    """A file's size, or the sum of a folder's files (a rosbag2 folder)."""
+    if path.is_dir():
+        return sum(f.stat().st_size for f in path.iterdir() if f.is_file())
+    return path.stat().st_size
 
 
 def _build_problem(log: RangeLog, robot: RobotDescription | None) -> str | None:
@@ -162,6 +176,7 @@ def _mcap_part(read: RecordingRead) -> dict[str, Any]:
                 "first_ns": first if c.count else None,
                 "last_ns": last if c.count else None,
                 "rate_hz": _rate(c.count, last - first),
+                "qos": c.qos or None,
                 "used_as": _use(c.topic, read),
             }
         )
@@ -169,6 +184,9 @@ def _mcap_part(read: RecordingRead) -> dict[str, Any]:
         "profile": survey.profile,
         "library": survey.library,
         "indexed": survey.indexed,
+        "storage": survey.storage,
+        "compression": survey.compression,
+        "files": [{"file": f, "bytes": n} for f, n in survey.files],
         "messages": survey.message_count,
         "log_time": None
         if survey.start_ns is None
@@ -438,12 +456,14 @@ def _table(rows: list[list[str]]) -> list[str]:
             for row in rows]  # fmt: skip
 
 
+def _size(size: int) -> str:
+    return f"{size / 1e6:.1f} MB" if size >= 100_000 else f"{_n(size)} bytes"
+
+
 def render_text(d: dict[str, Any]) -> str:
     """The description as text for people, one section per subject."""
     lines: list[str] = []
-    size = d["bytes"]
-    size_text = f"{size / 1e6:.1f} MB" if size >= 100_000 else f"{_n(size)} bytes"
-    head = f"{d['file']}: {d['format'].upper()} log, {size_text}"
+    head = f"{d['file']}: {d['format'].upper()} log, {_size(d['bytes'])}"
     mcap = d.get("mcap")
     if mcap is not None:
         profile = f"profile '{mcap['profile']}'" if mcap["profile"] else "no profile"
@@ -458,14 +478,22 @@ def render_text(d: dict[str, Any]) -> str:
                 f"  {_n(mcap['messages'])} messages, log time "
                 f"{span_text(lt['start_ns'], lt['end_ns'])}"
             )
+        storage = f"  storage {mcap['storage'] or '?'}, compression {mcap['compression'] or '?'}"
+        if len(mcap["files"]) > 1:
+            names = [f"{Path(f['file']).name} ({_size(f['bytes'])})" for f in mcap["files"]]
+            storage += f"; {len(names)} files: {_some(names, 4)}"
+        lines.append(storage)
         if not mcap["indexed"]:
             lines.append("  no index: the file is read from start to end")
         lines += ["", "Channels:"]
+        with_qos = any(c["qos"] for c in mcap["channels"])
         rows = [["topic", "type", "encoding", "messages", "rate", "gridmap uses it as"]]
+        rows[0] += ["QoS"] if with_qos else []
         for c in mcap["channels"]:
             rows.append([c["topic"], c["type"] or "(no schema)", c["message_encoding"],
                          _n(c["messages"]), _hz(c["rate_hz"]),
                          c["used_as"] or _unused(c, d["build"])])  # fmt: skip
+            rows[-1] += [c["qos"] or "-"] if with_qos else []
         lines += _table(rows)
         if mcap["tf"]:
             pairs = [f"{t['parent']} -> {t['child']} ({_n(t['transforms'])})" for t in mcap["tf"]]

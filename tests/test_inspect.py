@@ -56,9 +56,17 @@ def test_rosbag2_text_explains_channels_odometry_and_why_build_fails() -> None:
         "27.1",
         "Hz",
         "odometry",
+        "reliable,",  # the QoS rosbag2 recorded, as ros2 bag info shows it
+        "volatile,",
+        "depth",
+        "10",
     ]
     assert any(
-        line.startswith("  /tf_static ") and line.endswith("sensor mounting") for line in lines
+        line.startswith("  /tf_static ")
+        and line.endswith(
+            "sensor mounting                       reliable, transient_local, depth 1"
+        )
+        for line in lines
     )
     assert "Odometry: 2,639 poses, 928.800 s to 1025.496 s (96.7 s), 27.3 Hz" in lines
     assert any("travelled 34.32 m" in line for line in lines)
@@ -199,7 +207,7 @@ def test_ros2_sample_text_says_what_build_does_and_skips() -> None:
     assert lines[0].endswith("MCAP log, 0.7 MB; profile 'ros2', written by gridmap-cli")
     # /tf repeats /odom's poses: it is left unread, and the row says why
     tf_row = next(line for line in lines if line.startswith("  /tf "))
-    assert tf_row.endswith("10 Hz   - (odometry is /odom)")
+    assert tf_row.endswith("10 Hz   - (odometry is /odom)  reliable, volatile, depth 10")
     # 28 readings are below the sonars' 0.15 m: build maps the rest (its summary says 23,460)
     assert (
         "  23,488 of them during the odometry's time span, 28 of these below their sensor's "

@@ -21,7 +21,7 @@ from gridmap_cli.selection import Selection
 
 
 @click.command()
-@click.argument("log", type=click.Path(path_type=Path))
+@click.argument("logs", metavar="LOG...", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("--robot", help="Robot preset, robot YAML file or ARIA .p file.")
 @click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
 @topic_options
@@ -29,7 +29,7 @@ from gridmap_cli.selection import Selection
 @click.option("--json", "as_json", is_flag=True, help="Print the description as JSON.")
 @handle_errors
 def inspect(
-    log: Path,
+    logs: tuple[Path, ...],
     robot: str | None,
     log_format: str | None,
     odom_topic: str | None,
@@ -43,8 +43,8 @@ def inspect(
     end: str | None,
     as_json: bool,
 ) -> None:
-    """Describe LOG (CSV, ARIA .2d, MCAP, ROS 1 bag or rosbag2 folder) and what build would
-    make of it.
+    """Describe LOG (CSV, ARIA .2d, MCAP, ROS 1 bag, rosbag2 folder, CARMEN) and what build
+    would make of it; several ROS recordings are described as the one build would merge.
 
     Channels or columns, message counts, time span, rates, distance travelled, sensors and
     their mounting poses, and the topics, frames and robot build would use. Exits 1, after
@@ -55,14 +55,15 @@ def inspect(
 
     selection = Selection.parse(sensor_patterns, start, end)
     robot_desc = load_robot(robot) if robot else None
-    check_input(log)
-    fmt = resolve_format(log, log_format)
+    for log in logs:
+        check_input(log)
+    fmt = resolve_format(logs[0], log_format)
     read_options = make_read_options(
         odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
     )
     if fmt.sources is None:
         read_options.refuse_topic_flags(fmt.name.upper())
-    description = describe_log(log, fmt, read_options, selection)
+    description = describe_log(logs, fmt, read_options, selection)
     click.echo(json_text(description) if as_json else render_text(description))
     if not description["build"]["ready"]:
         # the description is printed; the verdict is the line build would print, and its exit

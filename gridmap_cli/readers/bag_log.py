@@ -28,7 +28,7 @@ from gridmap_cli.readers.ros_recording import (
     RecordingSource,
     read_recording,
 )
-from gridmap_cli.readers.ros_topics import ChannelInfo, Survey, fold_type
+from gridmap_cli.readers.ros_topics import ChannelInfo, Survey, fold_type, qos_text
 from gridmap_cli.records import RangeLog
 
 #: The first line of every ROS 1 bag (format 2.0, the only one rosbag has written since 2010).
@@ -95,9 +95,11 @@ class BagSource:
             with self._reader() as reader:
                 counts: Counter[str] = Counter()
                 types: dict[str, Any] = {}
+                qos: dict[str, str] = {}
                 for c in reader.connections:
                     counts[c.topic] += c.msgcount
                     types.setdefault(c.topic, c)
+                    qos.setdefault(c.topic, _connection_qos(c))
                 ros2 = self.path.is_dir()
                 channels = tuple(
                     ChannelInfo(
@@ -106,6 +108,7 @@ class BagSource:
                         schema_encoding="ros2msg" if ros2 else "ros1msg",
                         message_encoding="cdr" if ros2 else "ros1",
                         count=counts[topic],
+                        qos=qos[topic],
                     )
                     for topic, c in types.items()
                 )
@@ -120,6 +123,9 @@ class BagSource:
                     message_count=total,
                     metadata={},
                     indexed=True,
+                    storage="sqlite3" if ros2 else "rosbag 2.0",
+                    compression=_compression(reader.readers[0]),
+                    files=_files(self.path),
                 )
         except OSError as exc:
             raise self._fail(exc) from exc
@@ -154,6 +160,44 @@ class BagSource:
             raise self._fail(exc) from exc
         except _damaged() as exc:
             raise self._fail(exc) from exc
+
+
+def _connection_qos(connection: Any) -> str:
+    """A connection's recorded QoS: rosbag2's offered profiles, ROS 1's latching."""
+    ext = connection.ext
+    profiles = getattr(ext, "offered_qos_profiles", None)
+    if profiles:
+        return qos_text(
+            [
+                {
+                    "reliability": getattr(p.reliability, "name", p.reliability),
+                    "durability": getattr(p.durability, "name", p.durability),
+                    "depth": p.depth,
+                }
+                for p in profiles
+            ]
+        ).lower()
+    return "latched" if getattr(ext, "latching", 0) else ""
+
+
+def _compression(reader: Any) -> str:
+    """How the messages are compressed: a rosbag2 folder says it in its metadata; a ROS 1 bag
+    per chunk (rosbags keeps each chunk's decompressor: bz2, lz4, or none)."""
+    if hasattr(reader, "compression_format"):
+        fmt = str(getattr(reader.compression_format, "name", reader.compression_format) or "")
+        return fmt.lower() or "none"
+    kinds = set()
+    for chunk in getattr(reader, "chunks", {}).values():
+        module = getattr(chunk.decompressor, "__module__", "") or ""
+        kinds.add("bz2" if "bz2" in module else "lz4" if "lz4" in module else "none")
+    return ", ".join(sorted(kinds))
+
+
+def _files(path: Path) -> tuple[tuple[str, int], ...]:
+    """The files a bag or rosbag2 folder is made of, with their sizes."""
+    if path.is_dir():
+        return tuple((str(f), f.stat().st_size) for f in sorted(path.iterdir()) if f.is_file())
+    return ((str(path), path.stat().st_size),)
 
 
 def rosbag2_sources(folder: Path) -> list[RecordingSource]:

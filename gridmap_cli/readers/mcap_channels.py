@@ -13,6 +13,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import IO
 
+import yaml
 from mcap.decoder import DecoderFactory
 from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
@@ -21,7 +22,7 @@ from mcap.stream_reader import StreamReader
 from mcap.summary import Summary
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.readers.ros_topics import ChannelInfo, Survey, fold_type
+from gridmap_cli.readers.ros_topics import ChannelInfo, Survey, fold_type, qos_text
 
 MAGIC = b"\x89MCAP0\r\n"
 
@@ -87,6 +88,7 @@ def survey_mcap(path: Path) -> Survey:
                     schema_encoding=_schema_encoding(summary.schemas.get(ch.schema_id)),
                     message_encoding=ch.message_encoding,
                     count=stats.channel_message_counts.get(ch.id, 0),
+                    qos=_qos(ch),
                 )
                 for ch in sorted(summary.channels.values(), key=lambda c: c.id)
             )
@@ -101,9 +103,27 @@ def survey_mcap(path: Path) -> Survey:
                 message_count=stats.message_count,
                 metadata=metadata,
                 indexed=bool(summary.chunk_indexes),
+                storage="mcap",
+                compression=", ".join(
+                    sorted({ci.compression or "none" for ci in summary.chunk_indexes})
+                ),
+                files=((str(path), path.stat().st_size),),
             )
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
+
+
+def _qos(channel: Channel) -> str:
+    """The QoS rosbag2 wrote into a channel's metadata (``offered_qos_profiles``, YAML), short;
+    a ROS 1 channel's ``latching``."""
+    text = channel.metadata.get("offered_qos_profiles", "")
+    if text:
+        try:
+            profiles = yaml.safe_load(text)
+        except yaml.YAMLError:
+            return ""
+        return qos_text(profiles if isinstance(profiles, list) else [])
+    return "latched" if channel.metadata.get("latching") == "1" else ""
 
 
 def _schema_encoding(schema: Schema | None) -> str:
@@ -146,6 +166,7 @@ def _survey_by_scan(path: Path, handle: IO[bytes], profile: str, library: str) -
             schema_encoding=_schema_encoding(schemas.get(ch.schema_id)),
             message_encoding=ch.message_encoding,
             count=counts[ch.id],
+            qos=_qos(ch),
         )
         for ch in sorted(channels.values(), key=lambda c: c.id)
     )
@@ -159,4 +180,6 @@ def _survey_by_scan(path: Path, handle: IO[bytes], profile: str, library: str) -
         message_count=sum(counts.values()),
         metadata=metadata,
         indexed=False,
+        storage="mcap",
+        files=((str(path), path.stat().st_size),),
     )

@@ -87,6 +87,7 @@ def merge_surveys(surveys: Sequence[Survey]) -> Survey:
                     c.schema_encoding,
                     c.message_encoding,
                     known.count + c.count,
+                    known.qos or c.qos,
                 )
     starts = [s.start_ns for s in surveys if s.start_ns is not None]
     ends = [s.end_ns for s in surveys if s.end_ns is not None]
@@ -104,6 +105,11 @@ def merge_surveys(surveys: Sequence[Survey]) -> Survey:
         message_count=sum(s.message_count for s in surveys),
         metadata=metadata,
         indexed=all(s.indexed for s in surveys),
+        storage=", ".join(dict.fromkeys(s.storage for s in surveys if s.storage)),
+        compression=", ".join(
+            dict.fromkeys(c for s in surveys for c in s.compression.split(", ") if c)
+        ),
+        files=tuple(f for s in surveys for f in s.files),
     )
 
 

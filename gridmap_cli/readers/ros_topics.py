@@ -29,6 +29,19 @@ REFERENCE_TYPES = ("geometry_msgs/PoseWithCovarianceStamped",)
 STATIC_TF_TOPICS = ("/tf_static", "tf_static")
 
 
+def qos_text(profiles: list[dict[str, object]]) -> str:
+    """The QoS rosbag2 recorded for a topic, as ``ros2 bag info`` readers want it: reliability,
+    durability and history depth of the first offered profile ('' when none was recorded)."""
+    if not profiles or not isinstance(profiles[0], dict):
+        return ""
+    first = profiles[0]
+    parts = [str(first[k]) for k in ("reliability", "durability") if first.get(k)]
+    if first.get("depth") not in (None, ""):
+        parts.append(f"depth {first['depth']}")
+    more = f" (+{len(profiles) - 1} publishers)" if len(profiles) > 1 else ""
+    return ", ".join(parts) + more
+
+
 def fold_type(name: str) -> str:
     """A type name, ROS 2 style folded: ``nav_msgs/msg/Odometry`` -> ``nav_msgs/Odometry``."""
     return name.replace("/msg/", "/")
@@ -48,6 +61,7 @@ class ChannelInfo:
     schema_encoding: str
     message_encoding: str
     count: int
+    qos: str = ""  # the recorded QoS, shortened ("reliable, transient_local, depth 1", "latched")
 
     @property
     def role(self) -> str:
@@ -85,6 +99,9 @@ class Survey:
     message_count: int
     metadata: dict[str, dict[str, str]]
     indexed: bool
+    storage: str = ""  # "mcap", "rosbag 2.0", "sqlite3"
+    compression: str = ""  # "zstd", "lz4", "bz2", "none", or a mix ("none, lz4")
+    files: tuple[tuple[str, int], ...] = ()  # (file, bytes) of each file read
 
     def topic(self, name: str) -> ChannelInfo | None:
         for channel in self.channels:

@@ -6,6 +6,7 @@ SOURCES.md there): read through ``rosbags`` they must give what the MCAP reader 
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -88,3 +89,32 @@ def test_the_evo_bag_and_its_rosbag2_copy_give_the_same_tf_odometry() -> None:
     # the first odom -> base_footprint transform, as printed by rosbags
     assert bag.log.poses.x_m[0] == pytest.approx(1.1603796887148006)
     assert bag.log.poses.y_m[0] == pytest.approx(-2.942426888388735)
+
+
+def test_inspect_reads_like_ros2_bag_info_storage_compression_files_and_qos() -> None:
+    code, out, _ = run("inspect", str(ROSBAG2))
+    assert code == 1  # no range readings: build would fail, and inspect says so
+    assert (
+        "  storage sqlite3, compression none; 2 files: metadata.yaml (1,052 bytes), "
+        "tf_example.db3 (0.1 MB)"
+    ) in out.splitlines()
+    code, out, _ = run("inspect", str(MCAPS / "rosbag2_turtlebot_odometry.mcap"), "--json")
+    doc = json.loads(out)
+    assert (doc["mcap"]["storage"], doc["mcap"]["compression"]) == ("mcap", "zstd")
+    qos = {c["topic"]: c["qos"] for c in doc["mcap"]["channels"]}
+    assert qos["/tf_static"] == "reliable, transient_local, depth 1"
+    assert qos["/tf"] == "reliable, volatile, depth 10 (+2 publishers)"
+
+
+def test_inspect_describes_split_bags_as_the_recording_build_reads() -> None:
+    odometry, sonar = BAGS / "tiago_odometry.bag", BAGS / "tiago_sonar.bag"
+    code, out, err = run("inspect", str(odometry), str(sonar), "--json")
+    assert code == 1 and "sensor frame 'base_sonar_01_link' (/sonar_base): mounting pose" in err
+    doc = json.loads(out)
+    assert doc["file"] == f"{odometry} + {sonar}"
+    assert [c["topic"] for c in doc["mcap"]["channels"]] == [
+        "/mobile_base_controller/odom",
+        "/sonar_base",
+    ]
+    assert doc["mcap"]["compression"] == "none"
+    assert len(doc["mcap"]["files"]) == 2
