@@ -243,11 +243,15 @@ def evaluate_map(
     world: GridSpec,
     region: BoolArray | None = None,
     map_to_world: Pose = (0.0, 0.0, 0.0),
+    known: BoolArray | None = None,
 ) -> Evaluation:
     """Score ``pmap`` against the world's ``walls`` (bool, shape ``world.shape``, row 0 bottom).
 
     ``region``: world cells to score (same shape); None scores every world cell.
     ``map_to_world``: pose of the map's frame in the world (identity for world-frame maps).
+    ``known``: the cells the reference knows (same shape; a reference map built from corrected
+    poses leaves cells unknown): only those are scored, since an unknown reference cell is not a
+    free one. None: every cell is known (a simulator's world).
     The result also carries the map's p on the world grid (``p_world``), for drawing.
     Raises :class:`EvaluationError` for an empty region and ``ValueError`` for shapes that
     do not match.
@@ -259,6 +263,10 @@ def evaluate_map(
         region = np.ones(world.shape, dtype=bool)
     if region.shape != world.shape:
         raise ValueError(f"region has shape {region.shape}, the world grid {world.shape}")
+    if known is not None:
+        if known.shape != world.shape:
+            raise ValueError(f"known has shape {known.shape}, the world grid {world.shape}")
+        region = region & known
     n = int(region.sum())
     if n == 0:
         raise EvaluationError("the region to score holds no cell")
@@ -324,15 +332,20 @@ def _reliability(p: FloatArray, y: FloatArray) -> tuple[tuple[ReliabilityBin, ..
 
 @dataclass(frozen=True)
 class Truth:
-    """A ground-truth world as evaluate uses it: its grid, its walls and a ray caster."""
+    """A ground-truth world as evaluate uses it: its grid, its walls, the cells it knows (a
+    reference map built from corrected poses has unknown cells; a simulator's world none) and a
+    ray caster."""
 
     spec: GridSpec
     walls: BoolArray
     world: World
+    known: BoolArray
 
 
 def load_truth(yaml_path: Path) -> Truth:
-    """A world map (map_server YAML, e.g. ``samples/worlds/*.yaml``): occupied cells are walls."""
+    """A world or reference map (map_server YAML, e.g. ``samples/worlds/*.yaml``, or a map built
+    with ``--pose global``): occupied cells are walls; unknown cells (and, in a trinary map,
+    cells between its thresholds) are not known and are not scored."""
     loaded = load_map(yaml_path)
     walls = loaded.occupied_mask()
-    return Truth(loaded.spec, walls, World(walls, loaded.spec))
+    return Truth(loaded.spec, walls, World(walls, loaded.spec), np.asarray(loaded.occupancy >= 0))

@@ -18,7 +18,7 @@ from gridmap_cli.errors import MapSizeError
 
 #: Probabilities the summed log-odds are clamped to when a map is finished: OctoMap's default
 #: clamping thresholds (docs/sensor-model.md says why, and why once at the end).
-DEFAULT_CLAMP_P = (0.12, 0.97)
+DEFAULT_CLAMP_P = (0.01, 0.7)
 
 #: Refuse maps larger than this many cells unless asked: 1e8 cells is 10 km x 10 km at 1 m, or
 #: 500 m x 500 m at 5 cm; a bigger map almost always means absurd coordinates in the log.

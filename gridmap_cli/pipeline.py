@@ -24,11 +24,13 @@ from gridmap_cli.grid import (
     OccupancyMap,
 )
 from gridmap_cli.models.error_aware import ErrorAwareParams, ErrorAwareSonarModel, OdometrySpread
+from gridmap_cli.models.error_aware_mixed import ErrorAwareMixedModel
+from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
 from gridmap_cli.models.ray import RayModel, RayParams
 from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
 from gridmap_cli.records import RangeLog, span_text
 from gridmap_cli.robot import RobotDescription
-from gridmap_cli.sync import SensorReadings, SyncStats, synchronise
+from gridmap_cli.sync import SensorReadings, SyncStats, select_readings, synchronise
 
 MAPPING_MODES = ("standard", "error-aware")
 
@@ -79,19 +81,7 @@ class SensorModel(Protocol):
         ...
 
 
-def _select(readings: SensorReadings, sl: slice | npt.NDArray[np.bool_]) -> SensorReadings:
-    d, r = readings.distance_m, readings.rotation_rad
-    return SensorReadings(
-        stamp_ns=readings.stamp_ns[sl],
-        sensor=readings.sensor[sl],
-        range_m=readings.range_m[sl],
-        x_m=readings.x_m[sl],
-        y_m=readings.y_m[sl],
-        theta_rad=readings.theta_rad[sl],
-        sensors=readings.sensors,
-        distance_m=None if d is None else d[sl],
-        rotation_rad=None if r is None else r[sl],
-    )
+_select = select_readings
 
 
 @dataclass(frozen=True)
@@ -144,8 +134,8 @@ def build_map(
     grid = LogOddsAccumulator(spec) if options.mode == "standard" else FrequencyAccumulator(spec)
     updates = 0
     for model, part in plan.parts:
-        for start in range(0, len(part), options.batch_size):
-            batch = _select(part, slice(start, start + options.batch_size))
+        for start, stop in batch_bounds(part.stamp_ns, options.batch_size):
+            batch = _select(part, slice(start, stop))
             updates += model.accumulate(grid, batch)
             if progress is not None:
                 progress(len(batch))
@@ -154,6 +144,25 @@ def build_map(
     else:
         omap = grid.occupancy_map(options.clamp_p)
     return BuildResult(map=omap, sync=stats, cell_updates=updates)
+
+
+def batch_bounds(stamp_ns: npt.NDArray[np.int64], size: int) -> list[tuple[int, int]]:
+    """Consecutive [start, stop) batches of about ``size`` readings, each cut where the stamp
+    changes, so a scan's beams (one stamp) stay in one batch: the error-aware laser model
+    compares a beam with its neighbours. A single stamp holding more than ``size`` readings
+    is kept whole."""
+    n = stamp_ns.shape[0]
+    bounds = []
+    start = 0
+    while start < n:
+        stop = min(start + size, n)
+        if stop < n:
+            # move the cut forward to the first reading of a new stamp
+            stop = int(np.searchsorted(stamp_ns, stamp_ns[stop - 1], side="right"))
+            stop = max(stop, start + 1)
+        bounds.append((start, stop))
+        start = stop
+    return bounds
 
 
 def _by_model(
@@ -167,7 +176,7 @@ def _by_model(
     narrow = np.array([s.kind == "laser" or s.beam_width_rad <= 0.0 for s in readings.sensors])
     is_ray = narrow[readings.sensor]
     if options.mode == "error-aware":
-        return [(_error_aware_model(readings, is_ray, options), readings)]
+        return [(_error_aware_model(readings, narrow, options), readings)]
     parts: list[tuple[SensorModel, SensorReadings]] = [
         (RayModel(options.ray, options.resolution_m), _select(readings, is_ray)),
         (StandardSonarModel(options.sonar, options.resolution_m), _select(readings, ~is_ray)),
@@ -176,31 +185,28 @@ def _by_model(
 
 
 def _error_aware_model(
-    readings: SensorReadings, is_ray: npt.NDArray[np.bool_], options: BuildOptions
-) -> ErrorAwareSonarModel:
-    if is_ray.any():
-        lasers = sorted({readings.sensors[i].name for i in np.unique(readings.sensor[is_ray])})
-        raise GridmapError(
-            f"error-aware mode models sonar cones; {int(is_ray.sum())} readings come from "
-            f"narrow-beam sensors ({', '.join(lasers[:3])}{' ...' if len(lasers) > 3 else ''}): "
-            f"build this log with --mode standard, or without them ({_leave_out(lasers)})"
-        )
+    readings: SensorReadings, narrow: npt.NDArray[np.bool_], options: BuildOptions
+) -> SensorModel:
+    """Sonar cones, laser rays, or both: the error-aware model for the log's sensors."""
     if options.odometry_error is None:
         raise GridmapError(
             "error-aware mode needs the odometry error model (gridmap calibrate writes one)"
         )
-    return ErrorAwareSonarModel(
+    sonar = ErrorAwareSonarModel(
         options.sonar, options.error_aware, options.odometry_error, options.resolution_m
     )
-
-
-def _leave_out(names: list[str]) -> str:
-    """The --sensors flags that leave ``names`` out, a laser's beams by one pattern."""
-    patterns = sorted(
-        {f"{base}_*" if sep and index.isdigit() else name
-         for name in names for base, sep, index in [name.rpartition("_")]}
-    )  # fmt: skip
-    return " ".join(f"--sensors '!{p}'" for p in patterns)
+    is_ray = narrow[readings.sensor]
+    if not is_ray.any():
+        return sonar
+    ray = ErrorAwareRayModel(
+        options.error_aware,
+        options.odometry_error,
+        ScanLayout.of(readings.sensors, narrow),
+        options.sonar.band_half_m(options.resolution_m),
+    )
+    if is_ray.all():
+        return ray
+    return ErrorAwareMixedModel(sonar, ray, narrow)
 
 
 def _why_empty(log: RangeLog, stats: SyncStats) -> str:

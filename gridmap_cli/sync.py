@@ -54,6 +54,24 @@ class SensorReadings:
         return table[self.sensor]
 
 
+def select_readings(
+    readings: SensorReadings, sl: slice | npt.NDArray[np.bool_] | npt.NDArray[np.int64]
+) -> SensorReadings:
+    """The readings picked by ``sl`` (a slice, mask or index array over the M readings)."""
+    d, r = readings.distance_m, readings.rotation_rad
+    return SensorReadings(
+        stamp_ns=readings.stamp_ns[sl],
+        sensor=readings.sensor[sl],
+        range_m=readings.range_m[sl],
+        x_m=readings.x_m[sl],
+        y_m=readings.y_m[sl],
+        theta_rad=readings.theta_rad[sl],
+        sensors=readings.sensors,
+        distance_m=None if d is None else d[sl],
+        rotation_rad=None if r is None else r[sl],
+    )
+
+
 @dataclass(frozen=True)
 class SyncStats:
     """How many readings the sync stage kept and why it dropped the others."""

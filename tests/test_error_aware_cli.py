@@ -97,27 +97,26 @@ def test_bad_odometry_file_names_it_and_writes_nothing(tmp_path: Path) -> None:
     assert names(out) == set()
 
 
-def test_error_aware_refuses_laser_logs(tmp_path: Path) -> None:
+def test_error_aware_maps_laser_and_mixed_logs(tmp_path: Path) -> None:
     log = tmp_path / "laser.2d"
     code, _, stderr = run(
         "simulate", str(SAMPLES / "worlds" / "office.yaml"), str(SAMPLES / "paths" / "office.yaml"),
         "--robot", "p3at-lms200", "--duration", "3", "-o", str(log),
     )  # fmt: skip
     assert code == 0, stderr
-    out = tmp_path / "out"
-    out.mkdir()
-    code, _, stderr = run(
-        "build", str(log), "-o", str(out / "m.png"), "--robot", "p3at-lms200",
-        "--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=0.01",
-    )  # fmt: skip
-    assert code == 1
-    assert "narrow-beam" in stderr and "--mode standard" in stderr
-    assert "or without them (--sensors '!laser1_*')" in stderr
-    assert names(out) == set()
-    # ... and its sonars alone map in error-aware mode
-    code, _, stderr = run(
-        "build", str(log), "-o", str(out / "m.png"), "--robot", "p3at-lms200",
-        "--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=0.01",
-        "--sensors", "!laser1_*",
-    )  # fmt: skip
-    assert code == 0, stderr
+    maps = {}
+    for name, extra in (("mixed", ()), ("laser", ("--sensors", "laser1_*"))):
+        out = tmp_path / f"{name}.png"
+        code, _, stderr = run(
+            "build", str(log), "-o", str(out), "--robot", "p3at-lms200", "--map-mode", "scale",
+            "--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=0.01", *extra,
+        )  # fmt: skip
+        assert code == 0, stderr
+        maps[name] = load_map(out.with_suffix(".yaml")).probability()
+    for prob in maps.values():
+        known = prob[~np.isnan(prob)]
+        # three seconds of driving: the walls are known (dark) and the room mostly free
+        assert np.count_nonzero(known >= 0.65) > 50
+        assert np.count_nonzero(known <= 0.25) > 0.5 * known.size
+    # the sonars add what their cones see: the mixed map knows more cells
+    assert np.count_nonzero(~np.isnan(maps["mixed"])) > np.count_nonzero(~np.isnan(maps["laser"]))

@@ -341,3 +341,38 @@ def test_the_corridor_sample_mapped_with_truth_scores_better(tmp_path: Path) -> 
     assert scores["global"]["nll"] < scores["odometry"]["nll"]
     assert scores["global"]["f1"] > 0.8 > 0.5 > scores["odometry"]["f1"]
     assert scores["global"]["coverage"] > 0.99
+
+
+def test_a_reference_map_with_unknown_cells_is_scored_on_its_known_cells(tmp_path: Path) -> None:
+    """A 3 x 3 reference computed by hand: its unknown cells are not free, they are skipped."""
+    from gridmap_cli.evaluate import evaluate_map, load_truth
+
+    # rows top to bottom as in the image: 0 occupied (black), 254 free, 205 unknown
+    pixels = bytes([205, 254, 0, 254, 254, 205, 0, 254, 205])
+    (tmp_path / "ref.pgm").write_bytes(b"P5\n3 3\n255\n" + pixels)
+    (tmp_path / "ref.yaml").write_text(
+        "image: ref.pgm\nresolution: 1.0\norigin: [0.0, 0.0, 0.0]\nnegate: 0\n"
+        "occupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
+    truth = load_truth(tmp_path / "ref.yaml")
+    # row 0 at the bottom: [occ, free, unknown], [free, free, unknown], [unknown, free, occ]
+    assert truth.walls.tolist() == [
+        [True, False, False],
+        [False, False, False],
+        [False, False, True],
+    ]
+    assert truth.known.tolist() == [[True, True, False], [True, True, False], [False, True, True]]
+    spec = truth.spec
+    prob = np.array([[0.9, 0.2, 0.7], [0.5, 0.1, 0.3], [0.4, np.nan, 0.6]])
+    pmap = ProbabilityMap(spec, prob, 0.65)
+    e = evaluate_map(pmap, truth.walls, spec, None, (0.0, 0.0, 0.0), truth.known)
+    # the six known cells: occupied 0.9, 0.6; free 0.2, 0.5, 0.1 and one the map does not know
+    assert e.cells == 6 and e.occupied_cells == 2
+    nll = -(math.log(0.9) + math.log(0.8) + math.log(0.5) + math.log(0.9) + math.log(0.5)
+            + math.log(0.6)) / 6  # fmt: skip
+    assert e.nll == pytest.approx(nll)
+    assert e.brier == pytest.approx((0.01 + 0.04 + 0.25 + 0.01 + 0.25 + 0.16) / 6)
+    assert e.coverage == pytest.approx(5 / 6)
+    # the unknown cells' p (0.7, 0.3, 0.4) counts nowhere: treated as free they would add cost
+    everything = evaluate_map(pmap, truth.walls, spec)
+    assert everything.cells == 9 and everything.nll > e.nll

@@ -56,7 +56,7 @@ def test_figure_draws_each_run_from_its_evaluation(experiment: ModuleType, tmp_p
     walls = np.zeros((4, 6), dtype=bool)
     walls[:, 5] = True
     spec = GridSpec(0.0, 0.0, 1.0, 6, 4)
-    truth = Truth(spec, walls, World(walls, spec))
+    truth = Truth(spec, walls, World(walls, spec), np.ones(spec.shape, dtype=bool))
     pmap = ProbabilityMap(spec, np.where(walls, 0.9, 0.1), 0.65)
     e = evaluate_map(pmap, walls, spec)
     runs = [

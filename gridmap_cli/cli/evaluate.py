@@ -141,7 +141,7 @@ def evaluate(
         if frame == "odometry":
             map_to_world = ev.odometry_frame_in_world(data)
         region = ev.sensed_region(truth.world, true_path, sensors)
-    result = ev.evaluate_map(pmap, truth.walls, truth.spec, region, map_to_world)
+    result = ev.evaluate_map(pmap, truth.walls, truth.spec, region, map_to_world, truth.known)
     if plot is not None:
         from gridmap_cli.evaluate_plot import plot_evaluation
 

@@ -16,13 +16,14 @@ instead of piling up log-odds. docs/sensor-model.md derives every step and gives
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
 from typing import Protocol
 
 import numpy as np
 
-from gridmap_cli.grid import FrequencyAccumulator
-from gridmap_cli.models.sector import F64, sector_bounds, sector_rows
+from gridmap_cli.grid import FrequencyAccumulator, GridSpec
+from gridmap_cli.models.sector import F64, I64, sector_bounds, sector_rows
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.sync import SensorReadings
 
@@ -54,16 +55,25 @@ class ErrorAwareParams:
     two, w in (2^-(k+1), 2^-k]) may add to a cell: C * 4^-k looks, i.e. C readings' worth at the
     class's weight, counted once more at that weight because readings sharing a pose error
     repeat one another's mistake; ``inf`` for no bound (docs/sensor-model.md).
+    ``laser_relative_error``: k of eq. 11 for laser rays (the sonar's is in the odometry-error
+    file, where the seed paper put it); ``laser_no_echo_free_m``: metres of free space a laser's
+    no-echo reading clears, capped at its maximum range (as ``RayParams.no_echo_free_m``).
     """
 
     trust_length_m: float = 0.3
     redundant_looks: float = 30.0
+    laser_relative_error: float = 0.005
+    laser_no_echo_free_m: float = math.inf
 
     def __post_init__(self) -> None:
         if not (self.trust_length_m > 0 and math.isfinite(self.trust_length_m)):
             raise ValueError("the trust length must be a positive number of metres")
         if not self.redundant_looks > 0:
             raise ValueError("the redundant-looks bound must be a positive number")
+        if not (self.laser_relative_error >= 0 and math.isfinite(self.laser_relative_error)):
+            raise ValueError("the laser's relative range error must be a finite number >= 0")
+        if not self.laser_no_echo_free_m >= 0:
+            raise ValueError("the laser's no-echo free range must be >= 0 metres")
 
 
 @dataclass(frozen=True)
@@ -124,8 +134,7 @@ class ErrorAwareSonarModel:
         # one echo's worth of hit mass spread over a band `band/h` times deeper and a wedge
         # `half_width/beam_half` times wider: the evidence a reading carries stays constant
         hit = np.where(echo, (h / band) * (beam_half / half_width), 0.0)
-        trust_l = self.params.trust_length_m
-        weight = trust_l * trust_l / (trust_l * trust_l + f * f)
+        weight = trust_weight(f, self.params.trust_length_m)
         free = np.where(echo, z - band, np.minimum(zmax, self.sonar.no_echo_free_m))
         look = np.where(echo, z + h, free)
         # looked through whichever way the heading erred: the wedge narrowed by g
@@ -149,43 +158,113 @@ class ErrorAwareSonarModel:
 
     def accumulate(self, grid: FrequencyAccumulator, readings: SensorReadings) -> int:
         """Add the readings' counts to ``grid``; returns the number of cell updates."""
+        runs, updates = self.runs(grid.spec, readings)
+        add_runs(grid, runs, self.params.redundant_looks)
+        return updates
+
+    def runs(self, spec: GridSpec, readings: SensorReadings) -> tuple[WeightedRuns, int]:
+        """The readings' weighted runs of cells, and the number of cell updates."""
         ev = self.evidence(readings)
-        spec = grid.spec
-        wide = sector_rows(spec, ev.x_m, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m)
+        # only the rows of the echo ring: nearer rows hold the inner disk alone, which the
+        # ring's two spans would add and take away again
+        wide = sector_rows(
+            spec, ev.x_m, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m, inner_m=ev.free_m
+        )
         narrow = sector_rows(spec, ev.x_m, ev.y_m, ev.theta_rad, ev.free_half_width_rad, ev.free_m)
         # the echo ring (free_m, look_m] of the wide wedge: the wide disk (sign +1) less its
         # inner disk (-1), looked at and maybe hit; and the narrow wedge up to free_m (+1),
         # looked through whichever way the pose erred
         outer = wide.spans(ev.look_m)
         parts = (outer, wide.spans(ev.free_m), narrow.spans(ev.free_m))
-        sign = np.concatenate(
-            [np.full(len(p.row), v, np.int64) for p, v in zip(parts, (1, -1, 1), strict=True)]
+        signs = (1, -1, 1)
+        ring = (True, True, False)
+        runs = weighted_runs(
+            [
+                (p.reading, p.row, p.col0, p.col1, v, r)
+                for p, v, r in zip(parts, signs, ring, strict=True)
+            ],
+            ev.weight,
+            ev.hit,
         )
-        in_ring = np.concatenate(
-            [np.full(len(p.row), v) for p, v in zip(parts, (1.0, 1.0, 0.0), strict=True)]
+        return runs, outer.cells()
+
+
+@dataclass(frozen=True)
+class WeightedRuns:
+    """Runs of cells ``[col0, col1]`` of ``row`` with what each adds to every cell it covers,
+    shape (S,) each: ``look`` observation mass, ``hit`` hit mass, ``seen`` looks counted (+1, or
+    -1 for the inner disk taken away from a ring), and the ``trust_class`` of its reading."""
+
+    row: I64
+    col0: I64
+    col1: I64
+    look: F64
+    hit: F64
+    seen: I64
+    trust_class: I64
+
+    @staticmethod
+    def concatenate(parts: Sequence[WeightedRuns]) -> WeightedRuns:
+        return WeightedRuns(
+            *(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(WeightedRuns))
         )
-        reading = np.concatenate([p.reading for p in parts])
-        row = np.concatenate([p.row for p in parts])
-        col0 = np.concatenate([p.col0 for p in parts])
-        col1 = np.concatenate([p.col1 for p in parts])
-        w = ev.weight[reading]
-        look = sign * w
-        hit = look * in_ring * ev.hit[reading]
-        # trust class k holds weights in (2^-(k+1), 2^-k] and adds at most C * 4^-k looks to a
-        # cell; readings arrive in time order and the weight only falls as the odometry drives
-        # on, so classes arrive one after another (a batch mostly holds one)
-        reading_class = np.floor(-np.log2(ev.weight)).astype(np.int64)
-        classes = np.unique(reading_class)
-        span_class = reading_class[reading] if len(classes) > 1 else None
-        for k in classes:
-            keep = slice(None) if span_class is None else span_class == k
-            grid.add(
-                row[keep],
-                col0[keep],
-                col1[keep],
-                look=look[keep],
-                hit=hit[keep],
-                seen=sign[keep],
-                cap=self.params.redundant_looks * 4.0 ** -float(k),
-            )
-        return outer.cells()
+
+
+def trust_weight(f_m: F64, trust_length_m: float) -> F64:
+    """``L^2 / (L^2 + f^2)``: how much a reading taken with pose error ``f_m`` counts (M,)."""
+    return trust_length_m * trust_length_m / (trust_length_m * trust_length_m + f_m * f_m)
+
+
+def weighted_runs(
+    parts: Sequence[tuple[I64, I64, I64, I64, int, bool]],
+    weight: F64,
+    hit: F64,
+    ring_look: F64 | None = None,
+) -> WeightedRuns:
+    """Runs from ``(reading, row, col0, col1, sign, in_ring)`` parts: each run adds ``sign *
+    weight`` looks of its reading (times ``ring_look`` in its ring, when given), and in its ring
+    that times the reading's ``hit`` as hit mass. Arrays over readings shape (M,)."""
+    looks = []
+    hits = []
+    for reading, _, _, _, sign, in_ring in parts:
+        look = sign * weight[reading]
+        if in_ring:
+            if ring_look is not None:
+                look = look * ring_look[reading]
+            hits.append(look * hit[reading])
+        else:
+            hits.append(np.zeros_like(look))
+        looks.append(look)
+    reading = np.concatenate([p[0] for p in parts])
+    # trust class k holds weights in (2^-(k+1), 2^-k]
+    reading_class = np.floor(-np.log2(weight)).astype(np.int64)
+    return WeightedRuns(
+        row=np.concatenate([p[1] for p in parts]),
+        col0=np.concatenate([p[2] for p in parts]),
+        col1=np.concatenate([p[3] for p in parts]),
+        look=np.concatenate(looks),
+        hit=np.concatenate(hits),
+        seen=np.concatenate([np.full(len(p[0]), p[4], np.int64) for p in parts]),
+        trust_class=reading_class[reading],
+    )
+
+
+def add_runs(grid: FrequencyAccumulator, runs: WeightedRuns, redundant_looks: float) -> None:
+    """Add ``runs`` to ``grid``, trust class by class, class k capped at C * 4^-k looks.
+
+    Readings arrive in time order and the weight only falls as the odometry drives on, so
+    classes arrive one after another (a batch mostly holds one); the classes of one batch are
+    added in increasing order.
+    """
+    classes = np.unique(runs.trust_class)
+    for k in classes:
+        keep = slice(None) if len(classes) == 1 else runs.trust_class == k
+        grid.add(
+            runs.row[keep],
+            runs.col0[keep],
+            runs.col1[keep],
+            look=runs.look[keep],
+            hit=runs.hit[keep],
+            seen=runs.seen[keep],
+            cap=redundant_looks * 4.0 ** -float(k),
+        )

@@ -49,8 +49,8 @@ class RayParams:
     readings. The clamp is not here: one grid has one clamp (BuildOptions.clamp_p).
     """
 
-    p_occupied: float = 0.7
-    p_free: float = 0.4
+    p_occupied: float = 0.55
+    p_free: float = 0.43
     no_echo_free_m: float = math.inf
 
     def __post_init__(self) -> None:
@@ -84,12 +84,14 @@ class RowRuns:
     """Runs of cells ``[col0, col1]`` (inclusive) in ``row``; all shape (S,).
 
     Every run lies inside the grid and is non-empty; the runs of one segment are consecutive and
-    ordered by row.
+    ordered by row. ``segment``: the index of the segment each run belongs to (models that weigh
+    each reading differently, such as the error-aware one, need it).
     """
 
     row: I64
     col0: I64
     col1: I64
+    segment: I64
 
     def cells(self) -> int:
         """Number of cells the runs cover."""
@@ -154,11 +156,17 @@ def row_runs(spec: GridSpec, seg: RaySegments) -> RowRuns:
     col0 = np.minimum(c_in, c_out)
     col1 = np.maximum(c_in, c_out)
     row = np.repeat(ra, counts) + p
+    segment = np.repeat(np.arange(counts.shape[0], dtype=np.int64), counts)
     inside = (np.minimum(ua, ub) >= 0.0) & (np.maximum(ua, ub) < spec.width)
     if bool(inside[has].all()):
-        return RowRuns(row, col0, col1)
+        return RowRuns(row, col0, col1, segment)
     keep = (col1 >= 0) & (col0 <= spec.width - 1)
-    return RowRuns(row[keep], np.maximum(col0[keep], 0), np.minimum(col1[keep], spec.width - 1))
+    return RowRuns(
+        row[keep],
+        np.maximum(col0[keep], 0),
+        np.minimum(col1[keep], spec.width - 1),
+        segment[keep],
+    )
 
 
 def end_cells(spec: GridSpec, seg: RaySegments) -> tuple[I64, I64]:

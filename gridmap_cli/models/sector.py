@@ -99,17 +99,22 @@ def sector_rows(
     theta_rad: F64,
     half_width_rad: F64,
     reach_m: F64,
+    inner_m: F64 | None = None,
 ) -> SectorRows:
     """Enumerate the grid rows covered by sectors (apex, axis, half-width, radius ``reach_m``).
 
     All inputs shape (M,); half-widths must be in (0, pi/2). Rows outside the grid are skipped.
+    ``inner_m``: when given, only the rows of the ring between ``inner_m`` and ``reach_m`` are
+    enumerated (the spans of disks smaller than ``inner_m`` are then cut to those rows).
     """
     h = half_width_rad
     right = theta_rad - h
     left = theta_rad + h
+    near = np.zeros_like(reach_m) if inner_m is None else inner_m
     ys = np.stack(
         [
-            y_m,
+            y_m + near * np.sin(right),
+            y_m + near * np.sin(left),
             y_m + reach_m * np.sin(right),
             y_m + reach_m * np.sin(left),
         ]

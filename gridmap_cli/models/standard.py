@@ -28,8 +28,8 @@ from gridmap_cli.sync import SensorReadings
 class StandardSonarParams:
     """Parameters of the standard model; defaults and their reasons in docs/sensor-model.md."""
 
-    p_occupied: float = 0.7
-    p_free: float = 0.4
+    p_occupied: float = 0.55
+    p_free: float = 0.43
     obstacle_thickness_m: float = 0.10
     no_echo_free_m: float = 1.0
 

@@ -164,8 +164,8 @@ def run(
     return grid.log_odds(), grid.observations(), updates
 
 
-L_FREE = logodds(0.4)
-L_OCC = logodds(0.7)
+L_FREE = logodds(RayParams().p_free)
+L_OCC = logodds(RayParams().p_occupied)
 
 
 @pytest.mark.parametrize(
@@ -229,7 +229,7 @@ def test_no_echo_free_range_limits_and_zero_ignores() -> None:
         readings([LASER.max_range_m], [0.0], [-1.95], [0.05]), RayParams(0.7, 0.4, 1.0)
     )
     assert obs.sum() == 11 and obs[15, :11].all()  # 1.0 m from x = -1.95 ends in col 10
-    assert np.allclose(lo[15, :11], L_FREE)
+    assert np.allclose(lo[15, :11], logodds(0.4))
     lo, obs, updates = run(
         readings([LASER.max_range_m], [0.0], [-1.95], [0.05]), RayParams(no_echo_free_m=0.0)
     )
@@ -336,7 +336,9 @@ def test_a_laser_scan_maps_the_walls_of_a_room() -> None:
     cx, cy = spec.cell_center(cols, rows)
     to_wall = np.minimum(HALF_ROOM_M - np.abs(cx), HALF_ROOM_M - np.abs(cy))  # < 0 outside
 
-    occupied = prob >= 0.65
+    # a wall cell seen by one or two rays has p 0.55-0.60 (one hit is weak evidence:
+    # docs/sensor-model.md); the walls are the cells with more hits than misses
+    occupied = prob > 0.5
     assert occupied.sum() >= 0.8 * 4 * 2 * HALF_ROOM_M / res, "the walls are mapped"
     assert np.all(np.abs(to_wall[occupied]) <= res + 1e-9), "occupied only on the walls"
     assert np.all(np.isnan(prob[to_wall < -res])), "nothing seen behind the walls"

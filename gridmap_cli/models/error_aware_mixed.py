@@ -1,0 +1,70 @@
+"""The error-aware mode over a log that mixes sonar cones and laser rays.
+
+Both models write counts into one :class:`~gridmap_cli.grid.FrequencyAccumulator`, whose trust
+classes must arrive in order (class k's bound is applied when class k + 1 begins). Running the
+lasers and then the sonars would bring class 0 back after the lasers closed it, so each batch is
+split between the two models and their runs are added together, class by class.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from gridmap_cli.grid import FrequencyAccumulator
+from gridmap_cli.models.error_aware import ErrorAwareSonarModel, WeightedRuns, add_runs
+from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel
+from gridmap_cli.models.sector import F64
+from gridmap_cli.sync import SensorReadings, select_readings
+
+
+class ErrorAwareMixedModel:
+    """Sonar readings to the error-aware sonar model, laser readings to the ray one.
+
+    ``narrow``: per sensor of the log (shape (S,)), whether it is a laser beam.
+    """
+
+    name = "error-aware"
+
+    def __init__(
+        self,
+        sonar: ErrorAwareSonarModel,
+        ray: ErrorAwareRayModel,
+        narrow: npt.NDArray[np.bool_],
+    ) -> None:
+        self.sonar = sonar
+        self.ray = ray
+        self.narrow = narrow
+
+    def _parts(
+        self, readings: SensorReadings
+    ) -> list[tuple[ErrorAwareSonarModel | ErrorAwareRayModel, SensorReadings]]:
+        """Each model with its share of ``readings``, models without readings left out."""
+        sonar, ray = self._split(readings)
+        return [(m, p) for m, p in ((self.sonar, sonar), (self.ray, ray)) if len(p)]
+
+    def _split(self, readings: SensorReadings) -> tuple[SensorReadings, SensorReadings]:
+        is_ray = self.narrow[readings.sensor]
+        return select_readings(readings, ~is_ray), select_readings(readings, is_ray)
+
+    def bounds(self, readings: SensorReadings) -> tuple[float, float, float, float]:
+        boxes = [model.bounds(part) for model, part in self._parts(readings)]
+        box: F64 = np.array(boxes)
+        return (
+            float(box[:, 0].min()),
+            float(box[:, 1].min()),
+            float(box[:, 2].max()),
+            float(box[:, 3].max()),
+        )
+
+    def accumulate(self, grid: FrequencyAccumulator, readings: SensorReadings) -> int:
+        """Add both kinds' counts to ``grid``, trust class by class; returns cell updates."""
+        parts: list[WeightedRuns] = []
+        updates = 0
+        for model, part in self._parts(readings):
+            runs, n = model.runs(grid.spec, part)
+            parts.append(runs)
+            updates += n
+        if parts:
+            add_runs(grid, WeightedRuns.concatenate(parts), self.sonar.params.redundant_looks)
+        return updates
