@@ -29,6 +29,7 @@ from gridmap_cli.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
 from gridmap_cli.readers import format_names, read_logs
 from gridmap_cli.robot import load_robot, robot_from_log
+from gridmap_cli.scan_match import ScanMatch, scan_matched_log
 from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers import check_output
@@ -95,8 +96,9 @@ from gridmap_cli.writers.map_mcap import write_map_mcap
     type=click.Choice(POSE_SOURCES),
     default="odometry",
     show_default=True,
-    help="Map with the odometry, or with the log's global pose (ARIA robotGlobal, CSV true_*, "
-    "CARMEN's corrected poses or TRUEPOS).",
+    help="Map with the odometry, with the log's global pose (ARIA robotGlobal, CSV true_*, "
+    "CARMEN's corrected poses or TRUEPOS), or with the odometry corrected by matching the laser "
+    "scans (scan-matched).",
 )
 @topic_options
 @selection_options()
@@ -187,9 +189,14 @@ def build(
     read_options = make_read_options(
         odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
     )
-    data = select_poses(read_logs(logs, log_format, read_options), pose)
+    data = read_logs(logs, log_format, read_options)
     if robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
+    match: ScanMatch | None = None
+    if pose == "scan-matched":
+        data, match = scan_matched_log(data, robot_desc)
+    else:
+        data = select_poses(data, pose)
     selected = apply_selection(data, selection, robot_desc)
     warn(selected.notes, quiet)
     data = selected.log
@@ -215,6 +222,8 @@ def build(
         )  # fmt: skip
     elapsed = time.perf_counter() - started
     summary = _summary(result, image_path, yaml_path, elapsed, occupied, free)
+    if match is not None:
+        summary["scan_match"] = match.summary()
     if as_json:
         click.echo(json.dumps(summary, indent=2))
     if not quiet:
@@ -304,6 +313,13 @@ def _summary(
 
 def _summary_line(s: dict[str, Any]) -> str:
     r, m = s["readings"], s["map"]
+    matched = ""
+    if "scan_match" in s:
+        sm = s["scan_match"]
+        matched = (
+            f"; {sm['scans']:,} scans matched in {sm['seconds']:.1f} s, {sm['fallbacks']:,} fell "
+            f"back to odometry, {sm['degenerate']:,} degenerate (odometry along the corridor)"
+        )
     skipped = ""
     if r["skipped"]:
         skipped = (
@@ -314,5 +330,7 @@ def _summary_line(s: dict[str, Any]) -> str:
         f"gridmap: {r['used']:,} of {r['total']:,} readings mapped{skipped}; "
         f"{m['width']} x {m['height']} cells at {m['resolution']} m "
         f"({m['width'] * m['resolution']:.1f} x {m['height'] * m['resolution']:.1f} m) "
-        f"in {s['seconds']:.1f} s -> {s['image']}" + (f", {s['yaml']}" if s["yaml"] else "")
+        f"in {s['seconds']:.1f} s -> {s['image']}"
+        + (f", {s['yaml']}" if s["yaml"] else "")
+        + matched
     )
