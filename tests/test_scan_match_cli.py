@@ -68,3 +68,24 @@ def test_aces_track_is_much_closer_to_the_corrected_poses_than_odometry() -> Non
     assert sm < 0.5 * odo
     assert float(np.sqrt(np.mean(eth**2))) < math.radians(5.0)
     assert match.fallbacks < 0.05 * len(match.track)
+
+
+def test_calibrate_scan_matched_finds_less_drift_than_odometry(tmp_path: Path) -> None:
+    """The residual drift of the corrected track, against the same reference."""
+    log = simulate_run(room_world(), [[2, 1.5], [10, 1.5], [10, 6.5], [2, 6.5]], drift=3.0)
+    log.metadata["robot"] = "p3at-lms200"
+    csv = tmp_path / "run.csv"
+    save_csv_log(log, csv)
+    figures = {}
+    for pose in ("odometry", "scan-matched"):
+        out = tmp_path / f"{pose}.yaml"
+        code, stdout, stderr = run(
+            "calibrate", str(csv), "--pose", pose, "-o", str(out), "--json", "--window", "0.5"
+        )
+        assert code == 0, stderr
+        figures[pose] = json.loads(stdout)
+        assert out.is_file()
+    assert "--pose scan-matched" in (tmp_path / "scan-matched.yaml").read_text()
+    odo, sm = figures["odometry"]["coefficients"], figures["scan-matched"]["coefficients"]
+    assert sm["heading_drift_rad_per_m"] < 0.5 * odo["heading_drift_rad_per_m"]
+    assert sm["range_m_per_m"] < odo["range_m_per_m"]
