@@ -82,7 +82,9 @@ class SyncStats:
     below_min_range: int
 
 
-POSE_SOURCES = ("odometry", "global")
+#: ``scan-matched`` is the odometry corrected by the laser: it needs the sensors' mounting, so
+#: :func:`gridmap_cli.scan_match.scan_matched_log` makes it, not :func:`select_poses`.
+POSE_SOURCES = ("odometry", "global", "scan-matched")
 
 
 def select_poses(log: RangeLog, source: str) -> RangeLog:
@@ -95,6 +97,8 @@ def select_poses(log: RangeLog, source: str) -> RangeLog:
     """
     if source == "odometry":
         return log
+    if source == "scan-matched":
+        raise GridmapError("scan-matched poses come from gridmap_cli.scan_match.scan_matched_log")
     if source != "global":
         raise GridmapError(f"unknown pose source '{source}' (known: {', '.join(POSE_SOURCES)})")
     return dataclasses.replace(log, poses=log.require_truth("--pose global maps with it"))

@@ -1,9 +1,9 @@
 """The command line: the only package that imports click, prints, shows progress or exits.
 
-One module per command (build, inspect, simulate, calibrate, convert, evaluate) and what they
-share (:mod:`gridmap_cli.cli.common`). Each command checks every precondition (inputs exist,
-outputs absent unless --force, options consistent) before reading a byte, then calls a plain
-library function and reports. Library errors become one ``Error: ...`` line: exit 1 for bad
+One module per command (build, inspect, simulate, calibrate, convert, evaluate, trajectory) and
+what they share (:mod:`gridmap_cli.cli.common`). Each command checks every precondition (inputs
+exist, outputs absent unless --force, options consistent) before reading a byte, then calls a
+plain library function and reports. Library errors become one ``Error: ...`` line: exit 1 for bad
 data or runtime failures, 2 for usage.
 """
 
@@ -18,6 +18,7 @@ from gridmap_cli.cli.convert import convert
 from gridmap_cli.cli.evaluate import evaluate
 from gridmap_cli.cli.inspect_log import inspect
 from gridmap_cli.cli.simulate import simulate
+from gridmap_cli.cli.trajectory import trajectory
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -29,7 +30,7 @@ def cli(ctx: click.Context, debug: bool) -> None:
     ctx.obj = {"debug": debug}
 
 
-for _command in (build, inspect, simulate, calibrate, convert, evaluate):
+for _command in (build, inspect, simulate, calibrate, convert, evaluate, trajectory):
     cli.add_command(_command)
 
 

@@ -30,6 +30,7 @@ from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build
 from gridmap_cli.readers import format_names, read_logs
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import load_robot, robot_from_log
+from gridmap_cli.scan_match import ScanMatch, scan_matched_log
 from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers import check_output
@@ -38,6 +39,7 @@ from gridmap_cli.writers.map_mcap import write_map_mcap
 from gridmap_cli.writers.preview import (
     ODOMETRY_RGB,
     REFERENCE_RGB,
+    SCAN_MATCHED_RGB,
     DrawnTrack,
     drawn,
     placed_at,
@@ -117,8 +119,9 @@ from gridmap_cli.writers.preview import (
     type=click.Choice(POSE_SOURCES),
     default="odometry",
     show_default=True,
-    help="Map with the odometry, or with the log's global pose (ARIA robotGlobal, CSV true_*, "
-    "CARMEN's corrected poses or TRUEPOS).",
+    help="Map with the odometry, with the log's global pose (ARIA robotGlobal, CSV true_*, "
+    "CARMEN's corrected poses or TRUEPOS), or with the odometry corrected by matching the laser "
+    "scans (scan-matched).",
 )
 @topic_options
 @selection_options()
@@ -147,7 +150,8 @@ from gridmap_cli.writers.preview import (
     "--draw-path",
     is_flag=True,
     help="Also write a preview PNG (MAP_path.png): the map with unknown in pale blue, the "
-    "odometry in red and the reference track in green; never the map_server image itself.",
+    "odometry in red, the reference track in green, a scan-matched track in purple; never the "
+    "map_server image itself.",
 )
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
@@ -226,9 +230,14 @@ def build(
         odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
     )
     whole = read_logs(logs, log_format, read_options)
-    data = select_poses(whole, pose)
+    data = whole
     if robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
+    match: ScanMatch | None = None
+    if pose == "scan-matched":
+        data, match = scan_matched_log(data, robot_desc)
+    else:
+        data = select_poses(data, pose)
     selected = apply_selection(data, selection, robot_desc)
     warn(selected.notes, quiet)
     data = selected.log
@@ -258,6 +267,8 @@ def build(
     summary = _summary(result, image_path, yaml_path, elapsed, occupied, free)
     if preview is not None:
         summary["preview"] = str(preview)
+    if match is not None:
+        summary["scan_match"] = match.summary()
     if as_json:
         click.echo(json_text(summary))
     if not quiet:
@@ -265,15 +276,19 @@ def build(
 
 
 def _tracks(whole: RangeLog, mapped: RangeLog, pose: str) -> list[DrawnTrack]:
-    """The track the map was built with, where it is, and the log's other track (odometry or
+    """The track the map was built with, where it is, and the log's other tracks (odometry,
     reference) placed on it by their first common pose."""
     if pose == "odometry":
-        tracks = [drawn(mapped.poses, ODOMETRY_RGB)]
-        other = placed_at(whole.truth, mapped.poses, REFERENCE_RGB) if whole.truth else None
+        others = [(whole.truth, REFERENCE_RGB)]
+        colour = ODOMETRY_RGB
+    elif pose == "global":
+        others = [(whole.poses, ODOMETRY_RGB)]
+        colour = REFERENCE_RGB
     else:
-        tracks = [drawn(mapped.poses, REFERENCE_RGB)]
-        other = placed_at(whole.poses, mapped.poses, ODOMETRY_RGB)
-    return [other, *tracks] if other is not None else tracks
+        others = [(whole.poses, ODOMETRY_RGB), (whole.truth, REFERENCE_RGB)]
+        colour = SCAN_MATCHED_RGB
+    placed = [placed_at(track, mapped.poses, rgb) for track, rgb in others if track is not None]
+    return [t for t in placed if t is not None] + [drawn(mapped.poses, colour)]
 
 
 def map_output(output: Path | None, basename: Path | None, image_format: str | None) -> Path:
@@ -371,6 +386,13 @@ def _summary(
 
 def _summary_line(s: dict[str, Any]) -> str:
     r, m = s["readings"], s["map"]
+    matched = ""
+    if "scan_match" in s:
+        sm = s["scan_match"]
+        matched = (
+            f"; {sm['scans']:,} scans matched in {sm['seconds']:.1f} s, {sm['fallbacks']:,} fell "
+            f"back to odometry, {sm['degenerate']:,} degenerate (odometry along the corridor)"
+        )
     skipped = ""
     if r["skipped"]:
         skipped = (
@@ -381,5 +403,7 @@ def _summary_line(s: dict[str, Any]) -> str:
         f"gridmap: {r['used']:,} of {r['total']:,} readings mapped{skipped}; "
         f"{m['width']} x {m['height']} cells at {m['resolution']} m "
         f"({m['width'] * m['resolution']:.1f} x {m['height'] * m['resolution']:.1f} m) "
-        f"in {s['seconds']:.1f} s -> {s['image']}" + (f", {s['yaml']}" if s["yaml"] else "")
+        f"in {s['seconds']:.1f} s -> {s['image']}"
+        + (f", {s['yaml']}" if s["yaml"] else "")
+        + matched
     )

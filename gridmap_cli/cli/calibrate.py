@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -18,6 +19,7 @@ from gridmap_cli.cli.common import (
 )
 from gridmap_cli.errors import UsageError
 from gridmap_cli.readers import format_names, resolve_format
+from gridmap_cli.records import RangeLog
 from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.writers import check_output
 
@@ -58,6 +60,19 @@ if TYPE_CHECKING:
     show_default=True,
     help="The sonar's relative range error k to write into the file (0.01 = 1 %).",
 )
+@click.option(
+    "--pose",
+    type=click.Choice(("odometry", "scan-matched")),
+    default="odometry",
+    show_default=True,
+    help="The track to calibrate against the reference: the odometry, or the odometry corrected "
+    "by the laser (its residual drift, for error-aware maps built with --pose scan-matched).",
+)
+@click.option(
+    "--robot",
+    help="--pose scan-matched: robot preset, YAML or .p file with the laser's mounting; "
+    "default: the log's own.",
+)
 @selection_options(sensors=False)
 @click.option("--force", is_flag=True, help="Overwrite an existing output.")
 @click.option("--json", "as_json", is_flag=True, help="Print the figures as JSON on stdout.")
@@ -70,6 +85,8 @@ def calibrate(
     window_m: float,
     window_deg: float,
     sonar_error: float,
+    pose: str,
+    robot: str | None,
     start: str | None,
     end: str | None,
     force: bool,
@@ -96,14 +113,18 @@ def calibrate(
         check_output(output, force)
         check_output_folder(output)
     data = resolve_format(log, log_format).read(log)
-    data = apply_selection(data, selection, None, need_readings=False).log
+    data = apply_selection(data, selection, None, need_readings=pose != "odometry").log
+    if pose == "scan-matched":
+        data = _scan_matched(log, data, robot)
     result = calibrate_log(data, window_m, math.radians(window_deg), sonar_error)
     if output is not None:
         save_odometry_error(
             result.model,
             output,
             comments=[
-                f"gridmap {__version__} calibrate {log.name}: {result.windows} windows of "
+                f"gridmap {__version__} calibrate {log.name}"
+                + (" --pose scan-matched" if pose != "odometry" else "")
+                + f": {result.windows} windows of "
                 f"{window_m:g} m or {window_deg:g} deg, {result.driven_m:.1f} m driven, "
                 f"{math.degrees(result.turned_rad):.0f} deg turned",
             ],
@@ -113,6 +134,16 @@ def calibrate(
         click.echo(json_text(doc))
     elif not quiet:
         click.echo(_calibration_table(str(log), result, output))
+
+
+def _scan_matched(path: Path, data: RangeLog, robot: str | None) -> RangeLog:
+    """The log with its odometry replaced by the scan-matched track (one pose per scan), the
+    track whose residual drift against the reference is then calibrated."""
+    from gridmap_cli.robot import load_robot, robot_from_log
+    from gridmap_cli.scan_match import match_log
+
+    description = load_robot(robot) if robot else robot_from_log(path, data.metadata)
+    return dataclasses.replace(data, poses=match_log(data, description).track)
 
 
 def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:

@@ -25,6 +25,7 @@ from gridmap_cli.records import PoseTrack
 UNKNOWN_RGB = (196, 216, 240)
 ODOMETRY_RGB = (220, 40, 30)
 REFERENCE_RGB = (20, 150, 60)
+SCAN_MATCHED_RGB = (120, 50, 200)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,111 @@
+"""``gridmap trajectory``: a log's pose track (odometry, reference or scan-matched) as a file
+that trajectory tools read (TUM for evo, or CSV)."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import click
+
+from gridmap_cli.cli.common import (
+    check_input,
+    check_output_folder,
+    handle_errors,
+    make_read_options,
+    topic_options,
+)
+from gridmap_cli.readers import format_names, read_logs
+from gridmap_cli.robot import load_robot, robot_from_log
+from gridmap_cli.scan_match import STATUS_NAMES, match_log
+from gridmap_cli.sync import POSE_SOURCES, select_poses
+from gridmap_cli.writers import check_output
+from gridmap_cli.writers.trajectory import trajectory_format, write_trajectory
+
+
+@click.command()
+@click.argument("logs", metavar="LOG...", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Track to write: .tum (TUM: 'time x y z qx qy qz qw', what evo reads) or .csv "
+    "(time,x,y,theta; scan-matched adds each scan's status).",
+)
+@click.option(
+    "--pose",
+    type=click.Choice(POSE_SOURCES),
+    default="scan-matched",
+    show_default=True,
+    help="Which track: the odometry, the log's reference (global) or the odometry corrected by "
+    "the laser (one pose per scan).",
+)
+@click.option(
+    "--robot",
+    help="Robot preset, robot YAML or ARIA .p file (the laser's mounting); default: the log's "
+    "own '# robot:' line.",
+)
+@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@topic_options
+@click.option("--force", is_flag=True, help="Overwrite an existing output.")
+@click.option("-q", "--quiet", is_flag=True, help="No summary on stderr.")
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
+@handle_errors
+def trajectory(
+    logs: tuple[Path, ...],
+    output: Path,
+    pose: str,
+    robot: str | None,
+    log_format: str | None,
+    odom_topic: str | None,
+    range_topics: tuple[str, ...],
+    odom_frame: str | None,
+    base_frame: str | None,
+    pose_topic: str | None,
+    map_frame: str | None,
+    force: bool,
+    quiet: bool,
+    as_json: bool,
+) -> None:
+    """Write LOG's pose track (odometry, reference or scan-matched) as TUM or CSV.
+
+    Compare tracks with evo: gridmap trajectory run.log --pose global -o ref.tum; gridmap
+    trajectory run.log -o sm.tum; evo_ape tum ref.tum sm.tum -a.
+    """
+    started = time.perf_counter()
+    trajectory_format(output)
+    check_output(output, force)
+    check_output_folder(output)
+    robot_desc = load_robot(robot) if robot else None
+    for log in logs:
+        check_input(log)
+    read_options = make_read_options(
+        odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
+    )
+    data = read_logs(logs, log_format, read_options)
+    summary: dict[str, object] = {"output": str(output), "pose": pose}
+    if pose == "scan-matched":
+        if robot_desc is None:
+            robot_desc = robot_from_log(logs[0], data.metadata)
+        match = match_log(data, robot_desc)
+        track = match.track
+        write_trajectory(output, track, [STATUS_NAMES[int(s)] for s in match.status])
+        summary["scan_match"] = match.summary()
+    else:
+        track = select_poses(data, pose).poses
+        write_trajectory(output, track)
+    summary["poses"] = len(track)
+    summary["seconds"] = round(time.perf_counter() - started, 3)
+    if as_json:
+        click.echo(json.dumps(summary, indent=2))
+    if not quiet:
+        line = f"gridmap: {len(track):,} {pose} poses -> {output}"
+        if "scan_match" in summary:
+            sm = match.summary()
+            line += (
+                f" ({sm['fallbacks']:,} scans fell back to odometry, {sm['degenerate']:,} "
+                "degenerate)"
+            )
+        click.echo(line + f" in {summary['seconds']:.1f} s", err=True)
