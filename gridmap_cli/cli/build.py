@@ -33,7 +33,6 @@ from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import MAP_MODES, check_map_outputs, write_map
-from gridmap_cli.writers.map_mcap import write_map_mcap
 
 
 @click.command()
@@ -206,6 +205,8 @@ def build(
     if to_mcap:
         # stamped at the last reading: the map is what the robot knew then
         stamp = int(data.readings.stamp_ns[-1]) if len(data.readings) else 0
+        from gridmap_cli.writers.map_mcap import write_map_mcap  # the MCAP writer only when asked
+
         image_path = write_map_mcap(output, result.map, stamp_ns=stamp, force=force)
         yaml_path = None
     else:
