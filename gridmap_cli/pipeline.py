@@ -23,6 +23,7 @@ from gridmap_cli.grid import (
     LogOddsAccumulator,
     OccupancyMap,
 )
+from gridmap_cli.models import kernels
 from gridmap_cli.models.error_aware import ErrorAwareParams, ErrorAwareSonarModel, OdometrySpread
 from gridmap_cli.models.ray import RayModel, RayParams
 from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
@@ -143,6 +144,7 @@ def build_map(
     grid: LogOddsAccumulator | FrequencyAccumulator
     grid = LogOddsAccumulator(spec) if options.mode == "standard" else FrequencyAccumulator(spec)
     updates = 0
+    kernels.plan(sum(len(part) for _, part in plan.parts))
     for model, part in plan.parts:
         for start in range(0, len(part), options.batch_size):
             batch = _select(part, slice(start, start + options.batch_size))

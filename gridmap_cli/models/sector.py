@@ -92,18 +92,15 @@ def _half_plane(a: F64, b: F64, dy: F64) -> tuple[F64, F64]:
     return lo, hi
 
 
-def sector_rows(
+def sector_row_range(
     spec: GridSpec,
-    x_m: F64,
     y_m: F64,
     theta_rad: F64,
     half_width_rad: F64,
     reach_m: F64,
-) -> SectorRows:
-    """Enumerate the grid rows covered by sectors (apex, axis, half-width, radius ``reach_m``).
-
-    All inputs shape (M,); half-widths must be in (0, pi/2). Rows outside the grid are skipped.
-    """
+) -> tuple[I64, I64, F64, F64]:
+    """First grid row and number of rows of each sector, and its edges' directions (right,
+    left), shape (M,) each: the per-reading part of :func:`sector_rows`."""
     h = half_width_rad
     right = theta_rad - h
     left = theta_rad + h
@@ -128,11 +125,27 @@ def sector_rows(
         np.int64
     )
     counts = np.where(reach_m > 0, np.maximum(j1 - j0 + 1, 0), 0)
+    return j0, counts, right, left
+
+
+def sector_rows(
+    spec: GridSpec,
+    x_m: F64,
+    y_m: F64,
+    theta_rad: F64,
+    half_width_rad: F64,
+    reach_m: F64,
+) -> SectorRows:
+    """Enumerate the grid rows covered by sectors (apex, axis, half-width, radius ``reach_m``).
+
+    All inputs shape (M,); half-widths must be in (0, pi/2). Rows outside the grid are skipped.
+    """
+    j0, counts, right, left = sector_row_range(spec, y_m, theta_rad, half_width_rad, reach_m)
     total = int(counts.sum())
     reading = np.repeat(np.arange(x_m.shape[0], dtype=np.int64), counts)
     starts = np.cumsum(counts) - counts
     row = j0[reading] + (np.arange(total, dtype=np.int64) - starts[reading])
-    dy = spec.origin_y_m + (row + 0.5) * res - y_m[reading]
+    dy = spec.origin_y_m + (row + 0.5) * spec.resolution_m - y_m[reading]
 
     # wedge = right of the left edge and left of the right edge (convex because 2h < pi)
     lo1, hi1 = _half_plane(-np.sin(right)[reading], np.cos(right)[reading], dy)
