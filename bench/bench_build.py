@@ -1,31 +1,53 @@
-"""Mapping throughput on a generated 1-hour log: `make bench`.
+"""Mapping throughput and memory, whole process, one table: `make bench`.
 
-Simulates (once, cached in bench/.cache/) one hour of a Pioneer 3-AT driving laps of the bundled
-corridor loop: 16 sonars at 10 Hz = 576,000 readings. Then times the installed `gridmap build`
-command on that log at 5 cm cells, pinned to one core where `taskset` exists, and reports
-wall time, readings/s, cell updates/s and peak memory (max RSS of the build process). A phase
-breakdown (read, map, write) follows, measured in this process.
+Simulates (once, cached in bench/.cache/) a Pioneer 3-AT driving laps of the bundled corridor
+loop: 16 sonars at 10 Hz, one hour = 576,000 readings, and eight hours; converts the hour to
+every input format (ARIA .2d, JSON MCAP, ROS 2 MCAP, ROS 1 bag); simulates a laser-only robot
+for about 576,000 laser rays; cuts a 100-reading log. Then times the installed ``gridmap build``
+on each, pinned to one core where ``taskset`` exists: wall and CPU seconds, peak RSS (of the
+build process alone), readings/s and cell updates/s.
 
-Numbers depend on the machine; compare them between commits on the same machine.
+Absolute times depend on the machine and on what else runs on it; the ratio columns do not as
+much. They compare CPU seconds (user + system, which other processes on the core do not inflate
+as they do wall time): ``vs CSV`` is the row's over the CSV build of the same log and mode (the
+ROS targets are <= 1.5x), ``vs ref`` over the reference measured in the same run: the 1-hour CSV
+standard build with the numpy reference kernels (``GRIDMAP_KERNELS=numpy``). Rates are per CPU
+second too.
+
+``--repeat N`` runs every command N times and reports the median (default 1: a few minutes).
+``--quick`` leaves out the 8-hour log and the ROS 1 bag (their one-off preparation is slow).
+OctoMap (``octomap-python``) on the laser rays is timed when importable, and skipped otherwise.
 """
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import json
 import os
 import shutil
+import statistics
 import subprocess
 import sys
+import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 CACHE = ROOT / "bench" / ".cache"
 WORLD = ROOT / "samples" / "worlds" / "corridor_loop.yaml"
 PATH = ROOT / "samples" / "paths" / "corridor_loop.yaml"
-DURATION_S = 3600
 SEED = 1
+HOUR_S = 3600
+LASER_S = 318.2  # 3,183 scans of 181 beams: about 576,000 rays
+LASER_ROBOT = """\
+gridmap-robot: 1
+name: lms200-only
+sensors:
+  - {name: laser1, kind: laser, x_m: 0.16, y_m: 0.0, yaw_deg: 0, first_deg: -90, last_deg: 90,
+     samples: 181, max_range_m: 8.0}
+"""
 
 
 def gridmap() -> list[str]:
@@ -37,118 +59,266 @@ def one_core(cmd: list[str]) -> list[str]:
     return ["taskset", "-c", "0", *cmd] if shutil.which("taskset") else cmd
 
 
-# A wrapper process whose only child is the measured command, so that its RUSAGE_CHILDREN peak
-# RSS belongs to that command alone (not to an earlier simulate run of this script).
+# A wrapper process whose only child is the measured command, so that its RUSAGE_CHILDREN
+# figures (CPU time, peak RSS) belong to that command alone.
 _WRAPPER = (
     "import resource, subprocess, sys\n"
     "code = subprocess.run(sys.argv[1:]).returncode\n"
-    "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, file=sys.stderr)\n"
+    "u = resource.getrusage(resource.RUSAGE_CHILDREN)\n"
+    "print(u.ru_utime + u.ru_stime, u.ru_maxrss, file=sys.stderr)\n"
     "sys.exit(code)\n"
 )
 
 
-def run_measured(cmd: list[str]) -> tuple[float, int, str]:
-    """Run cmd; return wall seconds, peak RSS in MiB and stdout."""
+@dataclass(frozen=True)
+class Run:
+    wall_s: float
+    cpu_s: float
+    peak_mib: float
+    stdout: str
+
+
+def run_measured(cmd: list[str], env: dict[str, str] | None = None) -> Run:
+    """Run cmd once; wall and CPU seconds, peak RSS in MiB and stdout."""
     start = time.perf_counter()
     proc = subprocess.run(
-        [sys.executable, "-c", _WRAPPER, *cmd], capture_output=True, text=True, check=False
+        [sys.executable, "-c", _WRAPPER, *cmd],
+        capture_output=True,
+        text=True,
+        check=False,
+        env={**os.environ, **(env or {})},
     )
     wall = time.perf_counter() - start
     if proc.returncode != 0:
         sys.exit(f"bench: command failed ({proc.returncode}): {' '.join(cmd)}\n{proc.stderr}")
-    peak_kib = int(proc.stderr.strip().splitlines()[-1])  # KiB on Linux
-    return wall, peak_kib // 1024, proc.stdout
+    cpu, peak_kib = proc.stderr.strip().splitlines()[-1].split()
+    return Run(wall, float(cpu), int(peak_kib) / 1024, proc.stdout)
+
+
+def median_run(cmd: list[str], repeat: int, env: dict[str, str] | None = None) -> Run:
+    runs = [run_measured(cmd, env) for _ in range(repeat)]
+    return Run(
+        statistics.median(r.wall_s for r in runs),
+        statistics.median(r.cpu_s for r in runs),
+        statistics.median(r.peak_mib for r in runs),
+        runs[-1].stdout,
+    )
 
 
 def _inputs_digest() -> str:
-    """Hash of everything the cached log depends on, so a changed simulator makes a new log."""
+    """Hash of everything the cached logs depend on, so a changed simulator makes new logs."""
     digest = hashlib.sha256()
     sources = sorted((ROOT / "gridmap_cli" / "sim").glob("*.py"))
-    for path in [*sources, WORLD, PATH, WORLD.with_suffix(".pgm")]:
+    writers = sorted((ROOT / "gridmap_cli" / "writers").glob("*.py"))
+    for path in [*sources, *writers, WORLD, PATH, WORLD.with_suffix(".pgm")]:
         digest.update(path.read_bytes())
+    digest.update(LASER_ROBOT.encode())
     return digest.hexdigest()[:12]
 
 
-def ensure_log() -> Path:
+def _step(what: str, target: Path, make: list[str]) -> Path:
+    if not target.exists():
+        print(f"  preparing {what} (once; cached at {target.relative_to(ROOT)}) ...", flush=True)
+        subprocess.run(make, check=True)
+    return target
+
+
+def simulate(duration_s: float, target: Path, robot: str = "p3at") -> list[str]:
+    return [
+        *gridmap(), "simulate", str(WORLD), str(PATH), "-o", str(target), "--robot", robot,
+        "--duration", str(duration_s), "--seed", str(SEED), "--quiet", "--force",
+    ]  # fmt: skip
+
+
+def prepare(quick: bool) -> dict[str, Path]:
+    """Every input, made once per simulator version."""
     CACHE.mkdir(parents=True, exist_ok=True)
-    log = CACHE / f"corridor_loop_{DURATION_S}s_seed{SEED}_{_inputs_digest()}.csv"
-    if not log.exists():
-        print(f"simulating a {DURATION_S} s log (once; cached at {log.relative_to(ROOT)}) ...")
-        start = time.perf_counter()
-        cmd = [
-            *gridmap(),
-            "simulate",
-            str(WORLD),
-            str(PATH),
-            "-o",
-            str(log),
-            "--robot",
-            "p3at",
-            "--duration",
-            str(DURATION_S),
-            "--seed",
-            str(SEED),
-            "--quiet",
-        ]
-        subprocess.run(cmd, check=True)
-        print(f"  simulated in {time.perf_counter() - start:.1f} s")
-    return log
+    tag = _inputs_digest()
+    logs: dict[str, Path] = {}
+    hour = logs["csv"] = _step(
+        "the 1 h log", CACHE / f"hour_{tag}.csv", simulate(HOUR_S, CACHE / f"hour_{tag}.csv")
+    )
+    convert = [*gridmap(), "convert", str(hour)]
+    logs["aria"] = _step(
+        "ARIA .2d", CACHE / f"hour_{tag}.2d", [*convert, str(CACHE / f"hour_{tag}.2d"), "-q"]
+    )
+    for enc in ("json", "ros2"):
+        target = CACHE / f"hour_{tag}_{enc}.mcap"
+        logs[f"mcap-{enc}"] = _step(
+            f"{enc} MCAP", target, [*convert, str(target), "--encoding", enc, "-q"]
+        )
+    if not quick:
+        bag = CACHE / f"hour_{tag}.bag"
+        if not bag.exists():
+            print(f"  preparing ROS 1 bag (once; cached at {bag.relative_to(ROOT)}) ...")
+            sys.path.insert(0, str(ROOT))
+            from tests.readers.bag_helpers import write_bag
+
+            write_bag(logs["mcap-ros2"], bag)
+        logs["bag"] = bag
+        eight = CACHE / f"eight_{tag}.csv"
+        logs["csv-8h"] = _step("the 8 h log", eight, simulate(8 * HOUR_S, eight))
+    small = CACHE / f"small_{tag}.csv"
+    if not small.exists():
+        lines = hour.read_text().splitlines(keepends=True)
+        head = [line for line in lines[:20] if line.startswith("#") or line.startswith("time")]
+        # 16 sonars a row: 7 rows hold 112 readings, close to the 100 the target names
+        small.write_text("".join(head) + "".join(lines[len(head) : len(head) + 7]))
+    logs["small"] = small
+    robot = CACHE / "lms200-only.yaml"
+    robot.write_text(LASER_ROBOT)
+    laser = CACHE / f"laser_{tag}.csv"
+    logs["laser"] = _step("the laser log", laser, simulate(LASER_S, laser, robot=str(robot)))
+    return logs
+
+
+def error_aware_flags() -> list[str]:
+    """Error-aware mode with the simulator's drift-1 error as its f and g."""
+    from gridmap_cli.sim.odometry import OdometryErrorModel
+
+    drift1 = OdometryErrorModel().as_odometry_error().as_dict()
+    flags = ["--mode", "error-aware"]
+    for k, v in drift1.items():
+        flags += ["--odometry-coefficient", f"{k}={v!r}"]
+    return flags
+
+
+@dataclass(frozen=True)
+class Row:
+    case: str
+    log: str
+    mode: str
+    extra_env: dict[str, str] | None = None
+    csv_peer: str | None = None  # the case whose wall time is this row's "vs CSV" base
+
+
+def build_cmd(log: Path, mode: str, out: Path, robot: str | None) -> list[str]:
+    cmd = [*gridmap(), "build", str(log), "-o", str(out), "--force", "--quiet", "--json"]
+    if robot:
+        cmd += ["--robot", robot]
+    if mode == "error-aware":
+        cmd += error_aware_flags()
+    return one_core(cmd)
+
+
+def octomap_rays(log: Path) -> float | None:
+    """Seconds OctoMap takes to insert the laser log's rays, or None when it is not installed."""
+    try:
+        import octomap  # type: ignore[import-not-found]  # noqa: F401
+    except ImportError:
+        return None
+    script = (
+        "import sys, time, numpy as np, octomap\n"
+        "from gridmap_cli.readers import read_log\n"
+        "from gridmap_cli.robot import load_robot\n"
+        "from gridmap_cli.sync import synchronise\n"
+        "log = read_log(__import__('pathlib').Path(sys.argv[1]))\n"
+        "r, _ = synchronise(log, load_robot(sys.argv[2]))\n"
+        "end_x = r.x_m + r.range_m * np.cos(r.theta_rad)\n"
+        "end_y = r.y_m + r.range_m * np.sin(r.theta_rad)\n"
+        "tree = octomap.OcTree(0.05)\n"
+        "t0 = time.perf_counter()\n"
+        "cuts = np.flatnonzero(np.diff(r.stamp_ns)) + 1\n"
+        "for lo, hi in zip([0, *cuts], [*cuts, len(r)]):\n"
+        "    pts = np.stack([end_x[lo:hi], end_y[lo:hi], np.zeros(hi - lo)], axis=1)\n"
+        "    origin = np.array([r.x_m[lo], r.y_m[lo], 0.0])\n"
+        "    tree.insertPointCloud(pts, origin, maxrange=8.0, lazy_eval=True)\n"
+        "tree.updateInnerOccupancy()\n"
+        "print(time.perf_counter() - t0)\n"
+    )
+    proc = subprocess.run(
+        [*one_core([sys.executable, "-c", script]), str(log), str(CACHE / "lms200-only.yaml")],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    if proc.returncode != 0:
+        print(f"  OctoMap run failed: {proc.stderr.strip().splitlines()[-1:]}")
+        return None
+    return float(proc.stdout.strip())
 
 
 def main() -> None:
-    log = ensure_log()
-    out = CACHE / "bench_map.png"
-    cmd = one_core([*gridmap(), "build", str(log), "-o", str(out), "--force", "--quiet", "--json"])
-    wall, peak_mib, stdout = run_measured(cmd)
-    summary = json.loads(stdout)
-    readings = summary["readings"]["used"]
-    updates = summary["cell_updates"]
-    m = summary["map"]
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=1, help="runs per command (median)")
+    parser.add_argument("--quick", action="store_true", help="no 8 h log, no ROS 1 bag")
+    args = parser.parse_args()
 
-    from gridmap_cli.pipeline import BuildOptions, build_map
-    from gridmap_cli.readers import read_log
-    from gridmap_cli.robot import load_robot
-    from gridmap_cli.sim.odometry import OdometryErrorModel
-    from gridmap_cli.writers.map_image import write_map
+    logs = prepare(args.quick)
+    laser_robot = str(CACHE / "lms200-only.yaml")
+    rows = [
+        Row("reference: CSV, numpy kernels", "csv", "standard", {"GRIDMAP_KERNELS": "numpy"}),
+    ]
+    for mode in ("standard", "error-aware"):
+        for fmt in ("csv", "aria", "mcap-json", "mcap-ros2", "bag"):
+            if fmt in logs:
+                rows.append(Row(fmt, fmt, mode, None, "csv"))
+            if fmt == "csv" and mode == "standard":
+                first = {"NUMBA_CACHE_DIR": ""}
+                rows.append(Row("csv, first run (empty JIT cache)", "csv", mode, first, "csv"))
+        if "csv-8h" in logs:
+            rows.append(Row("CSV, 8 h", "csv-8h", mode))
+    rows += [
+        Row("CSV, 100 readings", "small", "standard"),
+        Row("laser rays, CSV", "laser", "standard"),
+        Row("laser rays, numpy kernels", "laser", "standard", {"GRIDMAP_KERNELS": "numpy"}),
+    ]
 
-    t0 = time.perf_counter()
-    data = read_log(log)
-    t1 = time.perf_counter()
-    result = build_map(data, load_robot("p3at"), BuildOptions())
-    t2 = time.perf_counter()
-    write_map(CACHE / "bench_map_inproc.png", result.map, force=True)
-    t3 = time.perf_counter()
-
-    pinned = "1 core (taskset -c 0)" if shutil.which("taskset") else "unpinned"
-    print(f"gridmap build, standard mode, {pinned}, on {os.cpu_count()}-core machine")
-    print(f"  log               {log.name}: {summary['readings']['total']:,} readings")
-    print(f"  map               {m['width']} x {m['height']} cells at {m['resolution']} m")
-    print(f"  wall time         {wall:8.2f} s   (whole command: start-up, read, map, write)")
-    print(f"  readings/s        {readings / wall:12,.0f}")
-    print(f"  cell updates/s    {updates / wall:12,.0f}   ({updates:,} cell updates)")
-    print(f"  peak memory       {peak_mib:8d} MiB (max RSS of the build process)")
-    print("  phases (in-process, unpinned):")
-    print(f"    read CSV        {t1 - t0:8.2f} s")
+    pinned = "one core (taskset -c 0)" if shutil.which("taskset") else "unpinned"
     print(
-        f"    sync + model    {t2 - t1:8.2f} s   ({len(data.readings) / (t2 - t1):,.0f} readings/s)"
+        f"gridmap build, whole process, {pinned}, {os.cpu_count()}-core machine, "
+        f"median of {args.repeat}; 5 cm cells"
     )
-    print(f"    write PNG+YAML  {t3 - t2:8.2f} s")
-
-    # the error-aware mode on the same log, with the simulator's drift-1 error as its f and g
-    drift1 = OdometryErrorModel().as_odometry_error().as_dict()
-    coefficients = [a for k, v in drift1.items() for a in ("--odometry-coefficient", f"{k}={v!r}")]
-    cmd = one_core(
-        [
-            *gridmap(), "build", str(log), "-o", str(CACHE / "bench_map_ea.png"), "--force",
-            "--quiet", "--json", "--mode", "error-aware", *coefficients,
-        ]
-    )  # fmt: skip
-    wall, peak_mib, stdout = run_measured(cmd)
-    summary = json.loads(stdout)
-    print(f"gridmap build, error-aware mode (drift-1 coefficients), {pinned}")
-    print(f"  wall time         {wall:8.2f} s")
-    print(f"  readings/s        {summary['readings']['used'] / wall:12,.0f}")
-    print(f"  peak memory       {peak_mib:8d} MiB")
+    header = (
+        f"{'case':34} {'mode':11} {'readings':>9} {'wall s':>7} {'CPU s':>6} {'MiB':>6} "
+        f"{'readings/s':>11} {'updates/s':>11} {'vs CSV':>6} {'vs ref':>6}"
+        "   (rates and ratios per CPU second)"
+    )
+    print(header)
+    print("-" * len(header))
+    cpus: dict[tuple[str, str], float] = {}
+    peaks: dict[tuple[str, str], float] = {}
+    reference = None
+    with tempfile.TemporaryDirectory() as tmp:
+        for row in rows:
+            env = dict(row.extra_env or {})
+            if env.get("NUMBA_CACHE_DIR") == "":
+                env["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(dir=tmp)
+            robot = laser_robot if row.log == "laser" else None
+            out = Path(tmp) / f"{row.log}_{row.mode}.png"
+            cmd = build_cmd(logs[row.log], row.mode, out, robot)
+            # an empty cache is empty only once: no repeats for the first-run row
+            repeat = 1 if "NUMBA_CACHE_DIR" in env else args.repeat
+            run = median_run(cmd, repeat, env)
+            summary = json.loads(run.stdout)
+            readings = summary["readings"]["used"]
+            updates = summary["cell_updates"]
+            cpu = max(run.cpu_s, 1e-3)
+            if reference is None:
+                reference = cpu
+            if row.extra_env is None:
+                cpus[(row.log, row.mode)] = cpu
+                peaks[(row.log, row.mode)] = run.peak_mib
+            peer = cpus.get((row.csv_peer, row.mode)) if row.csv_peer else None
+            vs_csv = f"{cpu / peer:6.2f}" if peer else f"{'':6}"
+            print(
+                f"{row.case:34} {row.mode:11} {readings:9,d} {run.wall_s:7.2f} {run.cpu_s:6.2f} "
+                f"{run.peak_mib:6.0f} {readings / cpu:11,.0f} {updates / cpu:11,.0f} "
+                f"{vs_csv} {cpu / reference:6.2f}",
+                flush=True,
+            )
+    for mode in ("standard", "error-aware"):
+        if ("csv-8h", mode) in cpus:
+            cpu = cpus[("csv-8h", mode)] / cpus[("csv", mode)]
+            peak = peaks[("csv-8h", mode)] / peaks[("csv", mode)]
+            print(f"8 h / 1 h, {mode}: CPU {cpu:.1f}x (linear: 8x), peak memory {peak:.2f}x")
+    octo = octomap_rays(logs["laser"])
+    if octo is None:
+        print("OctoMap: skipped (octomap-python is not installed here)")
+    else:
+        ours = cpus[("laser", "standard")]
+        print(f"OctoMap 576k rays: {octo:.2f} s in-process; gridmap whole process {ours:.2f} s CPU")
+        print(f"  OctoMap / gridmap: {octo / ours:.1f}x")
 
 
 if __name__ == "__main__":

@@ -149,6 +149,11 @@ class SpanSums:
         else:
             self._sums += delta
 
+    def difference_array(self) -> npt.NDArray[Any]:
+        """The running difference array itself, shape (height * (width + 1),), row-major: for
+        compiled kernels, which must add to it exactly as :meth:`add` does."""
+        return self._sums
+
     def total(self) -> npt.NDArray[Any]:
         """The sum per cell, shape (height, width)."""
         grid = self._sums.reshape(self.spec.height, self._stride)
@@ -183,6 +188,10 @@ class LogOddsAccumulator:
     ) -> None:
         """Count one observation in every cell of each run; arrays shape (S,)."""
         self._counts.add(row, col0, col1, np.ones(row.shape[0], dtype=np.int64))
+
+    def difference_arrays(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
+        """The value and count difference arrays (:meth:`SpanSums.difference_array`)."""
+        return self._values.difference_array(), self._counts.difference_array()
 
     def log_odds(self) -> npt.NDArray[np.float64]:
         """Summed log-odds per cell, shape (height, width)."""

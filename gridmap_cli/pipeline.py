@@ -23,6 +23,7 @@ from gridmap_cli.grid import (
     LogOddsAccumulator,
     OccupancyMap,
 )
+from gridmap_cli.models import kernels
 from gridmap_cli.models.error_aware import ErrorAwareParams, ErrorAwareSonarModel, OdometrySpread
 from gridmap_cli.models.error_aware_mixed import ErrorAwareMixedModel
 from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
@@ -133,6 +134,7 @@ def build_map(
     grid: LogOddsAccumulator | FrequencyAccumulator
     grid = LogOddsAccumulator(spec) if options.mode == "standard" else FrequencyAccumulator(spec)
     updates = 0
+    kernels.plan(sum(len(part) for _, part in plan.parts))
     for model, part in plan.parts:
         for start, stop in batch_bounds(part.stamp_ns, options.batch_size):
             batch = _select(part, slice(start, stop))

@@ -5,33 +5,53 @@ what they share (:mod:`gridmap_cli.cli.common`). Each command checks every preco
 exist, outputs absent unless --force, options consistent) before reading a byte, then calls a
 plain library function and reports. Library errors become one ``Error: ...`` line: exit 1 for bad
 data or runtime failures, 2 for usage.
+
+A command's module is imported when that command runs (or help lists it): ``gridmap build`` on a
+CSV log does not load the simulator, the evaluation's scipy or the MCAP writers.
 """
 
 from __future__ import annotations
 
+import importlib
+
 import click
 
 from gridmap_cli import __version__
-from gridmap_cli.cli.build import build
-from gridmap_cli.cli.calibrate import calibrate
-from gridmap_cli.cli.convert import convert
-from gridmap_cli.cli.evaluate import evaluate
-from gridmap_cli.cli.inspect_log import inspect
-from gridmap_cli.cli.simulate import simulate
-from gridmap_cli.cli.trajectory import trajectory
+
+#: command name -> module under gridmap_cli.cli and the click command's name in it
+COMMANDS = {
+    "build": ("build", "build"),
+    "inspect": ("inspect_log", "inspect"),
+    "simulate": ("simulate", "simulate"),
+    "calibrate": ("calibrate", "calibrate"),
+    "convert": ("convert", "convert"),
+    "evaluate": ("evaluate", "evaluate"),
+    "trajectory": ("trajectory", "trajectory"),
+}
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class LazyGroup(click.Group):
+    """A group whose commands are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return list(COMMANDS)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in COMMANDS:
+            return None
+        module, attr = COMMANDS[cmd_name]
+        command = getattr(importlib.import_module(f"gridmap_cli.cli.{module}"), attr)
+        assert isinstance(command, click.Command)
+        return command
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="gridmap")
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-line errors.")
 @click.pass_context
 def cli(ctx: click.Context, debug: bool) -> None:
     """Occupancy-grid maps from robot logs of range readings and wheel odometry."""
     ctx.obj = {"debug": debug}
-
-
-for _command in (build, inspect, simulate, calibrate, convert, evaluate, trajectory):
-    cli.add_command(_command)
 
 
 def main() -> None:

@@ -6,7 +6,7 @@ import dataclasses
 import math
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
@@ -30,12 +30,10 @@ from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build
 from gridmap_cli.readers import format_names, read_logs
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import load_robot, robot_from_log
-from gridmap_cli.scan_match import ScanMatch, scan_matched_log
 from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, MAP_MODES, check_map_outputs, write_map
-from gridmap_cli.writers.map_mcap import write_map_mcap
 from gridmap_cli.writers.preview import (
     ODOMETRY_RGB,
     REFERENCE_RGB,
@@ -45,6 +43,9 @@ from gridmap_cli.writers.preview import (
     placed_at,
     write_preview,
 )
+
+if TYPE_CHECKING:
+    from gridmap_cli.scan_match import ScanMatch
 
 
 @click.command()
@@ -235,6 +236,8 @@ def build(
         robot_desc = robot_from_log(logs[0], data.metadata)
     match: ScanMatch | None = None
     if pose == "scan-matched":
+        from gridmap_cli.scan_match import scan_matched_log  # scipy, small_gicp: only here
+
         data, match = scan_matched_log(data, robot_desc)
     else:
         data = select_poses(data, pose)
@@ -254,6 +257,8 @@ def build(
     if to_mcap:
         # stamped at the last reading: the map is what the robot knew then
         stamp = int(data.readings.stamp_ns[-1]) if len(data.readings) else 0
+        from gridmap_cli.writers.map_mcap import write_map_mcap  # the MCAP writer only when asked
+
         image_path = write_map_mcap(output, result.map, stamp_ns=stamp, force=force)
         yaml_path = None
     else:

@@ -10,15 +10,17 @@ import numbers
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, ParamSpec, TypeVar
+from typing import TYPE_CHECKING, Any, ParamSpec, TypeVar
 
 import click
-from tqdm import tqdm
 
 from gridmap_cli.errors import GridmapError, InputFileError, UsageError
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import RobotDescription
 from gridmap_cli.selection import EXCLUDE
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -68,15 +70,31 @@ def debug_enabled() -> bool:
     return bool(root is not None and root.obj and root.obj.get("debug"))
 
 
-def progress_bar(total: int, quiet: bool, desc: str) -> tqdm[Any]:
+class _NoBar:
+    """What a hidden progress bar does: nothing (and tqdm is not imported for it)."""
+
+    def __enter__(self) -> _NoBar:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def update(self, n: int = 1) -> None:
+        return None
+
+
+def progress_bar(total: int, quiet: bool, desc: str) -> tqdm[Any] | _NoBar:
     # hidden when stderr is not a terminal (pipelines, cron) or with --quiet
+    if quiet or not sys.stderr.isatty():
+        return _NoBar()
+    from tqdm import tqdm
+
     return tqdm(
         total=total,
         desc=desc,
         unit=" readings",
         unit_scale=True,
         file=sys.stderr,
-        disable=quiet or not sys.stderr.isatty(),
         leave=False,
     )
 

@@ -29,6 +29,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.grid import GridSpec, LogOddsAccumulator, logodds
+from gridmap_cli.models.kernels import compiled
 from gridmap_cli.sync import SensorReadings
 
 F64 = npt.NDArray[np.float64]
@@ -100,6 +101,45 @@ class RowRuns:
 
 def _grid_units(spec: GridSpec, x_m: F64, y_m: F64) -> tuple[F64, F64]:
     return (x_m - spec.origin_x_m) / spec.resolution_m, (y_m - spec.origin_y_m) / spec.resolution_m
+
+
+@dataclass(frozen=True)
+class RayRows:
+    """Per segment, shape (M,) each: what :func:`row_runs` expands into runs. The segment is
+    walked upwards from (ua, va) to (ub, vb) in grid units; rows ``ra + p`` for ``p`` in
+    ``p_lo .. p_lo + counts - 1`` lie in the grid; ``off`` and ``slope`` place the crossings."""
+
+    ra: I64
+    rb: I64
+    p_lo: I64
+    counts: I64
+    off: F64
+    slope: F64
+    ua: F64
+    ub: F64
+    inside: bool  # every segment with runs lies within the grid's columns: no clipping
+
+
+def ray_rows(spec: GridSpec, seg: RaySegments) -> RayRows:
+    """The per-segment part of :func:`row_runs` (shared with the compiled kernel)."""
+    u0, v0 = _grid_units(spec, seg.x0_m, seg.y0_m)
+    u1, v1 = _grid_units(spec, seg.x1_m, seg.y1_m)
+    down = v1 < v0
+    ua, va = np.where(down, u1, u0), np.where(down, v1, v0)
+    ub, vb = np.where(down, u0, u1), np.where(down, v0, v1)
+    ra_f = np.floor(va)
+    ra = ra_f.astype(np.int64)
+    rb = np.floor(vb).astype(np.int64)
+    p_lo = np.maximum(-ra, 0)
+    p_hi = np.minimum(rb, spec.height - 1) - ra
+    active = seg.echo | (u0 != u1) | (v0 != v1)
+    counts = np.where(active, np.maximum(p_hi - p_lo + 1, 0), 0)
+    dv = vb - va
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = np.where(dv > 0.0, (ub - ua) / dv, 0.0)
+    has = counts > 0
+    inside = (np.minimum(ua, ub) >= 0.0) & (np.maximum(ua, ub) < spec.width)
+    return RayRows(ra, rb, p_lo, counts, ra_f - va, slope, ua, ub, bool(inside[has].all()))
 
 
 def row_runs(spec: GridSpec, seg: RaySegments) -> RowRuns:
@@ -242,10 +282,24 @@ def accumulate_rays(grid: LogOddsAccumulator, seg: RaySegments, l_free: float, l
 def _accumulate_chunk(
     grid: LogOddsAccumulator, seg: RaySegments, l_free: float, l_occ: float
 ) -> int:
-    runs = row_runs(grid.spec, seg)
+    """The compiled kernel when it pays (:mod:`gridmap_cli.models.kernels`), else numpy: the
+    same grid bit for bit."""
+    kernels = compiled(seg.echo.shape[0])
+    if kernels is None:
+        runs = row_runs(grid.spec, seg)
+        grid.add_observations(runs.row, runs.col0, runs.col1)
+        # every crossed cell gets l_free; the end cell, one of them, is then raised to l_occ
+        grid.add_values(runs.row, runs.col0, runs.col1, np.full(runs.row.shape[0], l_free))
+        cells = runs.cells()
+    else:
+        rows = ray_rows(grid.spec, seg)
+        values, observations = grid.difference_arrays()
+        cells = int(
+            kernels.ray_batch(
+                grid.spec.width, rows.ra, rows.rb, rows.p_lo, rows.counts, rows.off, rows.slope,
+                rows.ua, rows.ub, not rows.inside, l_free, values, observations,
+            )
+        )  # fmt: skip
     end_row, end_col = end_cells(grid.spec, seg)
-    grid.add_observations(runs.row, runs.col0, runs.col1)
-    # every crossed cell gets l_free; the end cell, one of them, is then raised to l_occ
-    grid.add_values(runs.row, runs.col0, runs.col1, np.full(runs.row.shape[0], l_free))
     grid.add_values(end_row, end_col, end_col, np.full(end_row.shape[0], l_occ - l_free))
-    return runs.cells()
+    return cells

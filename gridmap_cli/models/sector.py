@@ -92,6 +92,42 @@ def _half_plane(a: F64, b: F64, dy: F64) -> tuple[F64, F64]:
     return lo, hi
 
 
+def sector_row_range(
+    spec: GridSpec,
+    y_m: F64,
+    theta_rad: F64,
+    half_width_rad: F64,
+    reach_m: F64,
+    inner_m: F64 | None = None,
+) -> tuple[I64, I64, F64, F64]:
+    """First grid row and number of rows of each sector, and its edges' directions (right,
+    left), shape (M,) each: the per-reading part of :func:`sector_rows`. With ``inner_m``, the
+    rows of the ring between ``inner_m`` and ``reach_m`` only."""
+    h = half_width_rad
+    right = theta_rad - h
+    left = theta_rad + h
+    if inner_m is None:
+        ends = [y_m]
+    else:
+        ends = [y_m + inner_m * np.sin(right), y_m + inner_m * np.sin(left)]
+    ys = np.stack([*ends, y_m + reach_m * np.sin(right), y_m + reach_m * np.sin(left)])
+    ymin = ys.min(axis=0)
+    ymax = ys.max(axis=0)
+    # the arc bulges past its end points where it crosses straight up or down
+    up = np.abs(wrap_angle(np.pi / 2 - theta_rad)) <= h
+    down = np.abs(wrap_angle(-np.pi / 2 - theta_rad)) <= h
+    ymax = np.where(up, y_m + reach_m, ymax)
+    ymin = np.where(down, y_m - reach_m, ymin)
+
+    res = spec.resolution_m
+    j0 = np.clip(np.ceil((ymin - spec.origin_y_m) / res - 0.5), 0, spec.height).astype(np.int64)
+    j1 = np.clip(np.floor((ymax - spec.origin_y_m) / res - 0.5), -1, spec.height - 1).astype(
+        np.int64
+    )
+    counts = np.where(reach_m > 0, np.maximum(j1 - j0 + 1, 0), 0)
+    return j0, counts, right, left
+
+
 def sector_rows(
     spec: GridSpec,
     x_m: F64,
@@ -107,37 +143,14 @@ def sector_rows(
     ``inner_m``: when given, only the rows of the ring between ``inner_m`` and ``reach_m`` are
     enumerated (the spans of disks smaller than ``inner_m`` are then cut to those rows).
     """
-    h = half_width_rad
-    right = theta_rad - h
-    left = theta_rad + h
-    near = np.zeros_like(reach_m) if inner_m is None else inner_m
-    ys = np.stack(
-        [
-            y_m + near * np.sin(right),
-            y_m + near * np.sin(left),
-            y_m + reach_m * np.sin(right),
-            y_m + reach_m * np.sin(left),
-        ]
+    j0, counts, right, left = sector_row_range(
+        spec, y_m, theta_rad, half_width_rad, reach_m, inner_m
     )
-    ymin = ys.min(axis=0)
-    ymax = ys.max(axis=0)
-    # the arc bulges past its end points where it crosses straight up or down
-    up = np.abs(wrap_angle(np.pi / 2 - theta_rad)) <= h
-    down = np.abs(wrap_angle(-np.pi / 2 - theta_rad)) <= h
-    ymax = np.where(up, y_m + reach_m, ymax)
-    ymin = np.where(down, y_m - reach_m, ymin)
-
-    res = spec.resolution_m
-    j0 = np.clip(np.ceil((ymin - spec.origin_y_m) / res - 0.5), 0, spec.height).astype(np.int64)
-    j1 = np.clip(np.floor((ymax - spec.origin_y_m) / res - 0.5), -1, spec.height - 1).astype(
-        np.int64
-    )
-    counts = np.where(reach_m > 0, np.maximum(j1 - j0 + 1, 0), 0)
     total = int(counts.sum())
     reading = np.repeat(np.arange(x_m.shape[0], dtype=np.int64), counts)
     starts = np.cumsum(counts) - counts
     row = j0[reading] + (np.arange(total, dtype=np.int64) - starts[reading])
-    dy = spec.origin_y_m + (row + 0.5) * res - y_m[reading]
+    dy = spec.origin_y_m + (row + 0.5) * spec.resolution_m - y_m[reading]
 
     # wedge = right of the left edge and left of the right edge (convex because 2h < pi)
     lo1, hi1 = _half_plane(-np.sin(right)[reading], np.cos(right)[reading], dy)

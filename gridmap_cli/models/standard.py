@@ -20,7 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from gridmap_cli.grid import GridSpec, LogOddsAccumulator, logodds
-from gridmap_cli.models.sector import F64, sector_bounds, sector_rows
+from gridmap_cli.models.kernels import compiled
+from gridmap_cli.models.sector import F64, sector_bounds, sector_row_range, sector_rows
 from gridmap_cli.sync import SensorReadings
 
 
@@ -112,7 +113,32 @@ class StandardSonarModel:
 
 
 def accumulate_sectors(grid: LogOddsAccumulator, ev: SectorEvidence) -> int:
-    """Add nested-sector evidence to ``grid``; returns cells touched (outer sectors)."""
+    """Add nested-sector evidence to ``grid``; returns cells touched (outer sectors).
+
+    The compiled kernel when it pays (:mod:`gridmap_cli.models.kernels`), else the numpy
+    reference, :func:`accumulate_sectors_numpy`: the same grid bit for bit.
+    """
+    kernels = compiled(ev.x_m.shape[0])
+    if kernels is None:
+        return accumulate_sectors_numpy(grid, ev)
+    spec: GridSpec = grid.spec
+    j0, counts, right, left = sector_row_range(
+        spec, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.outer_m
+    )
+    values, observations = grid.difference_arrays()
+    f64 = np.ascontiguousarray
+    return int(
+        kernels.sector_batch(
+            spec.origin_x_m, spec.origin_y_m, spec.resolution_m, spec.width, spec.height,
+            f64(ev.x_m), f64(ev.y_m), np.sin(right), np.cos(right), np.sin(left), np.cos(left),
+            j0, counts, f64(ev.outer_m), f64(ev.outer_value), f64(ev.inner_m),
+            f64(ev.inner_value), values, observations,
+        )
+    )  # fmt: skip
+
+
+def accumulate_sectors_numpy(grid: LogOddsAccumulator, ev: SectorEvidence) -> int:
+    """:func:`accumulate_sectors` in numpy: the reference the compiled kernel must equal."""
     spec: GridSpec = grid.spec
     rows = sector_rows(spec, ev.x_m, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.outer_m)
     outer = rows.spans(ev.outer_m)

@@ -10,20 +10,35 @@ extension, else by sniffing the decompressed head, and read from the decompresse
 
 ROS recordings (MCAP, ROS 1 bags, rosbag2 folders) are made of message sources; several of them
 given together are merged by log time into one recording (:func:`read_logs`).
+
+The registry imports no reader of a binary format until a file of it is read: a CSV build must not
+pay for the MCAP and bag decoders (``mcap``, ``rosbags``: a third of a small build's time).
 """
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from gridmap_cli.errors import InputFileError, UnknownFormatError, UsageError
-from gridmap_cli.readers import aria_log, bag_log, carmen_log, compressed, csv_log, mcap_log
+from gridmap_cli.readers import compressed, csv_log
 from gridmap_cli.readers.options import ReadOptions
-from gridmap_cli.readers.ros_recording import RecordingSource, read_recording
 from gridmap_cli.records import RangeLog
+
+if TYPE_CHECKING:
+    from gridmap_cli.readers.ros_recording import RecordingSource
+
+#: The first bytes of an MCAP file and of a ROS 1 bag (the readers' own constants, repeated here
+#: so that sniffing needs no import of them; tests check that they agree).
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+BAG_MAGIC = b"#ROSBAG V2.0\n"
+ROSBAG2_METADATA = "metadata.yaml"
+CARMEN_EXTENSIONS = (".clf",)
+#: ``.log`` is CARMEN's usual extension but everyone's: the registry sniffs such files first.
+CARMEN_WEAK_EXTENSIONS = (".log",)
 
 
 @dataclass(frozen=True)
@@ -61,14 +76,25 @@ def _read_csv(path: Path, options: ReadOptions) -> RangeLog:
     return csv_log.read_csv_log(path)
 
 
+def _reader_module(name: str) -> Any:
+    return importlib.import_module(f"gridmap_cli.readers.{name}")
+
+
+def _lazy_sniff(module: str) -> Callable[[bytes], bool]:
+    def sniff(head: bytes) -> bool:
+        return bool(_reader_module(module).sniff(head))
+
+    return sniff
+
+
 def _read_aria(path: Path, options: ReadOptions) -> RangeLog:
     options.refuse_topic_flags("ARIA")
-    return aria_log.read_aria_log(path)
+    return _reader_module("aria_log").read_aria_log(path)  # type: ignore[no-any-return]
 
 
 def _read_carmen(path: Path, options: ReadOptions) -> RangeLog:
     options.refuse_topic_flags("CARMEN")
-    return carmen_log.read_carmen_log(path)
+    return _reader_module("carmen_log").read_carmen_log(path)  # type: ignore[no-any-return]
 
 
 def _text_csv(handle: TextIO, name: str, options: ReadOptions) -> RangeLog:
@@ -78,12 +104,12 @@ def _text_csv(handle: TextIO, name: str, options: ReadOptions) -> RangeLog:
 
 def _text_aria(handle: TextIO, name: str, options: ReadOptions) -> RangeLog:
     options.refuse_topic_flags("ARIA")
-    return aria_log.read_aria_log(handle, name)
+    return _reader_module("aria_log").read_aria_log(handle, name)  # type: ignore[no-any-return]
 
 
 def _text_carmen(handle: TextIO, name: str, options: ReadOptions) -> RangeLog:
     options.refuse_topic_flags("CARMEN")
-    return carmen_log.read_carmen_log(handle, name)
+    return _reader_module("carmen_log").read_carmen_log(handle, name)  # type: ignore[no-any-return]
 
 
 def _never(head: bytes) -> bool:
@@ -95,37 +121,70 @@ def _rosbag2_folder(path: Path) -> Path:
     return path if path.is_dir() else path.parent
 
 
+def _is_rosbag2(path: Path) -> bool:
+    """True for a rosbag2 folder (a directory holding ``metadata.yaml``)."""
+    return path.is_dir() and (path / ROSBAG2_METADATA).is_file()
+
+
+def _read_sources(sources: list[RecordingSource], options: ReadOptions) -> RangeLog:
+    from gridmap_cli.readers.ros_recording import read_recording
+
+    return read_recording(sources, options).log
+
+
 def _rosbag2_sources(path: Path) -> list[RecordingSource]:
+    from gridmap_cli.readers import bag_log
+
     return bag_log.rosbag2_sources(_rosbag2_folder(path))
 
 
 def _read_rosbag2(path: Path, options: ReadOptions) -> RangeLog:
-    return read_recording(_rosbag2_sources(path), options).log
+    return _read_sources(_rosbag2_sources(path), options)
 
 
 def _mcap_sources(path: Path) -> list[RecordingSource]:
+    from gridmap_cli.readers import mcap_log
+
     return [mcap_log.McapSource(path)]
 
 
+def _read_mcap(path: Path, options: ReadOptions) -> RangeLog:
+    return _read_sources(_mcap_sources(path), options)
+
+
 def _bag_sources(path: Path) -> list[RecordingSource]:
+    from gridmap_cli.readers import bag_log
+
     return [bag_log.BagSource(path)]
+
+
+def _read_bag(path: Path, options: ReadOptions) -> RangeLog:
+    return _read_sources(_bag_sources(path), options)
+
+
+def _sniff_mcap(head: bytes) -> bool:
+    return head.startswith(MCAP_MAGIC)
+
+
+def _sniff_bag(head: bytes) -> bool:
+    return head.startswith(BAG_MAGIC)
 
 
 FORMATS: tuple[LogFormat, ...] = (
     LogFormat("csv", (".csv",), csv_log.sniff, _read_csv, None, _text_csv, "utf-8-sig"),
-    LogFormat("aria", (".2d",), aria_log.sniff, _read_aria, None, _text_aria, "latin-1"),
-    LogFormat("mcap", (".mcap",), mcap_log.sniff, mcap_log.read_mcap_log, _mcap_sources),
-    LogFormat("bag", (".bag",), bag_log.sniff, bag_log.read_bag_log, _bag_sources),
+    LogFormat("aria", (".2d",), _lazy_sniff("aria_log"), _read_aria, None, _text_aria, "latin-1"),
+    LogFormat("mcap", (".mcap",), _sniff_mcap, _read_mcap, _mcap_sources),
+    LogFormat("bag", (".bag",), _sniff_bag, _read_bag, _bag_sources),
     LogFormat("rosbag2", (".db3",), _never, _read_rosbag2, _rosbag2_sources),
     LogFormat(
         "carmen",
-        carmen_log.EXTENSIONS,
-        carmen_log.sniff,
+        CARMEN_EXTENSIONS,
+        _lazy_sniff("carmen_log"),
         _read_carmen,
         None,
         _text_carmen,
         "latin-1",
-        carmen_log.WEAK_EXTENSIONS,
+        CARMEN_WEAK_EXTENSIONS,
     ),
 )
 
@@ -147,11 +206,11 @@ def resolve_format(path: Path, name: str | None = None) -> LogFormat:
     """Pick the reader for ``path``: by ``name``, else by extension, else by sniffing."""
     if name is not None:
         return _by_name(name)
-    if path.is_dir() or path.name == bag_log.ROSBAG2_METADATA:
-        if bag_log.is_rosbag2(_rosbag2_folder(path)):
+    if path.is_dir() or path.name == ROSBAG2_METADATA:
+        if _is_rosbag2(_rosbag2_folder(path)):
             return _by_name("rosbag2")
         raise InputFileError(
-            path, f"a directory, but not a rosbag2 folder (no {bag_log.ROSBAG2_METADATA} in it)"
+            path, f"a directory, but not a rosbag2 folder (no {ROSBAG2_METADATA} in it)"
         )
     gzipped = compressed.is_gzip(path)
     suffix = compressed.inner_suffix(path) if gzipped else path.suffix.lower()
@@ -181,7 +240,7 @@ def resolve_format(path: Path, name: str | None = None) -> LogFormat:
         for f in FORMATS
         if f.name != "rosbag2"
     )
-    raise UnknownFormatError(path, f"{known}, rosbag2 (a folder with {bag_log.ROSBAG2_METADATA})")
+    raise UnknownFormatError(path, f"{known}, rosbag2 (a folder with {ROSBAG2_METADATA})")
 
 
 def read_log(
@@ -220,4 +279,4 @@ def read_logs(
     sources = recording_sources(paths, format_name)
     if sources is None:
         return read_log(paths[0], format_name, options)
-    return read_recording(sources, options).log
+    return _read_sources(sources, options or ReadOptions())

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TextIO
 
 import numpy as np
+import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
@@ -77,6 +78,124 @@ def read_csv_log(source: str | Path | TextIO, name: str | None = None) -> RangeL
 
 
 def _read(handle: TextIO, path: str) -> RangeLog:
+    """Parse in bulk (:func:`_read_bulk`); when anything is off, the row-by-row reader below
+    finds the bad field and says where (``path:line: column``)."""
+    text = handle.read()
+    return _read_bulk(text, path) or _read_rows(io.StringIO(text), path)
+
+
+#: Characters other than \n that end a line for str.splitlines but not for the csv module: a
+#: text holding any is left to the row-by-row reader.
+_ODD_BREAKS = ("\v", "\f", "\x1c", "\x1d", "\x1e", "\x85", "\u2028", "\u2029", '"', "\r\r")
+
+
+def _read_bulk(text: str, path: str) -> RangeLog | None:
+    """The log, parsed with numpy in one go; None when the text is not plainly well formed.
+
+    Plainly well formed: no quotes, every data line with the header's number of fields, numbers
+    numpy parses, increasing times, finite poses, no negative ranges. The row reader gives the
+    same log for such a text (tests/readers/test_csv_log.py checks) and the errors for others.
+    """
+    if any(c in text for c in _ODD_BREAKS) or text.count("\r") != text.count("\r\n"):
+        return None
+    metadata: dict[str, str] = {}
+    lines = text.split("\n")
+    header: list[str] | None = None
+    start = 0
+    for number, line in enumerate(lines):
+        stripped = line.lstrip("\ufeff").strip()
+        if not stripped:
+            continue
+        if stripped.startswith("#"):
+            key, sep, value = stripped[1:].partition(":")
+            if sep and key.strip():
+                metadata[key.strip()] = value.strip()
+            continue
+        header = [h.strip() for h in stripped.split(",")]
+        start = number + 1
+        break
+    if header is None:
+        return None
+    try:
+        columns = _check_header(path, start, header)
+    except InputFileError:
+        return None
+    rows = [line.rstrip("\r") for line in lines[start:]]
+    rows = [row for row in rows if row.strip()]
+    n_fields = len(header)
+    if not rows or any(row.count(",") != n_fields - 1 for row in rows):
+        return None
+    body = ",".join(rows)
+    # an empty field is no reading; numpy's parser wants a word for it
+    body = body.replace(",,", ",nan,").replace(",,", ",nan,")
+    if body.endswith(","):
+        body += "nan"
+    try:
+        values = np.fromstring(body, sep=",")
+    except ValueError:
+        return None
+    if values.shape[0] != len(rows) * n_fields:
+        return None
+    matrix = values.reshape(len(rows), n_fields)
+    time_col = header.index("time")
+    try:
+        stamps = [seconds_to_ns(row.split(",", time_col + 1)[time_col]) for row in rows]
+    except ValueError:
+        return None
+    stamp_arr = np.asarray(stamps, dtype=np.int64)
+    if len(stamp_arr) > 1 and not bool((np.diff(stamp_arr) > 0).all()):
+        return None
+    pose_idx = [header.index(c) for c in POSE_COLUMNS[1:]]
+    truth_idx = [header.index(c) for c in TRUTH_COLUMNS] if columns["truth"] else []
+    if not np.isfinite(matrix[:, pose_idx + truth_idx]).all():
+        return None
+    sensor_cols = [i for i, h in enumerate(header) if h not in POSE_COLUMNS + TRUTH_COLUMNS]
+    ranges = matrix[:, sensor_cols]
+    if bool((ranges < 0.0).any()):
+        return None
+    return _log(path, header, metadata, stamp_arr, matrix, pose_idx, truth_idx, sensor_cols)
+
+
+def _log(
+    path: str,
+    header: list[str],
+    metadata: dict[str, str],
+    stamp_arr: npt.NDArray[np.int64],
+    matrix: npt.NDArray[np.float64],
+    pose_idx: list[int],
+    truth_idx: list[int],
+    sensor_cols: list[int],
+) -> RangeLog:
+    """The RangeLog of a parsed table: ``matrix`` shape (rows, columns), NaN = no reading."""
+
+    def track(idx: list[int]) -> PoseTrack:
+        return PoseTrack(
+            stamp_ns=stamp_arr,
+            x_m=np.ascontiguousarray(matrix[:, idx[0]]),
+            y_m=np.ascontiguousarray(matrix[:, idx[1]]),
+            theta_rad=np.ascontiguousarray(matrix[:, idx[2]]),
+        )
+
+    ranges = matrix[:, sensor_cols]
+    present = ~np.isnan(ranges)
+    row_idx, sensor_idx = np.nonzero(present)  # row-major: by stamp, then sensor order
+    readings = RangeReadings(
+        stamp_ns=stamp_arr[row_idx],
+        sensor=sensor_idx.astype(np.int32),
+        range_m=ranges[row_idx, sensor_idx],
+    )
+    return RangeLog(
+        source=path,
+        poses=track(pose_idx),
+        readings=readings,
+        sensor_names=tuple(header[i] for i in sensor_cols),
+        truth=track(truth_idx) if truth_idx else None,
+        metadata=metadata,
+        names_are_columns=True,
+    )
+
+
+def _read_rows(handle: TextIO, path: str) -> RangeLog:
     metadata: dict[str, str] = {}
     lines = enumerate(handle, start=1)
     header: list[str] | None = None

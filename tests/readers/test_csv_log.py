@@ -11,7 +11,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.readers import csv_log
 from gridmap_cli.readers.csv_log import read_csv_log, seconds_to_ns, sniff
+from gridmap_cli.records import RangeLog
 
 GOOD = """\
 # gridmap-csv: 1
@@ -138,3 +140,69 @@ def test_empty_sensor_set_is_allowed() -> None:
     log = read_csv_log(io.StringIO("time,x,y,theta\n0,0,0,0\n1,1,0,0\n"))
     assert len(log.readings) == 0 and log.sensor_names == ()
     assert np.array_equal(log.poses.x_m, [0.0, 1.0])
+
+
+def _same_log(text: str) -> RangeLog | None:
+    """The bulk parse of ``text``, checked equal to the row-by-row parse when it gives one."""
+    bulk = csv_log._read_bulk(text, "x.csv")
+    rows = csv_log._read_rows(io.StringIO(text), "x.csv")
+    if bulk is not None:
+        for a, b in ((bulk.readings, rows.readings), (bulk.poses, rows.poses)):
+            for name in vars(a):
+                assert np.array_equal(getattr(a, name), getattr(b, name)), name
+        assert (bulk.truth is None) == (rows.truth is None)
+        if bulk.truth is not None and rows.truth is not None:
+            assert np.array_equal(bulk.truth.x_m, rows.truth.x_m)
+        assert (bulk.sensor_names, bulk.metadata) == (rows.sensor_names, rows.metadata)
+    return bulk
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        "0.0,1,2,0.5,,\n0.1,1,2,0.5,nan,3\n",  # empty and nan: no reading
+        "0.0,1,2,0.5,,\r\n\r\n0.1,1,2,0.5,inf,NaN\r\n",  # CRLF, a blank line, no echo
+        "1700000000.123456789,1e-3,-2,0.5,4.335,0.7\n1700000000.2,1,2,3,,",  # epoch ns, no EOL
+        " 0.0 , 1 ,2,0.5, 1.5 ,0.2\n",  # spaces around numbers
+    ],
+)
+def test_bulk_parse_equals_the_row_reader(body: str) -> None:
+    text = "# robot: p3at\ntime,x,y,theta,s0,s1\n" + body
+    assert _same_log(text) is not None
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        "0.0,1,2,0.5,x,1\n",  # not a number
+        "0.0,1,2,0.5,-1,1\n",  # negative range
+        "0.1,1,2,0.5,1,1\n0.1,1,2,0.5,1,1\n",  # time repeats
+        "0.0,1,nan,0.5,1,1\n",  # pose not finite
+        "0.0,1,2,0.5,1\n",  # a field short
+        '0.0,1,2,0.5,"1",1\n',  # quotes: the csv module's business
+    ],
+)
+def test_anything_odd_is_left_to_the_row_reader_and_its_errors(body: str) -> None:
+    text = "time,x,y,theta,s0,s1\n" + body
+    assert csv_log._read_bulk(text, "x.csv") is None
+    if '"' in body:
+        return
+    with pytest.raises(InputFileError, match=r"x\.csv:[23]: "):
+        read_csv_log(io.StringIO(text), "x.csv")
+
+
+@given(
+    st.lists(
+        st.lists(
+            st.one_of(st.just(""), st.just("nan"), st.floats(0, 50).map(repr)),
+            min_size=3,
+            max_size=3,
+        ),
+        min_size=1,
+        max_size=20,
+    )
+)
+def test_bulk_parse_equals_the_row_reader_on_any_table(cells: list[list[str]]) -> None:
+    lines = [f"{i / 10!r},{i},{-i},0.25,{','.join(row)}" for i, row in enumerate(cells)]
+    text = "time,x,y,theta,a,b,c\n" + "\n".join(lines) + "\n"
+    assert _same_log(text) is not None
