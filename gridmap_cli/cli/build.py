@@ -12,13 +12,16 @@ import click
 import numpy as np
 
 from gridmap_cli.cli.common import (
+    STDIO,
     check_input,
     check_output_folder,
     handle_errors,
     json_text,
     make_read_options,
     progress_bar,
+    read_input,
     selection_options,
+    stdout_file,
     topic_options,
     warn,
 )
@@ -27,7 +30,7 @@ from gridmap_cli.models.error_aware import ErrorAwareParams
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
-from gridmap_cli.readers import format_names, read_logs
+from gridmap_cli.readers import format_names
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.selection import Selection, apply_selection
@@ -55,7 +58,8 @@ if TYPE_CHECKING:
     "--output",
     type=click.Path(path_type=Path),
     help="Map to write: an image (.png, .pgm or .bmp) with its YAML beside it, or an MCAP "
-    "(.mcap) holding a nav_msgs/msg/OccupancyGrid on /map.",
+    "(.mcap) holding a nav_msgs/msg/OccupancyGrid on /map; - writes the image alone to standard "
+    "output (with --fmt).",
 )
 @click.option(
     "-f",
@@ -209,19 +213,22 @@ def build(
         mode, odometry_file, coefficients, trust_length
     )
     selection = Selection.parse(sensor_patterns, start, end)
+    to_stdout = output == STDIO
+    if to_stdout:
+        _check_stdout(image_format, as_json, draw_path)
     to_mcap = output.suffix.lower() == ".mcap"
     if to_mcap:
         source = click.get_current_context().get_parameter_source("map_mode")
         if source is not None and source != click.core.ParameterSource.DEFAULT:
             raise UsageError("--map-mode applies to map images; an MCAP map holds 0..100 and -1")
-    else:
-        check_map_outputs(output, map_mode, force=True)  # the name and mode, before any input
+    else:  # the name and mode, before any input
+        check_map_outputs(Path(f"map.{image_format}") if to_stdout else output, map_mode, True)
     robot_desc = load_robot(robot) if robot else None
     for log in logs:  # the command line first, then the inputs, then the outputs
         check_input(log)
     if to_mcap:
         check_output(output, force)
-    else:
+    elif not to_stdout:
         check_map_outputs(output, map_mode, force)
     check_output_folder(output)
     preview = output.with_name(f"{output.stem}_path.png") if draw_path else None
@@ -230,7 +237,7 @@ def build(
     read_options = make_read_options(
         odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
     )
-    whole = read_logs(logs, log_format, read_options)
+    whole = read_input(logs, log_format, read_options)
     data = whole
     if robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
@@ -261,6 +268,10 @@ def build(
 
         image_path = write_map_mcap(output, result.map, stamp_ns=stamp, force=force)
         yaml_path = None
+    elif to_stdout:
+        with stdout_file(f"map.{image_format}") as image:
+            write_map(image, result.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free)
+        image_path, yaml_path = STDIO, None
     else:
         image_path, yaml_path = write_map(
             output, result.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free,
@@ -296,10 +307,22 @@ def _tracks(whole: RangeLog, mapped: RangeLog, pose: str) -> list[DrawnTrack]:
     return [t for t in placed if t is not None] + [drawn(mapped.poses, colour)]
 
 
+def _check_stdout(image_format: str | None, as_json: bool, draw_path: bool) -> None:
+    """``-o -``: the image alone goes to standard output (no YAML: give -o FILE for it)."""
+    if image_format is None:
+        raise UsageError("-o - writes the map image to standard output: give --fmt pgm|png|bmp")
+    if as_json:
+        raise UsageError("-o - writes the map image to standard output; --json would mix with it")
+    if draw_path:
+        raise UsageError("--draw-path writes a file beside the map: give -o FILE, not -o -")
+
+
 def map_output(output: Path | None, basename: Path | None, image_format: str | None) -> Path:
     """The map to write: ``-o`` as given, or map_saver_cli's ``-f BASENAME`` + ``--fmt``."""
     if (output is None) == (basename is None):
         raise UsageError("give the map to write: -o FILE or -f BASENAME (one of them)")
+    if output == STDIO:
+        return output
     if basename is not None:
         return basename.with_name(f"{basename.name}.{image_format or 'pgm'}")
     assert output is not None

@@ -11,14 +11,16 @@ import click
 
 from gridmap_cli import __version__
 from gridmap_cli.cli.common import (
+    STDIO,
     check_input,
     check_output_folder,
     handle_errors,
     json_text,
+    read_input,
     selection_options,
 )
 from gridmap_cli.errors import UsageError
-from gridmap_cli.readers import format_names, resolve_format
+from gridmap_cli.readers import STDIN_NAME, format_names
 from gridmap_cli.records import RangeLog
 from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.writers import check_output
@@ -112,7 +114,7 @@ def calibrate(
     if output is not None:
         check_output(output, force)
         check_output_folder(output)
-    data = resolve_format(log, log_format).read(log)
+    data = read_input([log], log_format)
     data = apply_selection(data, selection, None, need_readings=pose != "odometry").log
     if pose == "scan-matched":
         data = _scan_matched(log, data, robot)
@@ -133,7 +135,7 @@ def calibrate(
         doc = {"log": str(log), "output": str(output) if output else None, **result.as_dict()}
         click.echo(json_text(doc))
     elif not quiet:
-        click.echo(_calibration_table(str(log), result, output))
+        click.echo(_calibration_table(STDIN_NAME if log == STDIO else str(log), result, output))
 
 
 def _scan_matched(path: Path, data: RangeLog, robot: str | None) -> RangeLog:

@@ -3,19 +3,24 @@ options several commands take (topics and frames, sensor and time selection)."""
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import math
 import numbers
+import shutil
 import sys
-from collections.abc import Callable
+import tempfile
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ParamSpec, TypeVar
 
 import click
 
 from gridmap_cli.errors import GridmapError, InputFileError, UsageError
+from gridmap_cli.readers import STDIN_NAME, read_bytes, read_logs
 from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RobotDescription
 from gridmap_cli.selection import EXCLUDE
 
@@ -99,15 +104,48 @@ def progress_bar(total: int, quiet: bool, desc: str) -> tqdm[Any] | _NoBar:
     )
 
 
+#: ``-`` as a file name: standard input for a log, standard output for what is written.
+STDIO = Path("-")
+
+
 def check_input(log: Path) -> None:
-    """A log must exist: a file, or a folder (rosbag2)."""
+    """A log must exist: a file, or a folder (rosbag2); ``-`` is standard input."""
+    if log == STDIO:
+        return
     if not log.exists():
         raise InputFileError(log, "no such file")
     if not (log.is_file() or log.is_dir()):
         raise InputFileError(log, "not a regular file or folder")
 
 
+def read_input(
+    logs: Sequence[Path], log_format: str | None, options: ReadOptions | None = None
+) -> RangeLog:
+    """The log(s) to work on: files and folders as :func:`read_logs` reads them, or ``-``, a
+    text log on standard input (``--format`` or its first bytes say which)."""
+    if STDIO not in logs:
+        return read_logs(logs, log_format, options)
+    if len(logs) > 1:
+        raise UsageError("- (standard input) is one log; it cannot be read with others")
+    return read_bytes(sys.stdin.buffer.read(), STDIN_NAME, log_format, options)
+
+
+@contextlib.contextmanager
+def stdout_file(name: str) -> Iterator[Path]:
+    """A file to write instead of ``-o -``: the writers write it (atomically, as always) in a
+    temporary folder, and its bytes then go to standard output."""
+    with tempfile.TemporaryDirectory(prefix="gridmap-") as folder:
+        path = Path(folder) / name
+        yield path
+        stream = sys.stdout.buffer
+        with open(path, "rb") as handle:
+            shutil.copyfileobj(handle, stream)
+        stream.flush()
+
+
 def check_output_folder(output: Path) -> None:
+    if output == STDIO:
+        return
     folder = output.parent
     if not folder.is_dir():
         raise GridmapError(f"{output}: directory {folder} does not exist")

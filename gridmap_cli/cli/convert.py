@@ -7,12 +7,16 @@ from pathlib import Path
 import click
 
 from gridmap_cli.cli.common import (
+    STDIO,
     check_input,
     check_output_folder,
     handle_errors,
     json_text,
+    read_input,
+    stdout_file,
 )
 from gridmap_cli.convert import output_writer, write_log, writer_names
+from gridmap_cli.errors import UsageError
 from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.writers import check_output
@@ -65,21 +69,28 @@ def convert(
     What the output format cannot hold is refused, never dropped (see schemas/*.md).
     """
     writer = output_writer(output, out_format, encoding)
+    if output == STDIO and as_json:
+        raise UsageError("- writes the log to standard output; --json would mix with it")
     robot_desc = load_robot(robot) if robot else None
     check_input(log)
-    check_output(output, force)
-    check_output_folder(output)
-    fmt = resolve_format(log, input_format)
-    data = fmt.read(log)
+    if output != STDIO:
+        check_output(output, force)
+        check_output_folder(output)
+    format_name = input_format or (resolve_format(log).name if log != STDIO else "sniffed")
+    data = read_input([log], input_format)
     if robot_desc is None and writer.needs_sensors:
         known = {s.name for s in data.sensors or ()}
         if not set(data.sensor_names) <= known:
             robot_desc = robot_from_log(log, data.metadata)
-    write_log(data, output, writer, robot_desc, encoding)
+    if output == STDIO:
+        with stdout_file(f"log{writer.extension}") as target:
+            write_log(data, target, writer, robot_desc, encoding)
+    else:
+        write_log(data, output, writer, robot_desc, encoding)
     if as_json:
         summary = {
             "input": str(log),
-            "input_format": fmt.name,
+            "input_format": format_name,
             "output": str(output),
             "format": writer.name,
             "encoding": (encoding or "json") if writer.name == "mcap" else None,
@@ -91,7 +102,7 @@ def convert(
     if not quiet:
         what = writer.name + (f" ({encoding or 'json'})" if writer.name == "mcap" else "")
         click.echo(
-            f"gridmap: {fmt.name} -> {what}: {len(data.poses):,} poses, "
+            f"gridmap: {format_name} -> {what}: {len(data.poses):,} poses, "
             f"{len(data.readings):,} readings"
             f"{', ground truth' if data.truth is not None else ''} -> {output}",
             err=True,

@@ -9,9 +9,11 @@ import click
 import numpy as np
 
 from gridmap_cli.cli.common import (
+    STDIO,
     check_output_folder,
     handle_errors,
     json_text,
+    stdout_file,
 )
 from gridmap_cli.convert import output_writer, write_log, writer_names
 from gridmap_cli.errors import InputFileError, UsageError
@@ -87,12 +89,15 @@ def simulate(
     if duration is not None and not (duration > 0.0 and math.isfinite(duration)):
         raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
     writer = output_writer(output, log_format, encoding)
+    if output == STDIO and as_json:
+        raise UsageError("-o - writes the log to standard output; --json would mix with it")
     robot_desc = load_robot(robot)
     for given in (world, path_file):
         if not given.is_file():
             raise InputFileError(given, "not a regular file" if given.exists() else "no such file")
-    check_output(output, force)
-    check_output_folder(output)
+    if output != STDIO:
+        check_output(output, force)
+        check_output_folder(output)
     loaded = load_map(world)
     waypoints = load_path(path_file)
     log = run_simulation(
@@ -109,7 +114,11 @@ def simulate(
     log.metadata["rate"] = repr(rate)
     if duration is not None:
         log.metadata["duration"] = repr(duration)
-    write_log(log, output, writer, robot_desc, encoding)
+    if output == STDIO:
+        with stdout_file(f"log{writer.extension}") as target:
+            write_log(log, target, writer, robot_desc, encoding)
+    else:
+        write_log(log, output, writer, robot_desc, encoding)
     zmax = np.asarray([s.max_range_m for s in robot_desc.sensors])
     no_echo = int(np.count_nonzero(log.readings.range_m >= zmax[log.readings.sensor]))
     span = (log.poses.stamp_ns[-1] - log.poses.stamp_ns[0]) / 1e9

@@ -18,6 +18,7 @@ pay for the MCAP and bag decoders (``mcap``, ``rosbags``: a third of a small bui
 from __future__ import annotations
 
 import importlib
+import io
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -248,6 +249,44 @@ def read_log(
 ) -> RangeLog:
     """Read any supported log into the canonical record stream."""
     return resolve_format(path, format_name).read(path, options)
+
+
+#: The name a log read from standard input goes by in messages.
+STDIN_NAME = "<stdin>"
+
+
+def read_bytes(
+    data: bytes,
+    name: str = STDIN_NAME,
+    format_name: str | None = None,
+    options: ReadOptions | None = None,
+) -> RangeLog:
+    """Read a whole text log held in memory (standard input), plain or gzip-compressed.
+
+    The format is ``format_name``, else sniffed from the first bytes. MCAP files and bags are
+    refused: their readers seek through the file, so they need it on disk.
+    """
+    if data[:2] == compressed.MAGIC:
+        data = compressed.decompress_bytes(data, name)
+    if format_name is not None:
+        fmt = _by_name(format_name)
+    else:
+        head = data[:_SNIFF_BYTES]
+        claims = [f for f in FORMATS if f.sniff(head)]
+        if not claims:
+            known = ", ".join(f.name for f in FORMATS if f.text_reader is not None)
+            raise UsageError(f"{name}: cannot tell the log format; give --format ({known})")
+        fmt = claims[0]
+    if fmt.text_reader is None:
+        raise UsageError(
+            f"{name}: {fmt.name} logs cannot be read from standard input (the reader seeks "
+            "through the file); give the file's name"
+        )
+    try:
+        text = data.decode(fmt.encoding)
+    except UnicodeDecodeError as exc:
+        raise InputFileError(name, f"not {fmt.encoding} text ({exc.reason})") from exc
+    return fmt.text_reader(io.StringIO(text), name, options or ReadOptions())
 
 
 def recording_sources(

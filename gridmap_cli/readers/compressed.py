@@ -50,6 +50,17 @@ def _decompress(path: Path, limit: int | None) -> bytes:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
 
 
+def decompress_bytes(data: bytes, name: str) -> bytes:
+    """gzip data held in memory (a log on standard input), decompressed."""
+    try:
+        return gzip.decompress(data)
+    except (gzip.BadGzipFile, EOFError, zlib.error) as exc:
+        detail = str(exc) or type(exc).__name__
+        if isinstance(exc, EOFError):
+            detail = "compressed data end early (truncated?)"
+        raise InputFileError(name, f"not a valid gzip stream: {detail}") from None
+
+
 def head(path: Path, size: int) -> bytes:
     """The first ``size`` decompressed bytes, for sniffing."""
     return _decompress(path, size)
