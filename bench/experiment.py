@@ -24,6 +24,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import platform
 import statistics
 import sys
 import time
@@ -286,6 +288,20 @@ def claim_lines(runs: list[Run], worlds: tuple[str, ...], drifts: tuple[float, .
     return lines
 
 
+def _machine() -> str:
+    """What this run ran on, in words: cores and processor, read off the machine itself."""
+    cores = os.cpu_count() or 0
+    model = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text(encoding="utf-8").splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"a {cores}-core machine ({model})"
+
+
 def write_doc(
     runs: list[Run],
     calibration: dict[str, Any],
@@ -363,7 +379,7 @@ def write_doc(
         ]
     lines += [
         "",
-        f"This run took {seconds:.0f} s on the 2-core development machine ({len(runs)} maps).",
+        f"This run took {seconds:.0f} s on {_machine()} ({len(runs)} maps).",
         "",
     ]
     return "\n".join(lines)

@@ -1,7 +1,8 @@
 """Writer for map_server maps: an image (PGM or PNG) plus the YAML that describes it.
 
 The files follow ``docs/map-format.md`` so that ROS 1 ``map_server``, Nav2's ``nav2_map_server``
-(Humble and Jazzy) and MRPT load them alike:
+(Humble and Jazzy) load them alike; MRPT 2.5's ROS map loader reads trinary and scale maps, not
+raw ones:
 
 - ``trinary``: grey 0 occupied, 254 free, 205 unknown, classified from probabilities with the
   given thresholds (as ``map_saver --occ 65 --free 25`` does); the YAML always says
