@@ -19,11 +19,24 @@ residuals, non-negative by construction. The file gets the magnitudes: a spread 
 
 A term the log cannot show (no rotation in a straight-line log) is reported as not estimated
 and written as 0. Frames do not matter, so the odometry may start anywhere.
+
+**A reference is not truth.** A SLAM-corrected track (CARMEN's corrected poses, ``/amcl_pose``)
+jitters: each of its poses is off by some error that does not grow with travel. A window's error
+then holds that jitter twice (at its start and at its end), whatever its length, while the
+odometry's random walk grows with the window. So the windows are cut again at
+:data:`JITTER_LADDER` times the window (1, 2, 5 and 10 m by default), and the squared residuals of
+all of them are fitted as ``r**2 = J + s**2 * x`` (x the metres driven, or the radians turned):
+the slope ``s**2`` is the odometry's random walk, the intercept ``J = 2 j**2`` the reference's
+jitter ``j`` per pose, which is reported, not written. Both are kept >= 0. The fit is made on
+the whole log and on each half of it (by distance driven), so the spread of every coefficient
+between the halves shows how far it can be trusted.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,6 +58,9 @@ BUDGET_TOLERANCE = 1e-9
 MIN_WINDOWS = 3
 #: Turning less than this in all (truth) leaves the turn terms unestimated: a quarter turn.
 MIN_ROTATION_RAD = math.pi / 2
+#: The window lengths (multiples of the window and its turn budget) whose residuals separate the
+#: reference's jitter (the same at every length) from the odometry's random walk (growing).
+JITTER_LADDER = (0.5, 1.0, 2.0, 5.0)
 
 
 class CalibrationError(GridmapError):
@@ -99,6 +115,10 @@ class Calibration:
     heading_residual_rad: float
     window_m: float
     window_rad: float
+    jitter_m: float = 0.0
+    jitter_rad: float = 0.0
+    jitter_estimated: bool = False
+    halves: tuple[OdometryError, OdometryError] | None = None
 
     @property
     def turning_windows(self) -> int:
@@ -130,6 +150,12 @@ class Calibration:
                 "distance_m": self.distance_residual_m,
                 "heading_rad": self.heading_residual_rad,
             },
+            "reference_jitter": {
+                "estimated": self.jitter_estimated,
+                "position_m": self.jitter_m,
+                "heading_rad": self.jitter_rad,
+            },
+            "halves": [h.as_dict() for h in self.halves] if self.halves else None,
         }
 
 
@@ -200,9 +226,17 @@ def compare_windows(
 
 
 def fit(
-    windows: Windows, sonar_relative_error: float = DEFAULT_SONAR_RELATIVE_ERROR
+    windows: Windows,
+    sonar_relative_error: float = DEFAULT_SONAR_RELATIVE_ERROR,
+    ladder: Sequence[Windows] = (),
 ) -> Calibration:
-    """Fit the coefficients to compared windows (module docstring gives the estimators)."""
+    """Fit the coefficients to compared windows (module docstring gives the estimators).
+
+    ``ladder``: the same tracks cut into windows of other lengths. With two lengths or more
+    (``windows`` counts as one), the random-walk terms come from the fit of the squared
+    residuals of all of them with an intercept, the reference's jitter; otherwise from
+    ``windows`` alone, with no jitter.
+    """
     full_m = windows.window_m - BUDGET_TOLERANCE  # a window's distance budget, used up
     driven = windows.driven_m
     turned = windows.turned_rad
@@ -213,21 +247,42 @@ def fit(
     distance_ok = bool(float(np.sum(disp**2)) > 0.0 and total_driven >= full_m)
     scale = float(np.sum(windows.distance_error_m * disp) / np.sum(disp**2)) if distance_ok else 0.0
     r_d = windows.distance_error_m - scale * disp
-    sigma_d = math.sqrt(float(np.sum(r_d**2)) / total_driven) if distance_ok else 0.0
 
     turn_ok = total_turned >= MIN_ROTATION_RAD
     drift_ok = total_driven >= full_m
-    columns = [c for c, ok in ((turned, turn_ok), (driven, drift_ok)) if ok]
     turn_scale, drift = 0.0, 0.0
     r_h = windows.heading_error_rad
-    if columns:
-        design = np.column_stack(columns)
+    if turn_ok or drift_ok:
+        design = _heading_design(windows, turn_ok, drift_ok)
         solution, *_ = np.linalg.lstsq(design, windows.heading_error_rad, rcond=None)
         r_h = windows.heading_error_rad - design @ solution
         # the turn column comes first, the drift column last, each only when estimated
         turn_scale = float(solution[0]) if turn_ok else 0.0
         drift = float(solution[-1]) if drift_ok else 0.0
-    sigma_h = math.sqrt(float(np.sum(r_h**2)) / total_turned) if turn_ok else 0.0
+
+    rungs = [windows, *(w for w in ladder if w.window_m != windows.window_m)]
+    jitter_ok = len(rungs) >= 2
+    if jitter_ok:
+        # every rung's residuals under the systematic terms fitted on the main windows
+        x_d = np.concatenate([w.driven_m for w in rungs])
+        y_d = np.concatenate([(w.distance_error_m - scale * w.displacement_m) ** 2 for w in rungs])
+        x_h = np.concatenate([np.abs(w.turned_rad) for w in rungs])
+        y_h = np.concatenate(
+            [
+                (w.heading_error_rad - turn_scale * w.turned_rad - drift * w.driven_m) ** 2
+                for w in rungs
+            ]
+        )
+        jit_d, var_d = intercept_slope(x_d, y_d)
+        jit_h, var_h = intercept_slope(x_h, y_h)
+        sigma_d = math.sqrt(var_d) if distance_ok else 0.0
+        sigma_h = math.sqrt(var_h) if turn_ok else 0.0
+        jitter_m = math.sqrt(jit_d / 2.0) if distance_ok else 0.0
+        jitter_rad = math.sqrt(jit_h / 2.0)
+    else:
+        sigma_d = math.sqrt(float(np.sum(r_d**2)) / total_driven) if distance_ok else 0.0
+        sigma_h = math.sqrt(float(np.sum(r_h**2)) / total_turned) if turn_ok else 0.0
+        jitter_m = jitter_rad = 0.0
 
     # rounding noise of an error-free log (1e-17) is no error: write it as 0
     scale, sigma_d, sigma_h = _clean(scale), _clean(sigma_d), _clean(sigma_h)
@@ -257,7 +312,32 @@ def fit(
         heading_residual_rad=float(np.sqrt(np.mean(r_h**2))),
         window_m=windows.window_m,
         window_rad=windows.window_rad,
+        jitter_m=_clean(jitter_m),
+        jitter_rad=_clean(jitter_rad),
+        jitter_estimated=jitter_ok,
     )
+
+
+def _heading_design(windows: Windows, turn_ok: bool, drift_ok: bool) -> FloatArray:
+    columns = [c for c, ok in ((windows.turned_rad, turn_ok), (windows.driven_m, drift_ok)) if ok]
+    return np.column_stack(columns)
+
+
+def intercept_slope(x: FloatArray, y: FloatArray) -> tuple[float, float]:
+    """Least-squares ``y = a + b x`` over windows (shape (W,)) with ``a, b >= 0``: the squared
+    residual's constant part (the reference's jitter, twice) and its growth with travel (the
+    odometry's random walk). A negative one is set to 0 and the other refitted alone."""
+    if y.size == 0:
+        return 0.0, 0.0
+    design = np.column_stack([np.ones_like(x), x])
+    (a, b), *_ = np.linalg.lstsq(design, y, rcond=None)
+    if a >= 0.0 and b >= 0.0:
+        return float(a), float(b)
+    sxx = float(np.sum(x * x))
+    slope_only = float(np.sum(x * y)) / sxx if sxx > 0.0 else 0.0
+    if b < 0.0 or slope_only <= 0.0:
+        return max(float(np.mean(y)), 0.0), 0.0
+    return 0.0, slope_only
 
 
 def _clean(x: float) -> float:
@@ -270,22 +350,58 @@ def calibrate(
     window_rad: float = DEFAULT_WINDOW_RAD,
     sonar_relative_error: float = DEFAULT_SONAR_RELATIVE_ERROR,
 ) -> Calibration:
-    """Estimate f and g from ``log``'s odometry against its ground truth.
+    """Estimate f and g from ``log``'s odometry against its ground truth (or reference track),
+    with the reference's jitter and the coefficients of each half of the log.
 
     Raises :class:`~gridmap_cli.errors.InputFileError` for a log without truth and
     :class:`CalibrationError` for one with fewer than :data:`MIN_WINDOWS` complete windows of
     travel.
     """
     odometry, truth = truth_at_odometry(log)
-    windows = compare_windows(odometry, truth, window_m, window_rad)
-    if len(windows) < MIN_WINDOWS:
+    whole = calibrate_tracks(odometry, truth, window_m, window_rad, sonar_relative_error)
+    if whole is None:
         dist, rot = travelled(truth)
         # a truth that never overlaps the odometry is empty: it drives nothing
         driven, turned = (float(dist[-1]), float(rot[-1])) if len(truth) else (0.0, 0.0)
+        n = len(compare_windows(odometry, truth, window_m, window_rad)) if len(truth) else 0
         raise CalibrationError(
             f"{log.source}: too little travel to calibrate: the truth drives "
             f"{driven:.2f} m and turns {math.degrees(turned):.0f} deg, "
-            f"{len(windows)} complete window{'s' if len(windows) != 1 else ''} of "
+            f"{n} complete window{'s' if n != 1 else ''} of "
             f"{window_m:g} m or {math.degrees(window_rad):g} deg; need at least {MIN_WINDOWS}"
         )
-    return fit(windows, sonar_relative_error)
+    dist, _ = travelled(truth)
+    cut = int(np.searchsorted(dist, 0.5 * dist[-1]))
+    halves = [
+        calibrate_tracks(o, t, window_m, window_rad, sonar_relative_error)
+        for o, t in ((_part(odometry, 0, cut + 1), _part(truth, 0, cut + 1)),
+                     (_part(odometry, cut, None), _part(truth, cut, None)))
+    ]  # fmt: skip
+    h0, h1 = halves
+    if h0 is not None and h1 is not None:
+        whole = dataclasses.replace(whole, halves=(h0.model, h1.model))
+    return whole
+
+
+def calibrate_tracks(
+    odometry: PoseTrack,
+    truth: PoseTrack,
+    window_m: float = DEFAULT_WINDOW_M,
+    window_rad: float = DEFAULT_WINDOW_RAD,
+    sonar_relative_error: float = DEFAULT_SONAR_RELATIVE_ERROR,
+) -> Calibration | None:
+    """:func:`fit` of the tracks (same stamps, shape (N,)) at the window and its
+    :data:`JITTER_LADDER`; None when fewer than :data:`MIN_WINDOWS` windows are complete."""
+    if len(truth) < 2:
+        return None
+    windows = compare_windows(odometry, truth, window_m, window_rad)
+    if len(windows) < MIN_WINDOWS:
+        return None
+    ladder = [compare_windows(odometry, truth, window_m * k, window_rad * k) for k in JITTER_LADDER]
+    ladder = [w for w in ladder if len(w) >= MIN_WINDOWS]
+    return fit(windows, sonar_relative_error, ladder)
+
+
+def _part(track: PoseTrack, start: int, stop: int | None) -> PoseTrack:
+    sl = slice(start, stop)
+    return PoseTrack(track.stamp_ns[sl], track.x_m[sl], track.y_m[sl], track.theta_rad[sl])

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from gridmap_cli.calibrate import CalibrationError, calibrate
@@ -18,6 +20,7 @@ from gridmap_cli.sim.odometry import OdometryErrorModel
 from gridmap_cli.writers.aria_log import save_aria_log
 from gridmap_cli.writers.csv_log import save_csv_log
 from tests.helpers import log_with_truth, names, run
+from tests.readers.test_carmen_real import DATA as CARMEN
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 SONAR0 = load_robot("p3dx").sensors[:1]
@@ -211,3 +214,49 @@ def test_a_missing_log_is_reported_before_an_existing_output(tmp_path: Path) -> 
     code, _, err = run("calibrate", str(tmp_path / "missing.csv"), "-o", str(existing))
     assert (code, err.strip()) == (1, f"Error: {tmp_path / 'missing.csv'}: no such file")
     assert existing.read_text() == "keep\n"
+
+
+def test_jitter_of_a_reference_is_taken_out_of_the_random_walk() -> None:
+    # the simulated lap's truth with 5 cm and 1 deg of independent noise on every pose: what a
+    # SLAM track adds. Without the jitter ladder the random walks would take it all in; with
+    # it, the jitter comes out near 5 cm and 1 deg and the random walk near the clean log's
+    clean = read_log(SAMPLES / "corridor_loop.csv")
+    assert clean.truth is not None
+    rng = np.random.default_rng(7)
+    t = clean.truth
+    noisy = PoseTrack(
+        t.stamp_ns,
+        t.x_m + rng.normal(0.0, 0.05, len(t)),
+        t.y_m + rng.normal(0.0, 0.05, len(t)),
+        t.theta_rad + rng.normal(0.0, math.radians(1.0), len(t)),
+    )
+    c0 = calibrate(clean)
+    c = calibrate(dataclasses.replace(clean, truth=noisy))
+    assert c.jitter_estimated
+    assert 0.035 < c.jitter_m < 0.065, c.jitter_m
+    assert 0.6 < math.degrees(c.jitter_rad) < 1.4, math.degrees(c.jitter_rad)
+    assert c.model.range_m_per_sqrt_m < 2.5 * c0.model.range_m_per_sqrt_m + 0.01
+    assert c.halves is not None and len(c.halves) == 2
+
+
+@pytest.mark.skipif(not CARMEN.is_dir(), reason="../shared/data/carmen is not present")
+def test_a_real_slam_reference_reports_its_jitter_and_the_halves() -> None:
+    # ACES: the corrected (SLAM) track jitters by about 8 cm and 4.6 deg per pose; without the
+    # ladder all of it went into the random walks. The halves agree on the distance scale
+    # within a factor of 1.5 (0.0181 and 0.0127)
+    log = CARMEN / "aces-corrected.log.gz"
+    c = calibrate(read_log(log))
+    assert c.jitter_estimated
+    assert 0.04 < c.jitter_m < 0.15
+    assert 2.0 < math.degrees(c.jitter_rad) < 8.0
+    assert c.model.range_m_per_sqrt_m < 0.05
+    assert c.halves is not None
+    scales = [h.range_m_per_m for h in c.halves]
+    assert max(scales) < 1.5 * min(scales)
+    code, out, _ = run("calibrate", str(log), "--json")
+    assert code == 0
+    doc = json.loads(out)
+    assert doc["reference_jitter"]["estimated"] is True
+    assert len(doc["halves"]) == 2
+    code, table, _ = run("calibrate", str(log))
+    assert "reference jitter" in table and "each half of the log" in table

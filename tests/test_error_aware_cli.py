@@ -120,3 +120,36 @@ def test_error_aware_maps_laser_and_mixed_logs(tmp_path: Path) -> None:
         assert np.count_nonzero(known <= 0.25) > 0.5 * known.size
     # the sonars add what their cones see: the mixed map knows more cells
     assert np.count_nonzero(~np.isnan(maps["mixed"])) > np.count_nonzero(~np.isnan(maps["laser"]))
+
+
+def test_undecided_trinary_map_warns_and_suggests_scale() -> None:
+    import numpy as np
+
+    from gridmap_cli.cli.build import undecided_note
+
+    mostly_grey = np.array([[0.5, 0.45, 0.55], [0.1, np.nan, 0.9]])
+    (note,) = undecided_note(mostly_grey, 0.65, 0.25)
+    assert note.startswith("60 % of the observed cells") and "--map-mode scale" in note
+    assert undecided_note(np.array([[0.1, 0.9, 0.5]]), 0.65, 0.25) == ()
+
+
+def test_readings_beyond_the_heading_spread_limit_are_left_out(tmp_path: Path) -> None:
+    # heading drift 0.1 rad/m: g passes 30 deg after 5.2 m of the 56 m lap, and every later
+    # reading is left out (weight 0); with no limit they blur over wedges up to 90 deg
+    from gridmap_cli.evaluate import load_probability_map
+
+    sample = Path(__file__).resolve().parents[1] / "samples" / "corridor_loop.csv"
+    known = []
+    for limit in ("30", "inf"):
+        out = tmp_path / f"map{limit}.png"
+        code, _, err = run(
+            "build", str(sample), "-o", str(out), "--mode", "error-aware", "--map-mode", "scale",
+            "--odometry-coefficient", "heading_drift_rad_per_m=0.1", "--max-heading-spread",
+            limit, "--quiet",
+        )  # fmt: skip
+        assert code == 0, err
+        known.append(int((~np.isnan(load_probability_map(out.with_suffix(".yaml")).prob)).sum()))
+    assert known[0] < 0.5 * known[1]
+    code, _, err = run("build", str(sample), "-o", str(tmp_path / "s.png"),
+                           "--max-heading-spread", "10")  # fmt: skip
+    assert code == 2 and "apply to --mode error-aware" in err

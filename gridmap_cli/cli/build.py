@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
+import numpy.typing as npt
 
 from gridmap_cli.cli.common import (
     STDIO,
@@ -152,6 +153,15 @@ if TYPE_CHECKING:
     help="Error-aware mode: pose error (m) at which a reading counts half.",
 )
 @click.option(
+    "--max-heading-spread",
+    "max_spread_deg",
+    type=float,
+    default=math.degrees(ErrorAwareParams.max_heading_spread_rad),
+    show_default=True,
+    help="Error-aware mode: degrees of heading spread g beyond which a reading is left out "
+    "(weight 0) instead of spread over a wider wedge; inf keeps every reading.",
+)
+@click.option(
     "--draw-path",
     is_flag=True,
     help="Also write a preview PNG (MAP_path.png): the map with unknown in pale blue, the "
@@ -188,6 +198,7 @@ def build(
     odometry_file: Path | None,
     coefficients: tuple[str, ...],
     trust_length: float,
+    max_spread_deg: float,
     draw_path: bool,
     force: bool,
     quiet: bool,
@@ -210,7 +221,7 @@ def build(
     except ValueError as exc:
         raise UsageError(str(exc)) from exc
     error_aware, odometry_error = _error_aware_options(
-        mode, odometry_file, coefficients, trust_length
+        mode, odometry_file, coefficients, trust_length, max_spread_deg
     )
     selection = Selection.parse(sensor_patterns, start, end)
     to_stdout = output == STDIO
@@ -260,6 +271,8 @@ def build(
     )
     with progress_bar(len(data.readings), quiet, "mapping") as bar:
         result = build_map(data, robot_desc, options, progress=bar.update)
+    if mode == "error-aware" and map_mode == "trinary" and not to_mcap:
+        warn(undecided_note(result.map.prob, occupied, free), quiet)
     yaml_path: Path | None
     if to_mcap:
         # stamped at the last reading: the map is what the robot knew then
@@ -331,18 +344,45 @@ def map_output(output: Path | None, basename: Path | None, image_format: str | N
     return output
 
 
+#: Share of the observed cells between the thresholds above which a trinary map warns.
+UNDECIDED_SHARE = 0.5
+
+
+def undecided_note(prob: npt.NDArray[np.float64], occupied: float, free: float) -> tuple[str, ...]:
+    """A warning when most observed cells (not NaN) of ``prob`` (rows, cols) fall between the
+    thresholds, which a trinary image draws as unknown: the error-aware map of a drifting log."""
+    seen = prob[~np.isnan(prob)]
+    if seen.size == 0:
+        return ()
+    share = float(np.count_nonzero((seen > free) & (seen < occupied))) / seen.size
+    if share <= UNDECIDED_SHARE:
+        return ()
+    return (
+        f"{100 * share:.0f} % of the observed cells lie between --free {free:g} and --occupied "
+        f"{occupied:g} and are drawn unknown in this trinary map (the odometry drifted); "
+        "--map-mode scale keeps their probabilities",
+    )
+
+
 def _error_aware_options(
-    mode: str, odometry_file: Path | None, coefficients: tuple[str, ...], trust_length: float
+    mode: str,
+    odometry_file: Path | None,
+    coefficients: tuple[str, ...],
+    trust_length: float,
+    max_spread_deg: float = math.degrees(ErrorAwareParams.max_heading_spread_rad),
 ) -> tuple[ErrorAwareParams, OdometryError | None]:
     """The error-aware model's settings from build's flags (usage errors before any reading)."""
     ctx = click.get_current_context()
-    trust_given = ctx.get_parameter_source("trust_length") != click.core.ParameterSource.DEFAULT
+    trust_given = any(
+        ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT
+        for name in ("trust_length", "max_spread_deg")
+    )
     given = odometry_file is not None or bool(coefficients)
     if mode != "error-aware":
         if given or trust_given:
             raise UsageError(
-                "--odometry-error, --odometry-coefficient and --trust-length apply to "
-                "--mode error-aware"
+                "--odometry-error, --odometry-coefficient, --trust-length and "
+                "--max-heading-spread apply to --mode error-aware"
             )
         return ErrorAwareParams(), None
     if not given:
@@ -354,6 +394,9 @@ def _error_aware_options(
         params = ErrorAwareParams(trust_length_m=trust_length)
     except ValueError as exc:
         raise UsageError(f"--trust-length: {exc}") from exc
+    if not max_spread_deg > 0:
+        raise UsageError(f"--max-heading-spread must be a positive angle, got {max_spread_deg}")
+    params = dataclasses.replace(params, max_heading_spread_rad=math.radians(max_spread_deg))
     names = [f.name for f in dataclasses.fields(OdometryError)]
     overrides: dict[str, float] = {}
     for item in coefficients:

@@ -192,6 +192,26 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
         f"{'':22s} {'odometry vs truth':24s} file",
     ]
     lines += [f"{a:22s} {b:24s} {f}" for a, b, f in rows]
+    if c.halves is not None:
+        keys = [f.split(":")[0] for _, _, f in rows]
+        lines += [
+            "",
+            "the same fit on each half of the log (by distance driven): how far to trust it",
+        ]
+        for key in keys:
+            first, second = (getattr(h, key) for h in c.halves)
+            lines.append(
+                f"{key:26s} {first:<10.4g} {second:<10.4g} (whole log {getattr(m, key):.4g})"
+            )
+    if c.jitter_estimated:
+        lines += [
+            "",
+            f"reference jitter (per pose, 1 sigma; not in the file): position "
+            f"{100 * c.jitter_m:.1f} cm, heading {math.degrees(c.jitter_rad):.2f} deg. "
+            "The reference is not truth:",
+            "it was taken out of the random walks above (what stays the same at every window "
+            "length is the reference's).",
+        ]
     lines += [
         "",
         f"residual per window (rms, systematic terms removed): distance "

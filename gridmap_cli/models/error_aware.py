@@ -25,7 +25,7 @@ import numpy as np
 from gridmap_cli.grid import FrequencyAccumulator, GridSpec
 from gridmap_cli.models.sector import F64, I64, sector_bounds, sector_rows
 from gridmap_cli.models.standard import StandardSonarParams
-from gridmap_cli.sync import SensorReadings
+from gridmap_cli.sync import SensorReadings, select_readings
 
 
 class OdometrySpread(Protocol):
@@ -55,6 +55,9 @@ class ErrorAwareParams:
     two, w in (2^-(k+1), 2^-k]) may add to a cell: C * 4^-k looks, i.e. C readings' worth at the
     class's weight, counted once more at that weight because readings sharing a pose error
     repeat one another's mistake; ``inf`` for no bound (docs/sensor-model.md).
+    ``max_heading_spread_rad``: readings whose bearing spread from the odometry, g, exceeds this
+    are left out (weight 0) instead of spread over a wedge so wide it says nothing about any one
+    cell; ``inf`` keeps every reading (docs/sensor-model.md, "Readings beyond the spread limit").
     ``laser_relative_error``: k of eq. 11 for laser rays (the sonar's is in the odometry-error
     file, where the seed paper put it); ``laser_no_echo_free_m``: metres of free space a laser's
     no-echo reading clears, capped at its maximum range (as ``RayParams.no_echo_free_m``).
@@ -62,6 +65,7 @@ class ErrorAwareParams:
 
     trust_length_m: float = 0.3
     redundant_looks: float = 30.0
+    max_heading_spread_rad: float = math.radians(30.0)
     laser_relative_error: float = 0.005
     laser_no_echo_free_m: float = math.inf
 
@@ -70,6 +74,8 @@ class ErrorAwareParams:
             raise ValueError("the trust length must be a positive number of metres")
         if not self.redundant_looks > 0:
             raise ValueError("the redundant-looks bound must be a positive number")
+        if not self.max_heading_spread_rad > 0:
+            raise ValueError("the heading-spread limit must be a positive angle")
         if not (self.laser_relative_error >= 0 and math.isfinite(self.laser_relative_error)):
             raise ValueError("the laser's relative range error must be a finite number >= 0")
         if not self.laser_no_echo_free_m >= 0:
@@ -164,6 +170,9 @@ class ErrorAwareSonarModel:
 
     def runs(self, spec: GridSpec, readings: SensorReadings) -> tuple[WeightedRuns, int]:
         """The readings' weighted runs of cells, and the number of cell updates."""
+        readings = within_spread(readings, self.odometry, self.params.max_heading_spread_rad)
+        if len(readings) == 0:
+            return WeightedRuns.empty(), 0
         ev = self.evidence(readings)
         # only the rows of the echo ring: nearer rows hold the inner disk alone, which the
         # ring's two spans would add and take away again
@@ -204,10 +213,27 @@ class WeightedRuns:
     trust_class: I64
 
     @staticmethod
+    def empty() -> WeightedRuns:
+        i, f = np.zeros(0, np.int64), np.zeros(0, np.float64)
+        return WeightedRuns(i, i, i, f, f, i, i)
+
+    @staticmethod
     def concatenate(parts: Sequence[WeightedRuns]) -> WeightedRuns:
         return WeightedRuns(
             *(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(WeightedRuns))
         )
+
+
+def within_spread(
+    readings: SensorReadings, odometry: OdometrySpread, max_heading_spread_rad: float
+) -> SensorReadings:
+    """The readings whose bearing spread from the odometry, g, is within the limit: the others
+    weigh 0. g only grows as the odometry drives on, so this keeps a prefix of the log."""
+    d, phi = readings.distance_m, readings.rotation_rad
+    if d is None or phi is None or not math.isfinite(max_heading_spread_rad):
+        return readings
+    keep = np.asarray(odometry.g(d, phi)) <= max_heading_spread_rad
+    return readings if bool(keep.all()) else select_readings(readings, keep)
 
 
 def trust_weight(f_m: F64, trust_length_m: float) -> F64:

@@ -39,6 +39,7 @@ from gridmap_cli.models.error_aware import (
     add_runs,
     trust_weight,
     weighted_runs,
+    within_spread,
 )
 from gridmap_cli.models.ray import RaySegments, row_runs
 from gridmap_cli.models.sector import F64, I64, sector_bounds, sector_rows
@@ -213,6 +214,9 @@ class ErrorAwareRayModel:
 
     def runs(self, spec: GridSpec, readings: SensorReadings) -> tuple[WeightedRuns, int]:
         """The readings' weighted runs of cells, and the number of cell updates."""
+        readings = within_spread(readings, self.odometry, self.params.max_heading_spread_rad)
+        if len(readings) == 0:
+            return WeightedRuns.empty(), 0
         ev = self.evidence(readings)
         c, s = np.cos(ev.theta_rad), np.sin(ev.theta_rad)
         segments = RaySegments(
