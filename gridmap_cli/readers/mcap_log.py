@@ -27,6 +27,7 @@ from gridmap_cli.readers.mcap_channels import (
     survey_mcap,
 )
 from gridmap_cli.readers.mcap_channels import sniff as sniff
+from gridmap_cli.readers.mcap_integrity import verify_mcap
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros_messages import float32_decimal as float32_decimal
 from gridmap_cli.readers.ros_recording import Message, RecordingRead, read_recording
@@ -44,15 +45,27 @@ class JsonDecoderFactory(McapDecoderFactory):
 
 
 class McapSource:
-    """An MCAP file as a recording source."""
+    """An MCAP file as a recording source.
+
+    The whole file's structure and CRCs are checked (:func:`verify_mcap`) before the survey
+    or any message is read, once per source: the ``mcap`` library trusts both.
+    """
 
     def __init__(self, path: Path) -> None:
         self.path = path
+        self._verified = False
+
+    def _verify(self) -> None:
+        if not self._verified:
+            verify_mcap(self.path)
+            self._verified = True
 
     def survey(self) -> Survey:
+        self._verify()
         return survey_mcap(self.path)
 
     def messages(self, topics: Sequence[str], every_topic: bool) -> Iterator[Message]:
+        self._verify()
         path = self.path
         wanted = set(topics)
         factories = [Ros1DecoderFactory(), Ros2DecoderFactory(), JsonDecoderFactory()]

@@ -427,7 +427,9 @@ def test_truncated_file_is_a_clear_error_and_writes_nothing(tmp_path: Path) -> N
     cut.write_bytes(whole[: len(whole) // 2])
     code, _, err = run("build", str(cut), "-o", str(tmp_path / "map.png"))
     assert code == 1
-    assert err.startswith(f"Error: {cut}: truncated or damaged MCAP file: no valid footer")
+    assert err.startswith(
+        f"Error: {cut}: byte {len(whole) // 2}: truncated or damaged MCAP file: no valid footer"
+    )
     assert "mcap recover" in err
     assert names(tmp_path) == {"whole.mcap", "cut.mcap"}
 
