@@ -74,5 +74,9 @@ class MapSizeError(GridmapError):
     """The data spans more cells than a map can sensibly hold (usually absurd coordinates)."""
 
 
+class SimulationSizeError(GridmapError):
+    """A simulation would sample more poses or readings than memory can sensibly hold."""
+
+
 class NoDataError(GridmapError):
     """The log holds nothing that can be mapped."""

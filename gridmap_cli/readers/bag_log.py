@@ -20,6 +20,7 @@ from typing import Any
 import yaml
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.limits import read_settings_text
 from gridmap_cli.readers.mcap_log import McapSource
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros_recording import (
@@ -30,6 +31,7 @@ from gridmap_cli.readers.ros_recording import (
 )
 from gridmap_cli.readers.ros_topics import ChannelInfo, Survey, fold_type
 from gridmap_cli.records import RangeLog
+from gridmap_cli.yamlfile import yaml_problem
 
 #: The first line of every ROS 1 bag (format 2.0, the only one rosbag has written since 2010).
 BAG_MAGIC = b"#ROSBAG V2.0\n"
@@ -160,13 +162,18 @@ def rosbag2_sources(folder: Path) -> list[RecordingSource]:
     """The sources of a rosbag2 folder: its MCAP files, or the folder itself (sqlite3)."""
     meta_path = folder / ROSBAG2_METADATA
     try:
-        meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))
+        meta = yaml.safe_load(read_settings_text(meta_path, "rosbag2 metadata"))
         info = meta["rosbag2_bagfile_information"]
         storage = str(info.get("storage_identifier", ""))
         files = [str(f) for f in info.get("relative_file_paths") or []]
-    except OSError as exc:
-        raise InputFileError(meta_path, f"cannot read: {exc.strerror or exc}") from exc
-    except (yaml.YAMLError, KeyError, TypeError, AttributeError) as exc:
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputFileError(
+            meta_path, f"cannot read: {getattr(exc, 'strerror', None) or exc}"
+        ) from exc
+    except yaml.YAMLError as exc:
+        line, problem = yaml_problem(exc)
+        raise InputFileError(meta_path, f"not a rosbag2 metadata file: {problem}", line) from exc
+    except (KeyError, TypeError, AttributeError) as exc:
         raise InputFileError(
             meta_path, f"not a rosbag2 metadata file ({type(exc).__name__}: {exc})"
         ) from exc

@@ -16,6 +16,7 @@ from typing import TextIO
 import numpy as np
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.limits import numbered_lines
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 
 POSE_COLUMNS = ("time", "x", "y", "theta")
@@ -78,7 +79,7 @@ def read_csv_log(source: str | Path | TextIO, name: str | None = None) -> RangeL
 
 def _read(handle: TextIO, path: str) -> RangeLog:
     metadata: dict[str, str] = {}
-    lines = enumerate(handle, start=1)
+    lines = numbered_lines(handle, path)
     header: list[str] | None = None
     header_line = 0
     for number, line in lines:
