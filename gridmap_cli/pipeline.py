@@ -13,7 +13,7 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.errors import GridmapError, NoDataError
+from gridmap_cli.errors import GridmapError, MapSizeError, NoDataError
 from gridmap_cli.grid import (
     DEFAULT_CLAMP_P,
     DEFAULT_MAX_CELLS,
@@ -31,6 +31,9 @@ from gridmap_cli.robot import RobotDescription
 from gridmap_cli.sync import SensorReadings, SyncStats, synchronise
 
 MAPPING_MODES = ("standard", "error-aware")
+#: The coarsest cell size build takes: a range sensor sees a few metres, so coarser cells map
+#: nothing (``--resolution 1e6`` used to give a 2 x 2 map without a word).
+MAX_RESOLUTION_M = 5.0
 
 
 @dataclass(frozen=True)
@@ -121,9 +124,12 @@ def plan_build(log: RangeLog, robot: RobotDescription | None, options: BuildOpti
     boxes = np.array([model.bounds(part) for model, part in parts])  # (xmin, ymin, xmax, ymax)
     xmin, ymin, _, _ = boxes.min(axis=0)
     _, _, xmax, ymax = boxes.max(axis=0)
-    spec = GridSpec.covering(
-        xmin, ymin, xmax, ymax, options.resolution_m, options.margin_m, options.max_cells
-    )
+    try:
+        spec = GridSpec.covering(
+            xmin, ymin, xmax, ymax, options.resolution_m, options.margin_m, options.max_cells
+        )
+    except MapSizeError as exc:
+        raise MapSizeError(f"{log.source}: {exc}") from exc
     return BuildPlan(stats, parts, spec)
 
 

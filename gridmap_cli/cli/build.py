@@ -26,7 +26,13 @@ from gridmap_cli.errors import UsageError
 from gridmap_cli.models.error_aware import ErrorAwareParams
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
-from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
+from gridmap_cli.pipeline import (
+    MAPPING_MODES,
+    MAX_RESOLUTION_M,
+    BuildOptions,
+    BuildResult,
+    build_map,
+)
 from gridmap_cli.readers import format_names, read_logs
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.selection import Selection, apply_selection
@@ -162,8 +168,7 @@ def build(
     started = time.perf_counter()
     if not (0.0 <= free < occupied <= 1.0):
         raise UsageError(f"need 0 <= --free < --occupied <= 1, got {free} and {occupied}")
-    if not (resolution > 0.0 and math.isfinite(resolution)):
-        raise UsageError(f"--resolution must be a positive number of metres, got {resolution}")
+    check_resolution(resolution)
     try:
         sonar = StandardSonarParams(no_echo_free_m=no_echo_free)
     except ValueError as exc:
@@ -219,6 +224,18 @@ def build(
         click.echo(json.dumps(summary, indent=2))
     if not quiet:
         click.echo(_summary_line(summary), err=True)
+
+
+def check_resolution(resolution: float) -> None:
+    """--resolution: a positive cell size no larger than :data:`MAX_RESOLUTION_M`."""
+    if not (resolution > 0.0 and math.isfinite(resolution)):
+        raise UsageError(f"--resolution must be a positive number of metres, got {resolution}")
+    if resolution > MAX_RESOLUTION_M:
+        raise UsageError(
+            f"--resolution {resolution:g} m: cells larger than {MAX_RESOLUTION_M:g} m hold whole "
+            "rooms, and the map would be a few cells of nothing (cell size is in metres: 0.05 "
+            "is 5 cm)"
+        )
 
 
 def _error_aware_options(
