@@ -39,6 +39,14 @@ class InputFileError(GridmapError):
         return f"{where}: {what}"
 
 
+class DamagedAtError(InputFileError):
+    """A binary file is damaged at a byte offset: formats as ``path: byte N: detail``."""
+
+    def __init__(self, path: str | Path, offset: int, detail: str) -> None:
+        self.offset = offset
+        super().__init__(path, f"byte {offset}: {detail}")
+
+
 class UnknownFormatError(UsageError):
     """No reader claims the file: not the same thing as a file that is broken."""
 

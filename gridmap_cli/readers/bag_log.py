@@ -21,6 +21,7 @@ import yaml
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.limits import read_settings_text
+from gridmap_cli.readers.bag_integrity import verify_bag
 from gridmap_cli.readers.mcap_log import McapSource
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros_recording import (
@@ -77,6 +78,7 @@ class BagSource:
     def __init__(self, path: Path) -> None:
         self.path = path
         self.kind = "rosbag2" if path.is_dir() else "ROS 1 bag"
+        self._verified = False
 
     def _reader(self) -> Any:
         from rosbags.highlevel import AnyReader
@@ -92,7 +94,13 @@ class BagSource:
             self.path, f"truncated or damaged {self.kind} ({type(exc).__name__}: {exc})"
         )
 
+    def _verify(self) -> None:
+        if not self._verified and not self.path.is_dir():
+            verify_bag(self.path)
+        self._verified = True
+
     def survey(self) -> Survey:
+        self._verify()
         try:
             with self._reader() as reader:
                 counts: Counter[str] = Counter()
@@ -129,6 +137,7 @@ class BagSource:
             raise self._fail(exc) from exc
 
     def messages(self, topics: Sequence[str], every_topic: bool) -> Iterator[Message]:
+        self._verify()
         wanted = set(topics)
         name = str(self.path)
         try:
@@ -136,18 +145,21 @@ class BagSource:
                 connections = [
                     c for c in reader.connections if every_topic or c.topic in wanted
                 ]  # fmt: skip
-                for con, log_time, raw in reader.messages(connections=connections):
+                messages = reader.messages(connections=connections)
+                for index, (con, log_time, raw) in enumerate(messages, start=1):
                     type_name = fold_type(con.msgtype)
                     if con.topic not in wanted:
                         yield name, con.topic, type_name, log_time, None
                         continue
                     try:
                         msg = reader.deserialize(raw, con.msgtype)
-                    except _damaged() as exc:
+                    except Exception as exc:  # the deserialisers raise anything on bad bytes
+                        text = " ".join(str(exc).split())[:200]
                         raise InputFileError(
                             self.path,
-                            f"{con.topic}: malformed {type_name} message at log time "
-                            f"{log_time / 1e9:.9f} s ({type(exc).__name__}: {exc})",
+                            f"message {index} ({con.topic}, {type_name}, log time "
+                            f"{log_time / 1e9:.9f} s) does not decode "
+                            f"({type(exc).__name__}: {text})",
                         ) from exc
                     yield name, con.topic, type_name, log_time, msg
         except InputFileError:

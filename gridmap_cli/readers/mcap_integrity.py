@@ -27,7 +27,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
-from gridmap_cli.errors import InputFileError
+from gridmap_cli.errors import DamagedAtError, InputFileError
 
 MAGIC = b"\x89MCAP0\r\n"
 #: The largest chunk gridmap decompresses (bytes of records once decompressed). Writers use
@@ -42,12 +42,8 @@ _MESSAGE_FIXED = 22  # channel_id u16, sequence u32, log_time u64, publish_time 
 _BLOCK = 1 << 20
 
 
-class McapDamage(InputFileError):
+class McapDamage(DamagedAtError):
     """An MCAP file is damaged at a byte offset: ``path: byte N: detail``."""
-
-    def __init__(self, path: str | Path, offset: int, detail: str) -> None:
-        self.offset = offset
-        super().__init__(path, f"byte {offset}: {detail}")
 
 
 def verify_mcap(path: Path) -> None:

@@ -150,8 +150,8 @@ def test_a_truncated_bag_is_one_error_line_naming_it(tmp_path: Path, container: 
     code, _, err = run("build", str(cut), "-o", str(out))
     assert code == 1
     lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"Error: {cut}: "), err
-    assert "damaged ROS 1 bag" in lines[0]
+    assert len(lines) == 1 and lines[0].startswith(f"Error: {cut}: byte "), err
+    assert "truncated or damaged ROS 1 bag: record data claims" in lines[0]
     assert names(out.parent) == set()
 
 
@@ -160,7 +160,8 @@ def test_a_bag_that_is_not_a_bag_is_one_error_line(tmp_path: Path) -> None:
     fake.write_text("#ROSBAG V2.0\nnot really\n")
     code, _, err = run("build", str(fake), "-o", str(tmp_path / "map.png"))
     assert code == 1
-    assert err.startswith(f"Error: {fake}: truncated or damaged ROS 1 bag") and err.count("\n") == 1
+    assert err.startswith(f"Error: {fake}: byte 13: truncated or damaged ROS 1 bag: record header")
+    assert err.count("\n") == 1
     assert names(tmp_path) == {"fake.bag"}
 
 
