@@ -206,7 +206,15 @@ def parse_robot_yaml(text: str, source: str) -> RobotDescription:
     names = [s.name for s in sensors]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        raise RobotDescriptionError(source, f"duplicate sensor names {dup}")
+        # the line of the entry that repeats a name, when the entries themselves repeat it
+        seen: set[object] = set()
+        where = None
+        for i, entry in enumerate(raw):
+            name = entry.get("name") if isinstance(entry, dict) else None
+            if name in seen and where is None:
+                where = lines[i] if i < len(lines) else None
+            seen.add(name)
+        raise RobotDescriptionError(source, f"duplicate sensor names {dup}", where)
     return RobotDescription(name=name, sensors=tuple(sensors))
 
 
