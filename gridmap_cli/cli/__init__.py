@@ -16,6 +16,7 @@ from typing import Any
 import click
 
 from gridmap_cli import __version__
+from gridmap_cli.cli.batch import batch
 from gridmap_cli.cli.build import build
 from gridmap_cli.cli.calibrate import calibrate
 from gridmap_cli.cli.common import one_line
@@ -63,7 +64,7 @@ def cli(ctx: click.Context, debug: bool) -> None:
     ctx.obj = {"debug": debug}
 
 
-for _command in (build, inspect, simulate, calibrate, convert, evaluate):
+for _command in (build, batch, inspect, simulate, calibrate, convert, evaluate):
     cli.add_command(_command)
 
 

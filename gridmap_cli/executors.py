@@ -1,0 +1,90 @@
+"""Where batch jobs run: in this process, in local processes, or on a Dask cluster.
+
+Each executor is a function from jobs to their results, in the order they finish; the jobs and
+results are plain picklable dataclasses and :func:`~gridmap_cli.batch.run_job` needs nothing
+but its job, so a map is the same bytes wherever it was built.
+
+Dask (``distributed``) is an optional extra: ``pip install 'gridmap-cli[dask]'``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Any
+
+from gridmap_cli.batch import Job, JobResult, run_job
+from gridmap_cli.errors import GridmapError, UsageError
+
+EXECUTORS = ("local", "dask")
+DASK_INSTALL = "pip install 'gridmap-cli[dask]'"
+
+Submit = Callable[[Sequence[Job]], Iterator[JobResult]]
+
+
+def inline(jobs: Sequence[Job]) -> Iterator[JobResult]:
+    """Run the jobs one after the other in this process."""
+    for job in jobs:
+        yield run_job(job)
+
+
+def local_processes(workers: int) -> Submit:
+    """Run the jobs on ``workers`` local processes (one job each at a time)."""
+
+    def submit(jobs: Sequence[Job]) -> Iterator[JobResult]:
+        if workers <= 1 or len(jobs) <= 1:
+            yield from inline(jobs)
+            return
+        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
+            futures = [pool.submit(run_job, job) for job in jobs]
+            for future in as_completed(futures):
+                yield future.result()
+
+    return submit
+
+
+def dask_client(address: str) -> Any:
+    """A ``distributed.Client`` connected to the scheduler at ``address``.
+
+    Raises :class:`UsageError` saying how to install the extra when ``distributed`` is
+    missing, and :class:`GridmapError` when the scheduler cannot be reached.
+    """
+    try:
+        from distributed import Client
+    except ImportError:
+        raise UsageError(
+            f"--executor dask needs the Dask extra, which is not installed: {DASK_INSTALL}"
+        ) from None
+    try:
+        return Client(address, timeout="10s")
+    except (OSError, TimeoutError) as exc:
+        raise GridmapError(f"cannot reach the Dask scheduler at {address}: {exc}") from exc
+
+
+def check_dask() -> None:
+    """Refuse ``--executor dask`` before any work when the extra is not installed."""
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        raise UsageError(
+            f"--executor dask needs the Dask extra, which is not installed: {DASK_INSTALL}"
+        ) from None
+
+
+def dask_cluster(address: str) -> Submit:
+    """Run the jobs as tasks on the Dask cluster whose scheduler is at ``address``
+    (``tcp://host:8786``). Workers must see the logs and the output folder at the same paths
+    (a shared file system), as every job reads and writes by path."""
+
+    def submit(jobs: Sequence[Job]) -> Iterator[JobResult]:
+        from distributed import as_completed as dask_completed
+
+        client = dask_client(address)
+        try:
+            futures = client.map(run_job, list(jobs), pure=False)
+            for future in dask_completed(futures):
+                yield future.result()
+        finally:
+            client.close()
+
+    return submit
