@@ -15,9 +15,21 @@ from typing import Any
 
 from gridmap_cli.batch import Job, JobResult, run_job
 from gridmap_cli.errors import GridmapError, UsageError
+from gridmap_cli.fuse import (
+    FuseJob,
+    Partial,
+    canonical,
+    check_distinct,
+    combine,
+    partial_of,
+    reduce_tree,
+    tree_pairs,
+)
 
 EXECUTORS = ("local", "dask")
 DASK_INSTALL = "pip install 'gridmap-cli[dask]'"
+#: How long to wait for the Dask scheduler before giving up (a Dask duration).
+DASK_CONNECT_TIMEOUT = "10s"
 
 Submit = Callable[[Sequence[Job]], Iterator[JobResult]]
 
@@ -56,7 +68,7 @@ def dask_client(address: str) -> Any:
             f"--executor dask needs the Dask extra, which is not installed: {DASK_INSTALL}"
         ) from None
     try:
-        return Client(address, timeout="10s")
+        return Client(address, timeout=DASK_CONNECT_TIMEOUT)  # type: ignore[no-untyped-call]
     except (OSError, TimeoutError) as exc:
         raise GridmapError(f"cannot reach the Dask scheduler at {address}: {exc}") from exc
 
@@ -82,9 +94,47 @@ def dask_cluster(address: str) -> Submit:
         client = dask_client(address)
         try:
             futures = client.map(run_job, list(jobs), pure=False)
-            for future in dask_completed(futures):
+            for future in dask_completed(futures):  # type: ignore[no-untyped-call]
                 yield future.result()
         finally:
             client.close()
 
     return submit
+
+
+# ------------------------------------------------------------------------------ fused builds
+
+
+def fuse_local(jobs: Sequence[FuseJob], workers: int = 1) -> Partial:
+    """Partial grids of the logs on ``workers`` local processes, added as a tree here."""
+    if workers <= 1 or len(jobs) <= 1:
+        partials = [partial_of(job) for job in jobs]
+    else:
+        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
+            partials = list(pool.map(partial_of, jobs))
+    return reduce_tree(canonical(partials))
+
+
+def _keys_of(partial: Partial) -> tuple[str, ...]:
+    return partial.keys
+
+
+def fuse_dask(jobs: Sequence[FuseJob], address: str) -> Partial:
+    """Partial grids of the logs as tasks on the Dask cluster at ``address``, added pairwise as
+    a tree of tasks on its workers (the same tree, in the same order, as :func:`fuse_local`);
+    only the fused grid comes back."""
+    client = dask_client(address)
+    try:
+        futures = client.map(partial_of, list(jobs), pure=False)
+        keys = client.gather(client.map(_keys_of, futures, pure=False))
+        check_distinct(keys)
+        level = [f for _, f in sorted(zip(keys, futures, strict=True), key=lambda kf: kf[0])]
+        for pairs in tree_pairs(len(level)):
+            merged = [client.submit(combine, level[i], level[j], pure=False) for i, j in pairs]
+            if len(level) % 2:
+                merged.append(level[-1])
+            level = merged
+        total: Partial = level[0].result()
+        return total
+    finally:
+        client.close()

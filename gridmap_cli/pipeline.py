@@ -148,6 +148,21 @@ def build_map(
     spec, stats = plan.spec, plan.sync
     grid: LogOddsAccumulator | FrequencyAccumulator
     grid = LogOddsAccumulator(spec) if options.mode == "standard" else FrequencyAccumulator(spec)
+    updates = accumulate(plan, grid, options, progress)
+    if isinstance(grid, FrequencyAccumulator):
+        omap = grid.occupancy_map(options.prior_counts)
+    else:
+        omap = grid.occupancy_map(options.clamp_p)
+    return BuildResult(map=omap, sync=stats, cell_updates=updates)
+
+
+def accumulate(
+    plan: BuildPlan,
+    grid: LogOddsAccumulator | FrequencyAccumulator,
+    options: BuildOptions,
+    progress: Callable[[int], object] | None = None,
+) -> int:
+    """Add every reading of ``plan`` to ``grid`` in batches; returns the cell updates."""
     updates = 0
     for model, part in plan.parts:
         for start in range(0, len(part), options.batch_size):
@@ -155,11 +170,7 @@ def build_map(
             updates += model.accumulate(grid, batch)
             if progress is not None:
                 progress(len(batch))
-    if isinstance(grid, FrequencyAccumulator):
-        omap = grid.occupancy_map(options.prior_counts)
-    else:
-        omap = grid.occupancy_map(options.clamp_p)
-    return BuildResult(map=omap, sync=stats, cell_updates=updates)
+    return updates
 
 
 def _by_model(

@@ -23,6 +23,8 @@ from gridmap_cli.cli.common import (
     warn,
 )
 from gridmap_cli.errors import UsageError
+from gridmap_cli.executors import EXECUTORS, check_dask, fuse_dask, fuse_local
+from gridmap_cli.fuse import FuseJob, Partial, fused_map, parse_initial_pose
 from gridmap_cli.models.error_aware import ErrorAwareParams
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
@@ -34,7 +36,7 @@ from gridmap_cli.pipeline import (
     build_map,
 )
 from gridmap_cli.readers import format_names, read_logs
-from gridmap_cli.robot import load_robot, robot_from_log
+from gridmap_cli.robot import load_robot, preset_names, robot_from_log
 from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers import check_output
@@ -127,6 +129,30 @@ from gridmap_cli.writers.map_mcap import write_map_mcap
     show_default=True,
     help="Error-aware mode: pose error (m) at which a reading counts half.",
 )
+@click.option(
+    "--fuse",
+    is_flag=True,
+    help="Several logs of one place (separate runs, any format) into one map, their evidence "
+    "added; they must share a frame: --pose global, or one --initial-pose per log.",
+)
+@click.option(
+    "--initial-pose",
+    "initial_poses",
+    multiple=True,
+    metavar="X,Y,YAW_DEG",
+    help="--fuse: where each log's first pose is in the common frame (metres, degrees); one "
+    "per log, in the order of the logs.",
+)
+@click.option(
+    "--executor",
+    type=click.Choice(EXECUTORS),
+    default="local",
+    show_default=True,
+    help="--fuse: map the logs in local processes, or on a Dask cluster (--scheduler).",
+)
+@click.option("--scheduler", metavar="ADDRESS", help="Dask scheduler for --executor dask.")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
+              help="--fuse with the local executor: logs mapped at once.")  # fmt: skip
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -155,6 +181,11 @@ def build(
     odometry_file: Path | None,
     coefficients: tuple[str, ...],
     trust_length: float,
+    fuse: bool,
+    initial_poses: tuple[str, ...],
+    executor: str,
+    scheduler: str | None,
+    jobs: int,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -163,7 +194,9 @@ def build(
     OccupancyGrid in an MCAP file.
 
     LOG is a CSV, ARIA .2d, MCAP, ROS 1 .bag file or a rosbag2 folder. Several ROS recordings
-    (say, odometry and scans recorded into separate bags) are merged by time into one.
+    (say, odometry and scans recorded into separate bags) are merged by time into one; with
+    --fuse, several logs (separate runs through one place) are each mapped and their evidence
+    added (README: "Several runs of one place").
     """
     started = time.perf_counter()
     if not (0.0 <= free < occupied <= 1.0):
@@ -177,6 +210,7 @@ def build(
         mode, odometry_file, coefficients, trust_length
     )
     selection = Selection.parse(sensor_patterns, start, end)
+    placed = _fuse_options(fuse, logs, initial_poses, pose, mode, executor, scheduler, jobs)
     to_mcap = output.suffix.lower() == ".mcap"
     if to_mcap:
         source = click.get_current_context().get_parameter_source("map_mode")
@@ -192,6 +226,23 @@ def build(
     read_options = make_read_options(
         odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
     )
+    if fuse:
+        fuse_jobs = [
+            FuseJob(log=log.resolve(), log_format=log_format,
+                    read_options=dataclasses.replace(read_options, robot=None), pose=pose,
+                    initial_pose=first, selection=selection,
+                    robot_spec=_robot_spec(robot), options=BuildOptions(resolution_m=resolution,
+                                                                         sonar=sonar))
+            for log, first in zip(logs, placed, strict=True)
+        ]  # fmt: skip
+        if scheduler is not None:
+            total = fuse_dask(fuse_jobs, scheduler)
+        else:
+            total = fuse_local(fuse_jobs, jobs)
+        warn(total.notes, quiet)
+        _write_fused(total, output, to_mcap, map_mode, occupied, free, force, started, quiet,
+                     as_json, len(logs))  # fmt: skip
+        return
     data = select_poses(read_logs(logs, log_format, read_options), pose)
     if robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
@@ -224,6 +275,99 @@ def build(
         click.echo(json.dumps(summary, indent=2))
     if not quiet:
         click.echo(_summary_line(summary), err=True)
+
+
+def _fuse_options(
+    fuse: bool,
+    logs: tuple[Path, ...],
+    initial_poses: tuple[str, ...],
+    pose: str,
+    mode: str,
+    executor: str,
+    scheduler: str | None,
+    jobs: int,
+) -> list[tuple[float, float, float] | None]:
+    """Usage checks of --fuse and its options; the initial pose of each log (or None)."""
+    ctx = click.get_current_context()
+    given = [
+        name for name in ("initial_poses", "executor", "scheduler", "jobs")
+        if ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT
+    ]  # fmt: skip
+    if not fuse:
+        if given:
+            flags = ", ".join("--" + n.replace("_poses", "-pose").replace("_", "-") for n in given)
+            raise UsageError(f"{flags}: only with --fuse")
+        return [None] * len(logs)
+    if mode != "standard":
+        raise UsageError("--fuse adds log-odds evidence: it takes --mode standard only")
+    if initial_poses and pose == "global":
+        raise UsageError("--initial-pose places odometry; with --pose global the logs are placed")
+    if pose != "global" and len(initial_poses) != len(logs):
+        raise UsageError(
+            f"--fuse needs the logs in one frame: --pose global, or one --initial-pose per log "
+            f"(got {len(initial_poses)} for {len(logs)} logs)"
+        )
+    if executor == "dask":
+        if scheduler is None:
+            raise UsageError("--executor dask needs --scheduler ADDRESS (tcp://host:8786)")
+        check_dask()
+    elif scheduler is not None:
+        raise UsageError("--scheduler applies to --executor dask")
+    if pose == "global":
+        return [None] * len(logs)
+    return [parse_initial_pose(text) for text in initial_poses]
+
+
+def _robot_spec(robot: str | None) -> str | None:
+    """--robot as the workers can load it: a preset name, or an absolute path."""
+    if robot is None or robot in preset_names():
+        return robot
+    return str(Path(robot).resolve())
+
+
+def _write_fused(
+    total: Partial,
+    output: Path,
+    to_mcap: bool,
+    map_mode: str,
+    occupied: float,
+    free: float,
+    force: bool,
+    started: float,
+    quiet: bool,
+    as_json: bool,
+    n_logs: int,
+) -> None:
+    omap = fused_map(total)
+    yaml_path: Path | None = None
+    if to_mcap:
+        image_path = write_map_mcap(output, omap, stamp_ns=0, force=force)
+    else:
+        image_path, yaml_path = write_map(
+            output, omap, mode=map_mode, occupied_thresh=occupied, free_thresh=free, force=force
+        )
+    spec, prob = omap.spec, omap.prob
+    known = ~np.isnan(prob)
+    summary = {
+        "image": str(image_path),
+        "yaml": str(yaml_path) if yaml_path is not None else None,
+        "logs": n_logs,
+        "readings": {"used": total.readings},
+        "map": {"width": spec.width, "height": spec.height, "resolution": spec.resolution_m,
+                "origin": [spec.origin_x_m, spec.origin_y_m, 0.0]},
+        "cells": {"observed": int(known.sum()), "occupied": int((prob[known] >= occupied).sum()),
+                  "free": int((prob[known] <= free).sum())},
+        "seconds": round(time.perf_counter() - started, 3),
+    }  # fmt: skip
+    if as_json:
+        click.echo(json.dumps(summary, indent=2))
+    if not quiet:
+        click.echo(
+            f"gridmap: {n_logs} logs fused, {total.readings:,} readings mapped; {spec.width} x "
+            f"{spec.height} cells at {spec.resolution_m} m in {summary['seconds']:.1f} s -> "
+            f"{image_path}" + (f", {yaml_path}" if yaml_path else ""),
+            err=True,
+        )
 
 
 def check_resolution(resolution: float) -> None:
