@@ -25,6 +25,11 @@ from gridmap_cli.cli.evaluate import evaluate
 from gridmap_cli.cli.inspect_log import inspect
 from gridmap_cli.cli.simulate import simulate
 
+#: click >= 8.2 raises this for a command given no arguments that it answers with its help
+_NO_ARGS_IS_HELP: tuple[type[BaseException], ...] = tuple(
+    c for c in [getattr(click.exceptions, "NoArgsIsHelpError", None)] if c is not None
+)
+
 
 class OneLineErrors(click.Group):
     """click's group, reporting click's own usage errors on one line too.
@@ -47,6 +52,9 @@ class OneLineErrors(click.Group):
         try:
             code = super().main(args, prog_name, complete_var, False, **extra)
         except click.ClickException as exc:
+            if isinstance(exc, _NO_ARGS_IS_HELP):
+                exc.show()  # ``gridmap`` alone: the help, as click prints it
+                sys.exit(exc.exit_code)
             click.echo(f"Error: {one_line(exc.format_message())}", err=True)
             sys.exit(exc.exit_code)
         except (click.exceptions.Abort, EOFError, KeyboardInterrupt):
