@@ -34,6 +34,18 @@ DASK_CONNECT_TIMEOUT = "10s"
 Submit = Callable[[Sequence[Job]], Iterator[JobResult]]
 
 
+def lost(job: Job, exc: BaseException) -> JobResult:
+    """The result of a job whose process died before it could report (run_job never raises):
+    failed, so the batch goes on and the report says so."""
+    return JobResult(
+        log=str(job.log),
+        map=str(job.output),
+        status="failed",
+        error=f"{job.log}: the worker building it died ({type(exc).__name__}: {exc}); out of "
+        "memory, or killed?",
+    )
+
+
 def inline(jobs: Sequence[Job]) -> Iterator[JobResult]:
     """Run the jobs one after the other in this process."""
     for job in jobs:
@@ -48,9 +60,12 @@ def local_processes(workers: int) -> Submit:
             yield from inline(jobs)
             return
         with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
-            futures = [pool.submit(run_job, job) for job in jobs]
+            futures = {pool.submit(run_job, job): job for job in jobs}
             for future in as_completed(futures):
-                yield future.result()
+                try:
+                    yield future.result()
+                except Exception as exc:  # the worker died (killed, out of memory)
+                    yield lost(futures[future], exc)
 
     return submit
 
@@ -94,8 +109,12 @@ def dask_cluster(address: str) -> Submit:
         client = dask_client(address)
         try:
             futures = client.map(run_job, list(jobs), pure=False)
+            job_of = {future.key: job for future, job in zip(futures, jobs, strict=True)}
             for future in dask_completed(futures):  # type: ignore[no-untyped-call]
-                yield future.result()
+                try:
+                    yield future.result()
+                except Exception as exc:  # a worker died (KilledWorker) or lost the task
+                    yield lost(job_of[future.key], exc)
         finally:
             client.close()
 

@@ -4,6 +4,7 @@ a JSON-lines report, one run per output folder at a time."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -15,8 +16,11 @@ from gridmap_cli.batch import (
     REPORT_NAME,
     BatchLock,
     BatchOptions,
+    Job,
+    JobResult,
     find_logs,
     plan_jobs,
+    run_job,
 )
 from gridmap_cli.errors import GridmapError, UsageError
 from tests.helpers import names, run
@@ -195,3 +199,25 @@ def test_dask_without_the_extra_says_how_to_install(
         "Error: --executor dask needs the Dask extra, which is not installed: "
         "pip install 'gridmap-cli[dask]'"
     )
+
+
+def _dies_on_hall(job: Job) -> JobResult:
+    """run_job, except that the process building hall.csv dies as the OOM killer ends one."""
+    if job.log.name == "hall.csv":
+        os._exit(9)
+    return run_job(job)
+
+
+def test_a_worker_that_dies_fails_its_log_and_the_batch_goes_on(
+    logs: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr("gridmap_cli.executors.run_job", _dies_on_hall)
+    out = tmp_path / "maps"
+    code, _, _ = run("batch", str(logs / "hall.csv"), str(logs / "corridor_loop.csv"),
+                     "-o", str(out), "--jobs", "2")  # fmt: skip
+    assert code == 1
+    statuses = {Path(str(r["log"])).name: (r["status"], str(r["error"])) for r in report(out)}
+    assert statuses["hall.csv"][0] == "failed"
+    assert "the worker building it died (BrokenProcessPool" in statuses["hall.csv"][1]
+    # the pool broke with that worker: the other log was built before, or failed with it
+    assert statuses["corridor_loop.csv"][0] in ("built", "failed")
