@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 DEMO_OUT := out/demo
 
-.PHONY: install dev demo test lint format bench samples goldens experiment clean
+.PHONY: install dev demo test lint format bench samples goldens experiment corpus clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -58,6 +58,11 @@ experiment: dev
 # trinary map) from samples/corridor_loop.csv; only when a change to them is intended
 goldens: install
 	$(BIN)/python -m tests.golden
+
+# write the malformed-input corpus the tests run (tests/corpus/generate.py) to out/corpus, to
+# look at the broken files and cases.json
+corpus: dev
+	$(BIN)/python -m tests.corpus.generate out/corpus
 
 clean:
 	rm -rf $(VENV) out build *.egg-info .pytest_cache .ruff_cache .mypy_cache bench/.cache

@@ -3,7 +3,12 @@
 Each output is written to a hidden temporary file beside its target (same directory, so the final
 ``os.replace`` is a rename within one file system, which POSIX makes atomic) and renamed over the
 target only when the writing code finished without an exception. On any exception the temporary
-files are deleted and the exception propagates; the targets are left as they were.
+files are deleted and the exception propagates; the targets are left as they were. A writer
+killed outright (SIGKILL) cannot delete them: the next writer of the same target does
+(:func:`clean_leftovers`).
+
+Each target is replaced by one ``os.replace``, never removed first, so at every instant it holds
+either its old or its new content, even when the process dies between two renames.
 
 :func:`atomic_outputs` does the same for several files that only make sense together (a map image
 and its YAML): none of them is renamed unless the whole block succeeded, and if one of the final
@@ -14,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import secrets
 import shutil
 from collections.abc import Iterator, Sequence
@@ -29,12 +35,16 @@ _NAME_ATTEMPTS = 16
 def _temp_path_for(target: Path, tag: str) -> Path:
     """Create (empty, exclusively) and return a hidden file beside ``target``.
 
-    The name is ``.<name>.<tag>-XXXXXXXX<suffix>``: hidden so directory listings and globs such
-    as ``*.pgm`` skip it, and ending in the target's suffix so that libraries that choose a format
-    from the file name (Pillow) write the same format as they would to the target.
+    The name is ``.<name>.<tag>-<pid>-XXXXXXXX<suffix>``: hidden so directory listings and globs
+    such as ``*.pgm`` skip it, ending in the target's suffix so that libraries that choose a
+    format from the file name (Pillow) write the same format as they would to the target, and
+    holding the writer's process id so that a later run can tell a crashed writer's leftovers
+    (:func:`clean_leftovers`) from a live writer's files.
     """
     for _ in range(_NAME_ATTEMPTS):
-        candidate = target.with_name(f".{target.name}.{tag}-{secrets.token_hex(4)}{target.suffix}")
+        candidate = target.with_name(
+            f".{target.name}.{tag}-{os.getpid()}-{secrets.token_hex(4)}{target.suffix}"
+        )
         try:
             # 0o666 filtered by the umask, so the final file gets the permissions a plain
             # open() would have given it (tempfile.mkstemp would force 0o600).
@@ -44,6 +54,51 @@ def _temp_path_for(target: Path, tag: str) -> Path:
         os.close(fd)
         return candidate
     raise FileExistsError(f"could not create a temporary file beside {target}")
+
+
+def _leftover_pattern(target: Path) -> re.Pattern[str]:
+    # this module's names for ``target``, current (with a pid) and earlier (without one)
+    return re.compile(
+        rf"\.{re.escape(target.name)}\.(?:tmp|bak)-(?:(\d+)-)?[0-9a-f]{{8}}"
+        rf"{re.escape(target.suffix)}"
+    )
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, OSError):
+        return True  # someone else's live process, or not ours to judge: leave its files
+    return True
+
+
+def clean_leftovers(target: Path) -> list[Path]:
+    """Delete the temporary and backup files an earlier writer of ``target`` left when it was
+    killed (SIGKILL, power loss) between creating them and renaming or discarding them.
+
+    Only this module's own names for ``target`` are touched (``.<name>.tmp-<pid>-XXXXXXXX
+    <suffix>`` and ``.bak-``), and only those whose process is gone, so a writer running now
+    keeps its files. Returns the files deleted.
+    """
+    folder = target.parent
+    pattern = _leftover_pattern(target)
+    removed: list[Path] = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for entry in entries:
+        match = pattern.fullmatch(entry.name)
+        if match is None or (match.group(1) is not None and _alive(int(match.group(1)))):
+            continue
+        with contextlib.suppress(OSError):
+            os.unlink(entry.path)
+            removed.append(Path(entry.path))
+    return removed
 
 
 def _fsync_file(path: Path) -> None:
@@ -133,6 +188,8 @@ def atomic_outputs(paths: Sequence[Path]) -> Iterator[list[Path]]:
     targets = [Path(p) for p in paths]
     if len({t.resolve() for t in targets}) != len(targets):
         raise ValueError(f"the same output appears twice in {[str(t) for t in targets]}")
+    for target in targets:
+        clean_leftovers(target)
     temps: list[Path] = []
     try:
         for target in targets:

@@ -39,6 +39,14 @@ class InputFileError(GridmapError):
         return f"{where}: {what}"
 
 
+class DamagedAtError(InputFileError):
+    """A binary file is damaged at a byte offset: formats as ``path: byte N: detail``."""
+
+    def __init__(self, path: str | Path, offset: int, detail: str) -> None:
+        self.offset = offset
+        super().__init__(path, f"byte {offset}: {detail}")
+
+
 class UnknownFormatError(UsageError):
     """No reader claims the file: not the same thing as a file that is broken."""
 
@@ -72,6 +80,10 @@ class OutputExistsError(GridmapError):
 
 class MapSizeError(GridmapError):
     """The data spans more cells than a map can sensibly hold (usually absurd coordinates)."""
+
+
+class SimulationSizeError(GridmapError):
+    """A simulation would sample more poses or readings than memory can sensibly hold."""
 
 
 class NoDataError(GridmapError):

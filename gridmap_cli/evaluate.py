@@ -349,3 +349,71 @@ def load_truth(yaml_path: Path) -> Truth:
     loaded = load_map(yaml_path)
     walls = loaded.occupied_mask()
     return Truth(loaded.spec, walls, World(walls, loaded.spec), np.asarray(loaded.occupancy >= 0))
+
+
+#: Below this share of the true path on free cells of the truth world, the log was not there.
+MIN_PATH_ON_FREE = 0.9
+#: Below this share of the true path on free cells of the truth world, the log was not there.
+MIN_PATH_ON_FREE = 0.9
+
+
+def check_path_in_world(truth: Truth, path: PoseTrack, log_name: str, truth_name: str) -> None:
+    """Refuse a truth world in which the log's true path runs through walls or outside it:
+    the world of another place (:class:`EvaluationError` naming both files)."""
+    if len(path) == 0:
+        return
+    col, row = truth.spec.world_to_cell(path.x_m, path.y_m)
+    inside = (col >= 0) & (row >= 0) & (col < truth.spec.width) & (row < truth.spec.height)
+    free = inside.copy()
+    free[inside] = ~truth.walls[row[inside], col[inside]]
+    share = float(free.mean())
+    if share < MIN_PATH_ON_FREE:
+        raise EvaluationError(
+            f"{log_name}: only {share:.0%} of its true path lies on free cells of the truth "
+            f"world {truth_name}: the log was recorded in another place"
+        )
+
+
+#: Below this share of the map's known cells inside the truth world, the two are not of one place.
+MIN_SHARE_INSIDE = 0.5
+
+
+def check_comparable(
+    pmap: ProbabilityMap,
+    truth: GridSpec,
+    map_to_world: Pose,
+    map_name: str,
+    truth_name: str,
+    log_world: str | None = None,
+) -> tuple[str, ...]:
+    """Refuse a map and a truth world that cannot be of one place; warn of what skews scores.
+
+    Raises :class:`EvaluationError` naming both files when less than :data:`MIN_SHARE_INSIDE`
+    of the map's known cells, placed by ``map_to_world``, fall inside the world (another
+    place, or the wrong ``--frame``). Returns warnings: resolutions that differ, a log whose
+    ``# world:`` (``log_world``) names a world file other than ``truth_name``.
+    """
+    notes: list[str] = []
+    known = ~np.isnan(pmap.prob)
+    n_known = int(known.sum())
+    if n_known:
+        _, _, inside = world_cells(pmap.spec, truth, map_to_world)
+        share = int((inside & known).sum()) / n_known
+        if share < MIN_SHARE_INSIDE:
+            raise EvaluationError(
+                f"{map_name}: only {share:.0%} of its known cells fall inside the truth world "
+                f"{truth_name} ({truth.width * truth.resolution_m:.1f} x "
+                f"{truth.height * truth.resolution_m:.1f} m at origin {truth.origin_x_m:g}, "
+                f"{truth.origin_y_m:g}): a map of another place, or the wrong --frame"
+            )
+    if not math.isclose(pmap.spec.resolution_m, truth.resolution_m, rel_tol=1e-6):
+        notes.append(
+            f"{map_name}: resolution {pmap.spec.resolution_m:g} m, the truth world "
+            f"{truth_name} {truth.resolution_m:g} m: each world cell is scored by the map cell "
+            "under its centre, so the scores mix cell sizes"
+        )
+    if log_world and Path(log_world).name != Path(truth_name).name:
+        notes.append(
+            f"the log was simulated in {log_world}, but the truth is {truth_name}: another place?"
+        )
+    return tuple(notes)

@@ -216,8 +216,15 @@ def _read_image(
             else:
                 img_rgb = img
             array = np.asarray(img_rgb, dtype=np.uint8)
-    except (UnidentifiedImageError, OSError, Image.DecompressionBombError) as exc:
-        # Pillow refuses images over ~179 M pixels; gridmap's own maps stay under 1e8 cells
+    except (
+        UnidentifiedImageError,
+        OSError,
+        Image.DecompressionBombError,
+        ValueError,
+        SyntaxError,
+    ) as exc:
+        # Pillow refuses images over ~179 M pixels; gridmap's own maps stay under 1e8 cells.
+        # A damaged header raises ValueError (a PGM size of b'garbage') or SyntaxError (PNG).
         raise InputFileError(path, f"cannot read the image: {exc}") from exc
     if array.ndim == 2:
         return array[:, :, np.newaxis], None

@@ -13,7 +13,7 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.errors import GridmapError, NoDataError
+from gridmap_cli.errors import GridmapError, MapSizeError, NoDataError
 from gridmap_cli.grid import (
     DEFAULT_CLAMP_P,
     DEFAULT_MAX_CELLS,
@@ -34,6 +34,9 @@ from gridmap_cli.robot import RobotDescription
 from gridmap_cli.sync import SensorReadings, SyncStats, select_readings, synchronise
 
 MAPPING_MODES = ("standard", "error-aware")
+#: The coarsest cell size build takes: a range sensor sees a few metres, so coarser cells map
+#: nothing (``--resolution 1e6`` used to give a 2 x 2 map without a word).
+MAX_RESOLUTION_M = 5.0
 
 
 @dataclass(frozen=True)
@@ -112,9 +115,12 @@ def plan_build(log: RangeLog, robot: RobotDescription | None, options: BuildOpti
     boxes = np.array([model.bounds(part) for model, part in parts])  # (xmin, ymin, xmax, ymax)
     xmin, ymin, _, _ = boxes.min(axis=0)
     _, _, xmax, ymax = boxes.max(axis=0)
-    spec = GridSpec.covering(
-        xmin, ymin, xmax, ymax, options.resolution_m, options.margin_m, options.max_cells
-    )
+    try:
+        spec = GridSpec.covering(
+            xmin, ymin, xmax, ymax, options.resolution_m, options.margin_m, options.max_cells
+        )
+    except MapSizeError as exc:
+        raise MapSizeError(f"{log.source}: {exc}") from exc
     return BuildPlan(stats, parts, spec)
 
 
@@ -133,6 +139,21 @@ def build_map(
     spec, stats = plan.spec, plan.sync
     grid: LogOddsAccumulator | FrequencyAccumulator
     grid = LogOddsAccumulator(spec) if options.mode == "standard" else FrequencyAccumulator(spec)
+    updates = accumulate(plan, grid, options, progress)
+    if isinstance(grid, FrequencyAccumulator):
+        omap = grid.occupancy_map(options.prior_counts)
+    else:
+        omap = grid.occupancy_map(options.clamp_p)
+    return BuildResult(map=omap, sync=stats, cell_updates=updates)
+
+
+def accumulate(
+    plan: BuildPlan,
+    grid: LogOddsAccumulator | FrequencyAccumulator,
+    options: BuildOptions,
+    progress: Callable[[int], object] | None = None,
+) -> int:
+    """Add every reading of ``plan`` to ``grid`` in batches; returns the cell updates."""
     updates = 0
     kernels.plan(sum(len(part) for _, part in plan.parts))
     for model, part in plan.parts:
@@ -141,11 +162,7 @@ def build_map(
             updates += model.accumulate(grid, batch)
             if progress is not None:
                 progress(len(batch))
-    if isinstance(grid, FrequencyAccumulator):
-        omap = grid.occupancy_map(options.prior_counts)
-    else:
-        omap = grid.occupancy_map(options.clamp_p)
-    return BuildResult(map=omap, sync=stats, cell_updates=updates)
+    return updates
 
 
 def batch_bounds(stamp_ns: npt.NDArray[np.int64], size: int) -> list[tuple[int, int]]:

@@ -17,6 +17,8 @@ from typing import Any
 import yaml
 
 from gridmap_cli.errors import InputFileError, RobotDescriptionError, UnknownRobotError
+from gridmap_cli.limits import MAX_LASER_SAMPLES, read_settings_text
+from gridmap_cli.yamlfile import yaml_problem
 
 SENSOR_KINDS = ("sonar", "laser")
 
@@ -80,7 +82,7 @@ def load_robot(spec: str, folder: Path | None = None) -> RobotDescription:
 
             return read_aria_params(path).robot()
         try:
-            text = path.read_text(encoding="utf-8")
+            text = read_settings_text(path, "a robot description")
         except (OSError, UnicodeDecodeError) as exc:
             raise RobotDescriptionError(path, f"cannot read: {exc}") from exc
         return parse_robot_yaml(text, str(path))
@@ -138,9 +140,8 @@ def parse_robot_yaml(text: str, source: str) -> RobotDescription:
         node = yaml.compose(text)
         doc = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = mark.line + 1 if mark is not None else None
-        raise RobotDescriptionError(source, f"not valid YAML: {exc}", line) from exc
+        line, problem = yaml_problem(exc)
+        raise RobotDescriptionError(source, problem, line) from exc
     if not isinstance(doc, dict):
         raise RobotDescriptionError(source, "expected a mapping with 'name' and 'sensors'")
     if doc.get("gridmap-robot") != 1:
@@ -205,7 +206,15 @@ def parse_robot_yaml(text: str, source: str) -> RobotDescription:
     names = [s.name for s in sensors]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        raise RobotDescriptionError(source, f"duplicate sensor names {dup}")
+        # the line of the entry that repeats a name, when the entries themselves repeat it
+        seen: set[object] = set()
+        where = None
+        for i, entry in enumerate(raw):
+            name = entry.get("name") if isinstance(entry, dict) else None
+            if name in seen and where is None:
+                where = lines[i] if i < len(lines) else None
+            seen.add(name)
+        raise RobotDescriptionError(source, f"duplicate sensor names {dup}", where)
     return RobotDescription(name=name, sensors=tuple(sensors))
 
 
@@ -231,6 +240,13 @@ def _laser_beams(
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
         raise RobotDescriptionError(
             source, f"sensor '{name}': samples must be a whole number >= 1, got {samples!r}", line
+        )
+    if samples > MAX_LASER_SAMPLES:
+        raise RobotDescriptionError(
+            source,
+            f"sensor '{name}': {samples:,} samples, above gridmap's limit of "
+            f"{MAX_LASER_SAMPLES:,} beams per laser (MAX_LASER_SAMPLES)",
+            line,
         )
     step = (last - first) / (samples - 1) if samples > 1 else 0.0
     return [

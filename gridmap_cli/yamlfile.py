@@ -13,6 +13,7 @@ from typing import Any
 import yaml
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.limits import read_settings_text
 
 
 def read_yaml_mapping(
@@ -25,7 +26,7 @@ def read_yaml_mapping(
     unreadable or non-UTF-8 file and invalid YAML (with its line).
     """
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_settings_text(path, kind)
     except FileNotFoundError:
         raise InputFileError(path, "no such file") from None
     except IsADirectoryError:
@@ -36,10 +37,8 @@ def read_yaml_mapping(
         doc = yaml.safe_load(text)
         root = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = mark.line + 1 if mark is not None else None
-        problem = getattr(exc, "problem", None) or str(exc)
-        raise InputFileError(path, f"not valid YAML: {problem}", line=line) from exc
+        line, problem = yaml_problem(exc)
+        raise InputFileError(path, problem, line=line) from exc
     if not isinstance(doc, dict):
         raise InputFileError(path, not_mapping)
     lines: dict[str, int] = {}
@@ -48,6 +47,21 @@ def read_yaml_mapping(
             if isinstance(key_node.value, str):
                 lines[key_node.value] = value_node.start_mark.line + 1
     return doc, lines
+
+
+def yaml_problem(exc: yaml.YAMLError) -> tuple[int | None, str]:
+    """The 1-based line and a one-line description of a YAML syntax error.
+
+    ``str(exc)`` is the parser's several-line block with a caret under the place; errors are
+    one line, so the place goes in the ``path:line`` prefix and the column in the text.
+    """
+    mark = getattr(exc, "problem_mark", None)
+    line = mark.line + 1 if mark is not None else None
+    problem = getattr(exc, "problem", None) or str(exc)
+    context = getattr(exc, "context", None)
+    text = f"{context}: {problem}" if context else problem
+    column = f" (column {mark.column + 1})" if mark is not None else ""
+    return line, " ".join(f"not valid YAML: {text}{column}".split())
 
 
 def number(value: object) -> float | None:

@@ -142,3 +142,90 @@ def test_missing_folder_raises_and_creates_nothing(tmp_path: Path) -> None:
         pass
     assert names(tmp_path) == []
     assert not os.path.exists(tmp_path / "no")
+
+
+# ---------------------------------------------------------------- leftovers of a killed writer
+
+_KILLED_WRITER = """
+import os, sys, time
+from pathlib import Path
+from gridmap_cli.atomic import atomic_outputs, _commit
+stage = sys.argv[2]
+targets = [Path(sys.argv[1]) / "map.png", Path(sys.argv[1]) / "map.yaml"]
+if stage == "commit":
+    import gridmap_cli.atomic as atomic
+    real = os.replace
+    def slow_replace(src, dst):
+        real(src, dst)
+        print("renamed", flush=True)
+        time.sleep(60)  # killed here: between the renames of the image and its YAML
+    atomic.os.replace = slow_replace
+with atomic_outputs(targets) as temps:
+    for tmp in temps:
+        tmp.write_bytes(b"new")
+    if stage == "write":
+        print("writing", flush=True)
+        time.sleep(60)  # killed here: temporary files written, nothing renamed
+"""
+
+
+def _kill_while(tmp_path: Path, stage: str) -> None:
+    """Run a writer of map.png + map.yaml in ``tmp_path`` and SIGKILL it at ``stage``."""
+    import signal
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _KILLED_WRITER, str(tmp_path), stage],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stdout is not None
+    assert proc.stdout.readline().strip() in ("writing", "renamed")
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+
+
+def test_the_next_run_cleans_what_a_killed_writer_left(tmp_path: Path) -> None:
+    (tmp_path / "map.png").write_bytes(b"old")
+    (tmp_path / "map.yaml").write_bytes(b"old")
+    _kill_while(tmp_path, "write")
+    left = [n for n in names(tmp_path) if n.startswith(".")]
+    assert len(left) == 2 and all(".tmp-" in n for n in left)
+    # the outputs were never missing nor half-written
+    assert (tmp_path / "map.png").read_bytes() == b"old"
+    unrelated = [tmp_path / ".other.png.tmp-1-0123abcd.png", tmp_path / ".map.png.tmp-notmine"]
+    for path in unrelated:
+        path.write_bytes(b"not ours")
+    with atomic_outputs([tmp_path / "map.png", tmp_path / "map.yaml"]) as temps:
+        for tmp in temps:
+            tmp.write_bytes(b"next")
+    assert names(tmp_path) == sorted(
+        ["map.png", "map.yaml", ".other.png.tmp-1-0123abcd.png", ".map.png.tmp-notmine"]
+    )
+    assert (tmp_path / "map.png").read_bytes() == b"next"
+
+
+def test_a_writer_killed_between_renames_leaves_every_output_present(tmp_path: Path) -> None:
+    (tmp_path / "map.png").write_bytes(b"old")
+    (tmp_path / "map.yaml").write_bytes(b"old")
+    _kill_while(tmp_path, "commit")
+    # image renamed, YAML not yet: both present, each old or new whole; a backup is left over
+    assert (tmp_path / "map.png").read_bytes() == b"new"
+    assert (tmp_path / "map.yaml").read_bytes() == b"old"
+    assert any(".bak-" in n for n in names(tmp_path))
+    with atomic_outputs([tmp_path / "map.png", tmp_path / "map.yaml"]) as temps:
+        for tmp in temps:
+            tmp.write_bytes(b"next")
+    assert names(tmp_path) == ["map.png", "map.yaml"]
+
+
+def test_a_live_writers_files_are_left_alone(tmp_path: Path) -> None:
+    from gridmap_cli.atomic import clean_leftovers
+
+    live = tmp_path / f".map.png.tmp-{os.getppid()}-0123abcd.png"
+    dead_old_style = tmp_path / ".map.png.bak-0123abcd.png"
+    live.write_bytes(b"x")
+    dead_old_style.write_bytes(b"x")
+    assert clean_leftovers(tmp_path / "map.png") == [dead_old_style]
+    assert live.exists()

@@ -254,7 +254,7 @@ def test_broken_inputs_are_errors(tmp_path: Path) -> None:
     cut.write_bytes(whole[:100])
     code, _, err = run("inspect", str(cut))
     assert code == 1
-    assert err.startswith(f"Error: {cut}: truncated or damaged MCAP file")
+    assert err.startswith(f"Error: {cut}: byte 100: truncated or damaged MCAP file")
     code, _, err = run("inspect", str(SAMPLES / "hall.csv"), "--odom-topic", "/odom")
     assert code == 2
 

@@ -1,10 +1,10 @@
 """The command line: the only package that imports click, prints, shows progress or exits.
 
-One module per command (build, inspect, simulate, calibrate, convert, evaluate, trajectory) and
-what they share (:mod:`gridmap_cli.cli.common`). Each command checks every precondition (inputs
-exist, outputs absent unless --force, options consistent) before reading a byte, then calls a
-plain library function and reports. Library errors become one ``Error: ...`` line: exit 1 for bad
-data or runtime failures, 2 for usage.
+One module per command (build, batch, inspect, simulate, calibrate, convert, evaluate,
+trajectory) and what they share (:mod:`gridmap_cli.cli.common`). Each command checks every
+precondition (inputs exist, outputs absent unless --force, options consistent) before reading a
+byte, then calls a plain library function and reports. Library errors become one ``Error: ...``
+line: exit 1 for bad data or runtime failures, 2 for usage, 130 for Ctrl-C.
 
 A command's module is imported when that command runs (or help lists it): ``gridmap build`` on a
 CSV log does not load the simulator, the evaluation's scipy or the MCAP writers.
@@ -13,6 +13,9 @@ CSV log does not load the simulator, the evaluation's scipy or the MCAP writers.
 from __future__ import annotations
 
 import importlib
+import sys
+from collections.abc import Sequence
+from typing import Any
 
 import click
 
@@ -21,6 +24,7 @@ from gridmap_cli import __version__
 #: command name -> module under gridmap_cli.cli and the click command's name in it
 COMMANDS = {
     "build": ("build", "build"),
+    "batch": ("batch", "batch"),
     "inspect": ("inspect_log", "inspect"),
     "simulate": ("simulate", "simulate"),
     "calibrate": ("calibrate", "calibrate"),
@@ -29,9 +33,20 @@ COMMANDS = {
     "trajectory": ("trajectory", "trajectory"),
 }
 
+#: click >= 8.2 raises this for a command given no arguments that it answers with its help
+_NO_ARGS_IS_HELP: tuple[type[BaseException], ...] = tuple(
+    c for c in [getattr(click.exceptions, "NoArgsIsHelpError", None)] if c is not None
+)
 
-class LazyGroup(click.Group):
-    """A group whose commands are imported on first use."""
+
+class GridmapGroup(click.Group):
+    """click's group, with commands imported on first use and click's own usage errors on one
+    line too.
+
+    Standalone click prints a usage error as three lines (``Usage: ...``, ``Try ...``,
+    ``Error: ...``); cron mails and log scrapers want one ``Error:`` line, as for every other
+    error. Exit codes are click's (2 for usage); Ctrl-C outside a command exits 130 as inside.
+    """
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return list(COMMANDS)
@@ -44,8 +59,36 @@ class LazyGroup(click.Group):
         assert isinstance(command, click.Command)
         return command
 
+    def main(
+        self,
+        args: Sequence[str] | None = None,
+        prog_name: str | None = None,
+        complete_var: str | None = None,
+        standalone_mode: bool = True,
+        **extra: Any,
+    ) -> Any:
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, False, **extra)
+        try:
+            code = super().main(args, prog_name, complete_var, False, **extra)
+        except click.ClickException as exc:
+            if isinstance(exc, _NO_ARGS_IS_HELP):
+                exc.show()  # ``gridmap`` alone: the help, as click prints it
+                sys.exit(exc.exit_code)
+            from gridmap_cli.cli.common import one_line  # only now: --version loads no command
 
-@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+            click.echo(f"Error: {one_line(exc.format_message())}", err=True)
+            sys.exit(exc.exit_code)
+        except (click.exceptions.Abort, EOFError, KeyboardInterrupt):
+            from gridmap_cli.cli.common import Interrupted
+
+            stop = Interrupted()
+            click.echo(f"Error: {stop.format_message()}", err=True)
+            sys.exit(stop.exit_code)
+        sys.exit(code if isinstance(code, int) else 0)
+
+
+@click.group(cls=GridmapGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="gridmap")
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-line errors.")
 @click.pass_context

@@ -15,6 +15,7 @@ import numpy.typing as npt
 from gridmap_cli.cli.common import (
     STDIO,
     check_input,
+    check_not_folder,
     check_output_folder,
     handle_errors,
     json_text,
@@ -27,13 +28,21 @@ from gridmap_cli.cli.common import (
     warn,
 )
 from gridmap_cli.errors import UsageError
+from gridmap_cli.executors import EXECUTORS, check_dask, fuse_dask, fuse_local
+from gridmap_cli.fuse import FuseJob, Partial, fused_map, parse_initial_pose
 from gridmap_cli.models.error_aware import ErrorAwareParams
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
-from gridmap_cli.pipeline import MAPPING_MODES, BuildOptions, BuildResult, build_map
+from gridmap_cli.pipeline import (
+    MAPPING_MODES,
+    MAX_RESOLUTION_M,
+    BuildOptions,
+    BuildResult,
+    build_map,
+)
 from gridmap_cli.readers import format_names
 from gridmap_cli.records import RangeLog
-from gridmap_cli.robot import load_robot, robot_from_log
+from gridmap_cli.robot import load_robot, preset_names, robot_from_log
 from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers import check_output
@@ -168,6 +177,30 @@ if TYPE_CHECKING:
     "odometry in red, the reference track in green, a scan-matched track in purple; never the "
     "map_server image itself.",
 )
+@click.option(
+    "--fuse",
+    is_flag=True,
+    help="Several logs of one place (separate runs, any format) into one map, their evidence "
+    "added; they must share a frame: --pose global, or one --initial-pose per log.",
+)
+@click.option(
+    "--initial-pose",
+    "initial_poses",
+    multiple=True,
+    metavar="X,Y,YAW_DEG",
+    help="--fuse: where each log's first pose is in the common frame (metres, degrees); one "
+    "per log, in the order of the logs.",
+)
+@click.option(
+    "--executor",
+    type=click.Choice(EXECUTORS),
+    default="local",
+    show_default=True,
+    help="--fuse: map the logs in local processes, or on a Dask cluster (--scheduler).",
+)
+@click.option("--scheduler", metavar="ADDRESS", help="Dask scheduler for --executor dask.")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
+              help="--fuse with the local executor: logs mapped at once.")  # fmt: skip
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -200,6 +233,11 @@ def build(
     trust_length: float,
     max_spread_deg: float,
     draw_path: bool,
+    fuse: bool,
+    initial_poses: tuple[str, ...],
+    executor: str,
+    scheduler: str | None,
+    jobs: int,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -208,14 +246,15 @@ def build(
     OccupancyGrid in an MCAP file.
 
     LOG is a CSV, ARIA .2d, MCAP, ROS 1 .bag file or a rosbag2 folder. Several ROS recordings
-    (say, odometry and scans recorded into separate bags) are merged by time into one.
+    (say, odometry and scans recorded into separate bags) are merged by time into one; with
+    --fuse, several logs (separate runs through one place) are each mapped and their evidence
+    added (README: "Several runs of one place").
     """
     started = time.perf_counter()
     output = map_output(output, basename, image_format)
     if not (0.0 <= free < occupied <= 1.0):
         raise UsageError(f"need 0 <= --free < --occupied <= 1, got {free} and {occupied}")
-    if not (resolution > 0.0 and math.isfinite(resolution)):
-        raise UsageError(f"--resolution must be a positive number of metres, got {resolution}")
+    check_resolution(resolution)
     try:
         sonar = StandardSonarParams(no_echo_free_m=no_echo_free)
     except ValueError as exc:
@@ -227,6 +266,12 @@ def build(
     to_stdout = output == STDIO
     if to_stdout:
         _check_stdout(image_format, as_json, draw_path)
+    placed = _fuse_options(fuse, logs, initial_poses, pose, mode, executor, scheduler, jobs)
+    if fuse and (to_stdout or draw_path or pose == "scan-matched"):
+        raise UsageError(
+            "--fuse writes one map file from placed logs: give -o FILE, no --draw-path, and "
+            "--pose global or odometry"
+        )
     to_mcap = output.suffix.lower() == ".mcap"
     if to_mcap:
         source = click.get_current_context().get_parameter_source("map_mode")
@@ -248,6 +293,23 @@ def build(
     read_options = make_read_options(
         odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
     )
+    if fuse:
+        fuse_jobs = [
+            FuseJob(log=log.resolve(), log_format=log_format,
+                    read_options=dataclasses.replace(read_options, robot=None), pose=pose,
+                    initial_pose=first, selection=selection,
+                    robot_spec=_robot_spec(robot), options=BuildOptions(resolution_m=resolution,
+                                                                         sonar=sonar))
+            for log, first in zip(logs, placed, strict=True)
+        ]  # fmt: skip
+        if scheduler is not None:
+            total = fuse_dask(fuse_jobs, scheduler)
+        else:
+            total = fuse_local(fuse_jobs, jobs)
+        warn(total.notes, quiet)
+        _write_fused(total, output, to_mcap, map_mode, occupied, free, force, started, quiet,
+                     as_json, len(logs))  # fmt: skip
+        return
     whole = read_input(logs, log_format, read_options)
     data = whole
     if robot_desc is None:
@@ -336,6 +398,7 @@ def map_output(output: Path | None, basename: Path | None, image_format: str | N
         raise UsageError("give the map to write: -o FILE or -f BASENAME (one of them)")
     if output == STDIO:
         return output
+    check_not_folder(output if output is not None else basename)  # type: ignore[arg-type]
     if basename is not None:
         return basename.with_name(f"{basename.name}.{image_format or 'pgm'}")
     assert output is not None
@@ -362,6 +425,113 @@ def undecided_note(prob: npt.NDArray[np.float64], occupied: float, free: float) 
         f"{occupied:g} and are drawn unknown in this trinary map (the odometry drifted); "
         "--map-mode scale keeps their probabilities",
     )
+
+
+def _fuse_options(
+    fuse: bool,
+    logs: tuple[Path, ...],
+    initial_poses: tuple[str, ...],
+    pose: str,
+    mode: str,
+    executor: str,
+    scheduler: str | None,
+    jobs: int,
+) -> list[tuple[float, float, float] | None]:
+    """Usage checks of --fuse and its options; the initial pose of each log (or None)."""
+    ctx = click.get_current_context()
+    given = [
+        name for name in ("initial_poses", "executor", "scheduler", "jobs")
+        if ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT
+    ]  # fmt: skip
+    if not fuse:
+        if given:
+            flags = ", ".join("--" + n.replace("_poses", "-pose").replace("_", "-") for n in given)
+            raise UsageError(f"{flags}: only with --fuse")
+        return [None] * len(logs)
+    if mode != "standard":
+        raise UsageError("--fuse adds log-odds evidence: it takes --mode standard only")
+    if initial_poses and pose == "global":
+        raise UsageError("--initial-pose places odometry; with --pose global the logs are placed")
+    if pose != "global" and len(initial_poses) != len(logs):
+        raise UsageError(
+            f"--fuse needs the logs in one frame: --pose global, or one --initial-pose per log "
+            f"(got {len(initial_poses)} for {len(logs)} logs)"
+        )
+    if executor == "dask":
+        if scheduler is None:
+            raise UsageError("--executor dask needs --scheduler ADDRESS (tcp://host:8786)")
+        check_dask()
+    elif scheduler is not None:
+        raise UsageError("--scheduler applies to --executor dask")
+    if pose == "global":
+        return [None] * len(logs)
+    return [parse_initial_pose(text) for text in initial_poses]
+
+
+def _robot_spec(robot: str | None) -> str | None:
+    """--robot as the workers can load it: a preset name, or an absolute path."""
+    if robot is None or robot in preset_names():
+        return robot
+    return str(Path(robot).resolve())
+
+
+def _write_fused(
+    total: Partial,
+    output: Path,
+    to_mcap: bool,
+    map_mode: str,
+    occupied: float,
+    free: float,
+    force: bool,
+    started: float,
+    quiet: bool,
+    as_json: bool,
+    n_logs: int,
+) -> None:
+    omap = fused_map(total)
+    yaml_path: Path | None = None
+    if to_mcap:
+        from gridmap_cli.writers.map_mcap import write_map_mcap  # the MCAP writer only when asked
+
+        image_path = write_map_mcap(output, omap, stamp_ns=0, force=force)
+    else:
+        image_path, yaml_path = write_map(
+            output, omap, mode=map_mode, occupied_thresh=occupied, free_thresh=free, force=force
+        )
+    spec, prob = omap.spec, omap.prob
+    known = ~np.isnan(prob)
+    summary = {
+        "image": str(image_path),
+        "yaml": str(yaml_path) if yaml_path is not None else None,
+        "logs": n_logs,
+        "readings": {"used": total.readings},
+        "map": {"width": spec.width, "height": spec.height, "resolution": spec.resolution_m,
+                "origin": [spec.origin_x_m, spec.origin_y_m, 0.0]},
+        "cells": {"observed": int(known.sum()), "occupied": int((prob[known] >= occupied).sum()),
+                  "free": int((prob[known] <= free).sum())},
+        "seconds": round(time.perf_counter() - started, 3),
+    }  # fmt: skip
+    if as_json:
+        click.echo(json_text(summary))
+    if not quiet:
+        click.echo(
+            f"gridmap: {n_logs} logs fused, {total.readings:,} readings mapped; {spec.width} x "
+            f"{spec.height} cells at {spec.resolution_m} m in {summary['seconds']:.1f} s -> "
+            f"{image_path}" + (f", {yaml_path}" if yaml_path else ""),
+            err=True,
+        )
+
+
+def check_resolution(resolution: float) -> None:
+    """--resolution: a positive cell size no larger than :data:`MAX_RESOLUTION_M`."""
+    if not (resolution > 0.0 and math.isfinite(resolution)):
+        raise UsageError(f"--resolution must be a positive number of metres, got {resolution}")
+    if resolution > MAX_RESOLUTION_M:
+        raise UsageError(
+            f"--resolution {resolution:g} m: cells larger than {MAX_RESOLUTION_M:g} m hold whole "
+            "rooms, and the map would be a few cells of nothing (cell size is in metres: 0.05 "
+            "is 5 cm)"
+        )
 
 
 def _error_aware_options(

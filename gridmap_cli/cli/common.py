@@ -62,10 +62,33 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
             if debug_enabled():
                 raise
             if isinstance(exc, UsageError):
-                raise UsageFailure(str(exc)) from exc
-            raise click.ClickException(str(exc)) from exc
+                raise UsageFailure(one_line(str(exc))) from exc
+            raise click.ClickException(one_line(str(exc))) from exc
+        except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
+            raise
+        except MemoryError as exc:
+            if debug_enabled():
+                raise
+            raise click.ClickException(
+                "out of memory: the input is larger than this machine can map (--debug shows where)"
+            ) from exc
+        except Exception as exc:
+            # unattended runs (cron) get one line and exit 1 even for what gridmap did not
+            # foresee; the text says it is gridmap's fault, not the data's
+            if debug_enabled():
+                raise
+            raise click.ClickException(
+                f"internal error ({type(exc).__name__}: {one_line(str(exc))[:300]}); please "
+                "report it with the output of --debug"
+            ) from exc
 
     return wrapper
+
+
+def one_line(text: str) -> str:
+    """``text`` with its line breaks (and runs of spaces around them) folded into one space:
+    every error is one line, whatever a library put in its message."""
+    return " ".join(part.strip() for part in text.splitlines() if part.strip())
 
 
 def debug_enabled() -> bool:
@@ -141,6 +164,13 @@ def stdout_file(name: str) -> Iterator[Path]:
         with open(path, "rb") as handle:
             shutil.copyfileobj(handle, stream)
         stream.flush()
+
+
+def check_not_folder(output: Path) -> None:
+    """An output named by a folder is a command-line mistake, said before anything else about
+    the name (a rosbag2 folder is a log, never an output)."""
+    if output != STDIO and output.is_dir():
+        raise UsageError(f"{output} is a directory")
 
 
 def check_output_folder(output: Path) -> None:

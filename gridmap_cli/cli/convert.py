@@ -9,6 +9,7 @@ import click
 from gridmap_cli.cli.common import (
     STDIO,
     check_input,
+    check_not_folder,
     check_output_folder,
     handle_errors,
     json_text,
@@ -68,6 +69,7 @@ def convert(
 
     What the output format cannot hold is refused, never dropped (see schemas/*.md).
     """
+    check_not_folder(output)
     writer = output_writer(output, out_format, encoding)
     if output == STDIO and as_json:
         raise UsageError("- writes the log to standard output; --json would mix with it")

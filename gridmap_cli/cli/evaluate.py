@@ -128,19 +128,27 @@ def evaluate(
     pmap = ev.load_probability_map(map_yaml)
     map_to_world = (0.0, 0.0, 0.0)
     region = None
+    log_world = None
     if log_path is not None:
         data = resolve_format(log_path, log_format).read(log_path)
         data.require_truth("evaluate needs the true path")  # before the robot is looked up
+        log_world = data.metadata.get("world")
         if robot_desc is None:
             robot_desc = robot_from_log(log_path, data.metadata)
         selected = apply_selection(data, selection, robot_desc)
         warn(selected.notes)
         data = selected.log
         true_path = data.require_truth("evaluate needs the true path")
+        ev.check_path_in_world(truth, true_path, str(log_path), str(truth_yaml))
         sensors = sensors_for_log(data, robot_desc)
         if frame == "odometry":
             map_to_world = ev.odometry_frame_in_world(data)
         region = ev.sensed_region(truth.world, true_path, sensors)
+    warn(
+        ev.check_comparable(
+            pmap, truth.spec, map_to_world, str(map_yaml), str(truth_yaml), log_world
+        )
+    )
     result = ev.evaluate_map(pmap, truth.walls, truth.spec, region, map_to_world, truth.known)
     if plot is not None:
         from gridmap_cli.evaluate_plot import plot_evaluation

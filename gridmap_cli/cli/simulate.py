@@ -10,6 +10,7 @@ import numpy as np
 
 from gridmap_cli.cli.common import (
     STDIO,
+    check_not_folder,
     check_output_folder,
     handle_errors,
     json_text,
@@ -88,6 +89,7 @@ def simulate(
         raise UsageError(f"--drift must be a finite number >= 0, got {drift}")
     if duration is not None and not (duration > 0.0 and math.isfinite(duration)):
         raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
+    check_not_folder(output)
     writer = output_writer(output, log_format, encoding)
     if output == STDIO and as_json:
         raise UsageError("-o - writes the log to standard output; --json would mix with it")

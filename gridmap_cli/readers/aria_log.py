@@ -35,6 +35,7 @@ from typing import TextIO
 import numpy as np
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.limits import MAX_LASER_SAMPLES, numbered_lines
 from gridmap_cli.readers.aria_params import (
     DEFAULT_BEAM_WIDTH_DEG,
     DEFAULT_MIN_RANGE_M,
@@ -50,6 +51,8 @@ MAGIC = "LaserOdometryLog"
 #: laser is taken to reach this far, and its readings are end points or ranges that hit.
 LASER_MAX_RANGE_M = 32.0
 
+#: The LaserOdometryLog versions ARIA has written, all of which this reader knows.
+KNOWN_VERSIONS = ("1", "2", "3", "4")
 _LASER_TAG = re.compile(r"^(sick|scan)(\d+)(pose|conf|id|name|maxrange|minrange)?$", re.IGNORECASE)
 
 
@@ -128,7 +131,7 @@ class _Parser:
         return x / 1000.0, y / 1000.0, math.radians(th)
 
     def parse(self, handle: TextIO) -> RangeLog:
-        lines = enumerate(handle, start=1)
+        lines = numbered_lines(handle, self.path)
         number, first = 1, ""
         for number, raw in lines:  # noqa: B007 (number is used after the loop)
             first = raw.strip().lstrip("\ufeff")
@@ -163,6 +166,12 @@ class _Parser:
     def header(self, line: int, tag: str, low: str, values: str) -> None:
         if low == "version":
             self.version = values.strip()
+            if self.version not in KNOWN_VERSIONS:
+                raise self.error(
+                    line,
+                    f"version {self.version!r}: gridmap reads LaserOdometryLog versions "
+                    f"{', '.join(KNOWN_VERSIONS)} (a later ARIA may lay the lines out otherwise)",
+                )
             self.metadata["version"] = self.version
         elif low == "sonarunit":
             n, x, y, th = self.numbers(line, tag, values, 4)[:4]
@@ -192,6 +201,12 @@ class _Parser:
                     first, last, samples = self.numbers(line, tag, values, 3)[:3]
                     if samples != int(samples) or samples < 1:
                         raise self.error(line, f"{tag}: samples must be a whole number >= 1")
+                    if samples > MAX_LASER_SAMPLES:
+                        raise self.error(
+                            line,
+                            f"{tag}: {samples:.0f} samples, above gridmap's limit of "
+                            f"{MAX_LASER_SAMPLES:,} beams per laser (MAX_LASER_SAMPLES)",
+                        )
                     laser.conf = (math.radians(first), math.radians(last), int(samples))
                     laser.line = line
                 elif kind == "maxrange":

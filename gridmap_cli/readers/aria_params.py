@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gridmap_cli.errors import RobotDescriptionError
+from gridmap_cli.limits import check_settings_size
 from gridmap_cli.robot import RangeSensor, RobotDescription
 
 DEFAULT_SONAR_MAX_RANGE_MM = 4335.0
@@ -172,6 +173,7 @@ class _Entry:
 def read_aria_params(path: str | os.PathLike[str]) -> AriaRobotParams:
     """Read an ARIA robot parameter file; errors read ``path:line: ...``."""
     try:
+        check_settings_size(Path(path), "a robot parameter file")
         raw = Path(path).read_bytes()
     except OSError as exc:
         raise RobotDescriptionError(str(path), f"cannot read: {exc.strerror or exc}") from exc

@@ -20,6 +20,8 @@ from typing import Any
 import yaml
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.limits import read_settings_text
+from gridmap_cli.readers.bag_integrity import verify_bag
 from gridmap_cli.readers.mcap_log import McapSource
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros_recording import (
@@ -30,6 +32,7 @@ from gridmap_cli.readers.ros_recording import (
 )
 from gridmap_cli.readers.ros_topics import ChannelInfo, Survey, fold_type, qos_text
 from gridmap_cli.records import RangeLog
+from gridmap_cli.yamlfile import yaml_problem
 
 #: The first line of every ROS 1 bag (format 2.0, the only one rosbag has written since 2010).
 BAG_MAGIC = b"#ROSBAG V2.0\n"
@@ -75,6 +78,7 @@ class BagSource:
     def __init__(self, path: Path) -> None:
         self.path = path
         self.kind = "rosbag2" if path.is_dir() else "ROS 1 bag"
+        self._verified = False
 
     def _reader(self) -> Any:
         from rosbags.highlevel import AnyReader
@@ -90,7 +94,13 @@ class BagSource:
             self.path, f"truncated or damaged {self.kind} ({type(exc).__name__}: {exc})"
         )
 
+    def _verify(self) -> None:
+        if not self._verified and not self.path.is_dir():
+            verify_bag(self.path)
+        self._verified = True
+
     def survey(self) -> Survey:
+        self._verify()
         try:
             with self._reader() as reader:
                 counts: Counter[str] = Counter()
@@ -133,6 +143,7 @@ class BagSource:
             raise self._fail(exc) from exc
 
     def messages(self, topics: Sequence[str], every_topic: bool) -> Iterator[Message]:
+        self._verify()
         wanted = set(topics)
         name = str(self.path)
         try:
@@ -140,18 +151,21 @@ class BagSource:
                 connections = [
                     c for c in reader.connections if every_topic or c.topic in wanted
                 ]  # fmt: skip
-                for con, log_time, raw in reader.messages(connections=connections):
+                messages = reader.messages(connections=connections)
+                for index, (con, log_time, raw) in enumerate(messages, start=1):
                     type_name = fold_type(con.msgtype)
                     if con.topic not in wanted:
                         yield name, con.topic, type_name, log_time, None
                         continue
                     try:
                         msg = reader.deserialize(raw, con.msgtype)
-                    except _damaged() as exc:
+                    except Exception as exc:  # the deserialisers raise anything on bad bytes
+                        text = " ".join(str(exc).split())[:200]
                         raise InputFileError(
                             self.path,
-                            f"{con.topic}: malformed {type_name} message at log time "
-                            f"{log_time / 1e9:.9f} s ({type(exc).__name__}: {exc})",
+                            f"message {index} ({con.topic}, {type_name}, log time "
+                            f"{log_time / 1e9:.9f} s) does not decode "
+                            f"({type(exc).__name__}: {text})",
                         ) from exc
                     yield name, con.topic, type_name, log_time, msg
         except InputFileError:
@@ -204,13 +218,18 @@ def rosbag2_sources(folder: Path) -> list[RecordingSource]:
     """The sources of a rosbag2 folder: its MCAP files, or the folder itself (sqlite3)."""
     meta_path = folder / ROSBAG2_METADATA
     try:
-        meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))
+        meta = yaml.safe_load(read_settings_text(meta_path, "rosbag2 metadata"))
         info = meta["rosbag2_bagfile_information"]
         storage = str(info.get("storage_identifier", ""))
         files = [str(f) for f in info.get("relative_file_paths") or []]
-    except OSError as exc:
-        raise InputFileError(meta_path, f"cannot read: {exc.strerror or exc}") from exc
-    except (yaml.YAMLError, KeyError, TypeError, AttributeError) as exc:
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputFileError(
+            meta_path, f"cannot read: {getattr(exc, 'strerror', None) or exc}"
+        ) from exc
+    except yaml.YAMLError as exc:
+        line, problem = yaml_problem(exc)
+        raise InputFileError(meta_path, f"not a rosbag2 metadata file: {problem}", line) from exc
+    except (KeyError, TypeError, AttributeError) as exc:
         raise InputFileError(
             meta_path, f"not a rosbag2 metadata file ({type(exc).__name__}: {exc})"
         ) from exc

@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.limits import numbered_lines
 from gridmap_cli.readers.carmen_tracks import Event, build_tracks
 from gridmap_cli.readers.csv_log import seconds_to_ns
 from gridmap_cli.records import RangeLog, RangeReadings
@@ -183,7 +184,7 @@ class _Parser:
 
     def parse(self, handle: TextIO) -> RangeLog:
         number = 0
-        for number, raw in enumerate(handle, start=1):
+        for number, raw in numbered_lines(handle, self.path):
             tokens = raw.split()
             if not tokens or tokens[0].startswith("#"):
                 continue

@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.limits import numbered_lines
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 
 POSE_COLUMNS = ("time", "x", "y", "theta")
@@ -197,7 +198,7 @@ def _log(
 
 def _read_rows(handle: TextIO, path: str) -> RangeLog:
     metadata: dict[str, str] = {}
-    lines = enumerate(handle, start=1)
+    lines = numbered_lines(handle, path)
     header: list[str] | None = None
     header_line = 0
     for number, line in lines:

@@ -8,6 +8,8 @@ messages become the canonical stream as for every ROS container
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
@@ -27,6 +29,7 @@ from gridmap_cli.readers.mcap_channels import (
     survey_mcap,
 )
 from gridmap_cli.readers.mcap_channels import sniff as sniff
+from gridmap_cli.readers.mcap_integrity import verify_mcap
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros_messages import float32_decimal as float32_decimal
 from gridmap_cli.readers.ros_recording import Message, RecordingRead, read_recording
@@ -44,15 +47,27 @@ class JsonDecoderFactory(McapDecoderFactory):
 
 
 class McapSource:
-    """An MCAP file as a recording source."""
+    """An MCAP file as a recording source.
+
+    The whole file's structure and CRCs are checked (:func:`verify_mcap`) before the survey
+    or any message is read, once per source: the ``mcap`` library trusts both.
+    """
 
     def __init__(self, path: Path) -> None:
         self.path = path
+        self._verified = False
+
+    def _verify(self) -> None:
+        if not self._verified:
+            verify_mcap(self.path)
+            self._verified = True
 
     def survey(self) -> Survey:
+        self._verify()
         return survey_mcap(self.path)
 
     def messages(self, topics: Sequence[str], every_topic: bool) -> Iterator[Message]:
+        self._verify()
         path = self.path
         wanted = set(topics)
         factories = [Ros1DecoderFactory(), Ros2DecoderFactory(), JsonDecoderFactory()]
@@ -62,8 +77,11 @@ class McapSource:
             with open(path, "rb") as handle:
                 reader = open_reader(path, handle)
                 read_summary(path, reader)
-                for schema, channel, message in reader.iter_messages(
-                    topics=None if every_topic else list(topics), log_time_order=True
+                for index, (schema, channel, message) in enumerate(
+                    reader.iter_messages(
+                        topics=None if every_topic else list(topics), log_time_order=True
+                    ),
+                    start=1,
                 ):
                     type_name = message_type(schema)
                     if channel.topic not in wanted:
@@ -72,7 +90,9 @@ class McapSource:
                     decoder = decoders.get(channel.id)
                     if decoder is None:
                         decoder = decoders[channel.id] = _decoder(path, factories, channel, schema)
-                    yield name, channel.topic, type_name, message.log_time, decoder(message.data)
+                    decoded = _decode(path, decoder, channel, type_name, index, message.log_time,
+                                      message.data)  # fmt: skip
+                    yield name, channel.topic, type_name, message.log_time, decoded
         except InputFileError:
             raise
         except DAMAGED as exc:
@@ -107,9 +127,22 @@ def read_mcap(
 def _decoder(
     path: Path, factories: list[McapDecoderFactory], channel: Channel, schema: Schema | None
 ) -> Callable[[bytes], Any]:
-    """The decoder of a channel's messages: ROS 1, ROS 2 (CDR) or JSON."""
+    """The decoder of a channel's messages: ROS 1, ROS 2 (CDR) or JSON.
+
+    A schema that does not parse is the file's fault: :class:`InputFileError` naming the topic.
+    """
     for factory in factories:
-        decoder = factory.decoder_for(channel.message_encoding, schema)
+        try:
+            # the ROS 2 parser prints its own note on stderr before raising: the error below
+            # says it on gridmap's one line
+            with contextlib.redirect_stderr(io.StringIO()):
+                decoder = factory.decoder_for(channel.message_encoding, schema)
+        except Exception as exc:  # the vendored ROS parsers raise a dozen classes of their own
+            raise InputFileError(
+                path,
+                f"{channel.topic}: the schema of {message_type(schema) or 'its type'} does not "
+                f"parse ({type(exc).__name__}: {_short(exc)})",
+            ) from exc
         if decoder is not None:
             return decoder
     raise InputFileError(
@@ -117,3 +150,31 @@ def _decoder(
         f"{channel.topic}: cannot decode {channel.message_encoding} messages of "
         f"{message_type(schema) or 'no schema'}",
     )
+
+
+def _decode(
+    path: Path,
+    decoder: Callable[[bytes], Any],
+    channel: Channel,
+    type_name: str,
+    index: int,
+    log_time: int,
+    data: bytes,
+) -> Any:
+    """One message decoded; any failure (a length claiming more bytes than the message holds,
+    JSON nested past the interpreter's recursion limit) names the message by its index in
+    log-time order."""
+    try:
+        return decoder(data)
+    except Exception as exc:  # RecursionError, genpy/CDR/JSON errors: all mean a bad message
+        raise InputFileError(
+            path,
+            f"message {index} ({channel.topic}, {type_name or 'no schema'}, log time "
+            f"{log_time / 1e9:.9f} s) does not decode ({type(exc).__name__}: {_short(exc)})",
+        ) from exc
+
+
+def _short(exc: BaseException, limit: int = 200) -> str:
+    """An exception's text on one line, cut to ``limit`` characters."""
+    text = " ".join(str(exc).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."

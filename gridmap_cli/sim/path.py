@@ -40,14 +40,19 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from gridmap_cli.errors import InputFileError
+from gridmap_cli.errors import InputFileError, SimulationSizeError
 from gridmap_cli.geometry import wrap_angle
+from gridmap_cli.limits import read_settings_text
 from gridmap_cli.records import PoseTrack
+from gridmap_cli.yamlfile import yaml_problem
 
 FloatArray = npt.NDArray[np.float64]
 
 DEFAULT_SPEED_M_S = 0.4
 DEFAULT_TURN_RATE_DEG_S = 40.0
+#: The most poses one simulation samples: 5 M poses is 139 hours at 10 Hz, and a few hundred MB
+#: of arrays; beyond it numpy fails to allocate, or the machine swaps.
+MAX_SIM_POSES = 5_000_000
 
 _KEYS = (
     "gridmap-path",
@@ -82,7 +87,7 @@ def load_path(source: str | Path | TextIO) -> WaypointPath:
     """Read a path file from a file name or an open text handle."""
     if isinstance(source, str | Path):
         try:
-            text = Path(source).read_text(encoding="utf-8")
+            text = read_settings_text(Path(source), "a path file")
         except (OSError, UnicodeDecodeError) as exc:
             raise InputFileError(source, f"cannot read: {exc}") from exc
         return parse_path_yaml(text, str(source))
@@ -97,9 +102,8 @@ def parse_path_yaml(text: str, source: str) -> WaypointPath:
         node = yaml.compose(io.StringIO(text))
         doc = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = mark.line + 1 if mark is not None else None
-        raise InputFileError(source, f"not valid YAML: {exc}", line) from exc
+        line, problem = yaml_problem(exc)
+        raise InputFileError(source, problem, line) from exc
     if not isinstance(doc, dict) or not isinstance(node, yaml.MappingNode):
         raise InputFileError(source, "expected a mapping with 'gridmap-path: 1' and 'waypoints'")
     key_lines = {
@@ -292,7 +296,13 @@ def _motion(path: WaypointPath, start_heading: float, legs: FloatArray) -> tuple
     return _Motion(*arrays), heading
 
 
-def trajectory(path: WaypointPath, rate_hz: float, duration_s: float | None = None) -> PoseTrack:
+def trajectory(
+    path: WaypointPath,
+    rate_hz: float,
+    duration_s: float | None = None,
+    max_poses: int = MAX_SIM_POSES,
+    what_limits: str = "MAX_SIM_POSES",
+) -> PoseTrack:
     """The true poses of a robot driving ``path``, sampled at ``rate_hz`` from t = 0.
 
     Parameters
@@ -306,6 +316,9 @@ def trajectory(path: WaypointPath, rate_hz: float, duration_s: float | None = No
         end. A number: keep lapping (closing the path back to the first waypoint even if the file
         does not, so that laps can follow each other) and return the samples with t < duration_s,
         e.g. 36,000 poses for one hour at 10 Hz; ``path.laps`` is then ignored.
+    max_poses, what_limits
+        More poses than ``max_poses`` raise :class:`SimulationSizeError` (naming
+        ``what_limits``) before any array is allocated.
 
     Returns
     -------
@@ -325,9 +338,20 @@ def trajectory(path: WaypointPath, rate_hz: float, duration_s: float | None = No
     # Later laps start facing along the closing leg, so their first turn differs from lap one's.
     later, _ = _motion(path, end_heading, lap)
     if duration_s is not None:
-        n = max(math.ceil(duration_s * rate_hz - 1e-9), 1)
+        wanted = max(duration_s * rate_hz, 1.0)
     else:
         total = first.total_s + (path.laps - 1) * later.total_s
+        wanted = total * rate_hz + 1.0
+    if not wanted <= max_poses:  # also NaN and inf, from paths of absurd coordinates
+        raise SimulationSizeError(
+            f"{path.source}: driving it "
+            + (f"for {duration_s:g} s" if duration_s is not None else f"{path.laps} lap(s)")
+            + f" at {rate_hz:g} Hz gives {wanted:.3g} poses, above gridmap's limit of "
+            f"{max_poses:,} for this simulation ({what_limits}); lower the rate or the duration"
+        )
+    if duration_s is not None:
+        n = max(math.ceil(duration_s * rate_hz - 1e-9), 1)
+    else:
         n = math.floor(total * rate_hz + 1e-9) + 1
     k = np.arange(n, dtype=np.int64)
     t_s = k / rate_hz

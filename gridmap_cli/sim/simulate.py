@@ -15,9 +15,12 @@ from gridmap_cli.errors import InputFileError
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RobotDescription
 from gridmap_cli.sim.odometry import OdometryErrorModel, odometry_from_truth
-from gridmap_cli.sim.path import WaypointPath, trajectory
+from gridmap_cli.sim.path import MAX_SIM_POSES, WaypointPath, trajectory
 from gridmap_cli.sim.sonar import simulate_ranges
 from gridmap_cli.sim.world import World
+
+#: The most range readings one simulation makes (at 40 bytes or so each in memory, ~2 GB).
+MAX_SIM_READINGS = 50_000_000
 
 
 def simulate(
@@ -64,7 +67,12 @@ def simulate(
     """
     model = (error_model if error_model is not None else OdometryErrorModel()).scaled(drift)
     rng = np.random.default_rng(seed)
-    truth = trajectory(path, rate_hz, duration_s)
+    # every sensor reads at every pose: the readings bound the poses
+    max_poses = min(MAX_SIM_POSES, MAX_SIM_READINGS // max(len(robot.sensors), 1))
+    what = "MAX_SIM_POSES" if max_poses == MAX_SIM_POSES else (
+        f"MAX_SIM_READINGS, {MAX_SIM_READINGS:,} readings of {len(robot.sensors)} sensors"
+    )  # fmt: skip
+    truth = trajectory(path, rate_hz, duration_s, max_poses, what)
     _check_clear(world, truth, path.source)
     # Draw order is fixed: odometry noise first, then range noise.
     odometry = odometry_from_truth(truth, model, rng)

@@ -364,9 +364,9 @@ def test_absurd_coordinates_fail_the_build_cleanly(tmp_path: Path) -> None:
             rec.write("/sonar", "sensor_msgs/Range", ns, sonar_range(rec, ns, "base_link", 1.0))
     code, _, err = run("build", str(path), "-o", str(tmp_path / "map.png"))
     assert code == 1
-    # MapSizeError: x from the odometry, y the 1 m sonar cone (+-0.26 m) about the x axis
+    # MapSizeError naming the log: x from the odometry, y the 1 m sonar cone (+-0.26 m) about x
     assert err.strip() == (
-        "Error: the data spans 1e+09 m x 0.519548 m (x 0..1e+09, y -0.259774..0.259774), "
+        f"Error: {path}: the data spans 1e+09 m x 0.519548 m (x 0..1e+09, y -0.259774..0.259774), "
         "20000000029 x 20 cells at 0.05 m: more than 100000000 cells; check the log for absurd "
         "coordinates or use a coarser --resolution"
     )
@@ -427,7 +427,9 @@ def test_truncated_file_is_a_clear_error_and_writes_nothing(tmp_path: Path) -> N
     cut.write_bytes(whole[: len(whole) // 2])
     code, _, err = run("build", str(cut), "-o", str(tmp_path / "map.png"))
     assert code == 1
-    assert err.startswith(f"Error: {cut}: truncated or damaged MCAP file: no valid footer")
+    assert err.startswith(
+        f"Error: {cut}: byte {len(whole) // 2}: truncated or damaged MCAP file: no valid footer"
+    )
     assert "mcap recover" in err
     assert names(tmp_path) == {"whole.mcap", "cut.mcap"}
 

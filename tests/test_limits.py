@@ -1,0 +1,134 @@
+"""Memory bombs are refused in milliseconds, naming the limit hit (issue 11): one CSV row of 50
+million fields, a ``sonar:`` line of 10^8 values, a robot laser of 10^8 samples, simulations
+numpy cannot allocate."""
+
+from __future__ import annotations
+
+import io
+import time
+from pathlib import Path
+
+import pytest
+
+from gridmap_cli.limits import (
+    MAX_LASER_SAMPLES,
+    MAX_LINE_CHARS,
+    MAX_SETTINGS_BYTES,
+    LimitError,
+    numbered_lines,
+)
+from tests.helpers import names, run
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+CSV = SAMPLES / "corridor_loop.csv"
+
+
+class EndlessLine(io.StringIO):
+    """A text handle whose first line never ends: what a reader that reads whole lines would
+    spend all memory on."""
+
+    def readline(self, size: int | None = -1) -> str:  # type: ignore[override]
+        assert size is not None and 0 < size <= MAX_LINE_CHARS + 1, "an unbounded read"
+        return "1," * (size // 2) + "1" * (size % 2)
+
+
+def refused(tmp_path: Path, *args: str) -> tuple[str, float]:
+    before = names(tmp_path)
+    started = time.perf_counter()
+    code, out, err = run(*args)
+    elapsed = time.perf_counter() - started
+    assert (code, out) == (1, ""), err
+    assert err.count("\n") == 1, err
+    assert names(tmp_path) == before
+    return err, elapsed
+
+
+def test_a_line_without_end_is_refused_after_reading_the_limit() -> None:
+    with pytest.raises(LimitError) as info:
+        list(numbered_lines(EndlessLine(), "endless.csv"))
+    assert str(info.value).startswith("endless.csv:1: line longer than 1,048,576 characters")
+    assert "MAX_LINE_CHARS" in str(info.value)
+
+
+def test_a_csv_row_of_50_million_fields_is_refused_in_milliseconds(tmp_path: Path) -> None:
+    log = tmp_path / "bomb.csv"
+    with open(log, "w") as handle:
+        handle.write("time,x,y,theta,s0\n0,0,0,0,1\n")
+        handle.write("," * 50_000_000 + "\n")
+    err, seconds = refused(tmp_path, "build", str(log), "-o", str(tmp_path / "m.png"))
+    assert err.startswith(f"Error: {log}:3: line longer than {MAX_LINE_CHARS:,} characters")
+    assert seconds < 1.0
+
+
+def test_a_sonar_line_of_ten_million_values_is_refused_in_milliseconds(tmp_path: Path) -> None:
+    # 10^8 values would be 700 MB on disk; the reader stops after the first MiB either way
+    # (test_a_line_without_end... shows a line of any length is read only that far)
+    log = tmp_path / "bomb.2d"
+    with open(log, "w") as handle:
+        handle.write("LaserOdometryLog\nversion: 4\nsonarUnit: 0 147 136 90\nlogTime: 0.0\n")
+        handle.write("robot: 0 0 0\nsonar: " + "0 1000 " * 10_000_000 + "\n")
+    err, seconds = refused(tmp_path, "build", str(log), "-o", str(tmp_path / "m.png"))
+    assert err.startswith(f"Error: {log}:6: line longer than")
+    assert seconds < 1.0
+
+
+def test_a_carmen_line_too_long_is_refused(tmp_path: Path) -> None:
+    log = tmp_path / "bomb.log"
+    log.write_text("ODOM 0 0 0 0 0 0 1.0 host 1.0\nFLASER 181 " + "1.0 " * 400_000 + "\n")
+    err, _ = refused(tmp_path, "build", str(log), "-o", str(tmp_path / "m.png"))
+    assert err.startswith(f"Error: {log}:2: line longer than")
+
+
+def test_a_robot_laser_of_a_hundred_million_samples_is_refused(tmp_path: Path) -> None:
+    robot = tmp_path / "bomb.yaml"
+    robot.write_text(
+        "gridmap-robot: 1\nname: big\nsensors:\n"
+        "  - {name: laser1, kind: laser, x_m: 0.16, y_m: 0.0, yaw_deg: 0,\n"
+        "     first_deg: -90, last_deg: 90, samples: 100000000, max_range_m: 8.0}\n"
+    )
+    err, seconds = refused(
+        tmp_path, "build", str(CSV), "--robot", str(robot), "-o", str(tmp_path / "m.png")
+    )
+    assert err.strip() == (
+        f"Error: {robot}:4: sensor 'laser1': 100,000,000 samples, above gridmap's limit of "
+        f"{MAX_LASER_SAMPLES:,} beams per laser (MAX_LASER_SAMPLES)"
+    )
+    assert seconds < 1.0
+
+
+def test_an_aria_laser_conf_of_a_hundred_million_samples_is_refused(tmp_path: Path) -> None:
+    log = tmp_path / "bomb.2d"
+    log.write_text("LaserOdometryLog\nversion: 4\nsick1conf: -90 90 100000000\n")
+    err, _ = refused(tmp_path, "build", str(log), "-o", str(tmp_path / "m.png"))
+    assert err.startswith(f"Error: {log}:3: sick1conf: 100000000 samples, above gridmap's limit")
+
+
+def test_a_huge_robot_file_is_refused_unread(tmp_path: Path) -> None:
+    robot = tmp_path / "huge.yaml"
+    with open(robot, "wb") as handle:
+        handle.truncate(MAX_SETTINGS_BYTES + 1)  # sparse: costs no disk
+    err, _ = refused(
+        tmp_path, "build", str(CSV), "--robot", str(robot), "-o", str(tmp_path / "m.png")
+    )
+    assert "above gridmap's limit of" in err and "(MAX_SETTINGS_BYTES)" in err
+
+
+@pytest.mark.parametrize(
+    "flags", [("--rate", "1e12"), ("--duration", "1e15"), ("--rate", "1e300", "--duration", "1e9")]
+)
+def test_a_simulation_numpy_cannot_allocate_is_one_line(tmp_path: Path, flags: tuple[str]) -> None:
+    world = SAMPLES / "worlds" / "corridor_loop.yaml"
+    path = SAMPLES / "paths" / "corridor_loop.yaml"
+    err, seconds = refused(tmp_path, "simulate", str(world), str(path), "-o",
+                           str(tmp_path / "s.csv"), *flags)  # fmt: skip
+    assert err.startswith(f"Error: {path}: driving it ")
+    assert "above gridmap's limit of" in err and "MAX_SIM_READINGS" in err
+    assert seconds < 1.0
+
+
+def test_a_path_of_absurd_coordinates_is_one_line(tmp_path: Path) -> None:
+    world = SAMPLES / "worlds" / "corridor_loop.yaml"
+    path = tmp_path / "far.yaml"
+    path.write_text("gridmap-path: 1\nwaypoints: [[2.0, 2.0], [2.0e+300, 2.0]]\n")
+    err, _ = refused(tmp_path, "simulate", str(world), str(path), "-o", str(tmp_path / "s.csv"))
+    assert err.startswith("Error: ")
