@@ -19,6 +19,7 @@ from mcap_ros1.decoder import DecoderFactory as Ros1DecoderFactory
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.readers.mcap_bulk import Batch, read_bulk
 from gridmap_cli.readers.mcap_channels import (
     DAMAGED,
     message_type,
@@ -52,10 +53,36 @@ class McapSource:
     def survey(self) -> Survey:
         return survey_mcap(self.path)
 
+    def bulk(self, topics: Sequence[str]) -> tuple[list[Batch], list[str]]:
+        """The topics whose messages can be decoded in bulk (:mod:`~gridmap_cli.readers.
+        mcap_bulk`), decoded; and the topics left for :meth:`messages`."""
+        path = self.path
+        factories = _factories()
+        decoders: dict[int, Callable[[bytes], Any]] = {}
+
+        def decoder_for(channel: Channel, schema: Schema | None) -> Callable[[bytes], Any]:
+            if channel.id not in decoders:
+                decoders[channel.id] = _decoder(path, factories, channel, schema)
+            return decoders[channel.id]
+
+        try:
+            with open(path, "rb") as handle:
+                reader = open_reader(path, handle)
+                summary = read_summary(path, reader)
+                return read_bulk(path, handle, reader, summary, topics, decoder_for)
+        except InputFileError:
+            raise
+        except DAMAGED as exc:
+            if isinstance(exc, OSError) and not isinstance(exc, EOFError):
+                raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
+            raise InputFileError(
+                path, f"truncated or damaged MCAP data ({type(exc).__name__}: {exc})"
+            ) from exc
+
     def messages(self, topics: Sequence[str], every_topic: bool) -> Iterator[Message]:
         path = self.path
         wanted = set(topics)
-        factories = [Ros1DecoderFactory(), Ros2DecoderFactory(), JsonDecoderFactory()]
+        factories = _factories()
         decoders: dict[int, Callable[[bytes], Any]] = {}
         name = str(path)
         try:
@@ -102,6 +129,10 @@ def read_mcap(
     """:func:`read_mcap_log`, also returning what was chosen (for ``inspect``); see
     :func:`~gridmap_cli.readers.ros_recording.read_recording`."""
     return read_recording([McapSource(Path(source))], options, strict, every_topic)
+
+
+def _factories() -> list[McapDecoderFactory]:
+    return [Ros1DecoderFactory(), Ros2DecoderFactory(), JsonDecoderFactory()]
 
 
 def _decoder(
