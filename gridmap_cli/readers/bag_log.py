@@ -20,6 +20,7 @@ from typing import Any
 import yaml
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.readers.mcap_bulk import Batch
 from gridmap_cli.readers.mcap_log import McapSource
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros_recording import (
@@ -91,6 +92,12 @@ class BagSource:
         )
 
     def survey(self) -> Survey:
+        if not self.path.is_dir():
+            from gridmap_cli.readers.bag_bulk import survey_bag
+
+            quick = survey_bag(self.path)
+            if quick is not None:
+                return quick
         try:
             with self._reader() as reader:
                 counts: Counter[str] = Counter()
@@ -132,7 +139,18 @@ class BagSource:
         except _damaged() as exc:
             raise self._fail(exc) from exc
 
+    def bulk(self, topics: Sequence[str]) -> tuple[list[Batch], list[str]]:
+        """A ROS 1 bag's topics that can be decoded in bulk (:mod:`~gridmap_cli.readers.
+        bag_bulk`), decoded; and the topics left for :meth:`messages`."""
+        if self.path.is_dir():
+            return [], list(topics)
+        from gridmap_cli.readers.bag_bulk import read_bulk
+
+        return read_bulk(self.path, topics)
+
     def messages(self, topics: Sequence[str], every_topic: bool) -> Iterator[Message]:
+        if not topics and not every_topic:
+            return  # (rosbags reads every connection when given none)
         wanted = set(topics)
         name = str(self.path)
         try:

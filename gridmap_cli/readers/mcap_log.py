@@ -80,6 +80,8 @@ class McapSource:
             ) from exc
 
     def messages(self, topics: Sequence[str], every_topic: bool) -> Iterator[Message]:
+        if not topics and not every_topic:
+            return  # every topic read in bulk: nothing to walk the chunks for
         path = self.path
         wanted = set(topics)
         factories = _factories()

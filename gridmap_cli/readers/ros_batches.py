@@ -172,7 +172,8 @@ def _scans(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
             for j in range(1, k.count):
                 acc._key(f"{frame}_{j}")
     assert cols.ranges is not None
-    ranges = cols.ranges.astype(np.float64)
+    with np.errstate(invalid="ignore"):  # NaN payloads
+        ranges = cols.ranges.astype(np.float64)
     row_of = np.repeat(np.arange(n), count)
     beam = np.arange(len(ranges), dtype=np.int64) - np.repeat(np.cumsum(count) - count, count)
     range_max = a["range_max"].astype(np.float64)[row_of]

@@ -313,7 +313,8 @@ def decode_scan(raw: Raw, cdr: bool) -> Columns:
         raise Layout("ranges past the end of the message")
     n_int = r.get(after, _U4).astype(np.int64)
     _exact_end(r, after + 4 + 4 * n_int)
-    flat = _ragged_index(first, count)
+    beam = _ragged_index(np.zeros(len(count), dtype=np.int64), count)
+    flat = np.repeat(first, count) + 4 * beam  # byte offset of each range
     ranges = r.buf[flat[:, None] + np.arange(4, dtype=np.int64)].view(_F4).reshape(-1)
     arrays = {**_base(raw), "stamp_ns": stamp, "frame": frame, "angle_min": amin}
     arrays.update({"angle_increment": ainc, "range_min": rmin, "range_max": rmax, "count": count})
