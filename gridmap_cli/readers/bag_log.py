@@ -22,6 +22,7 @@ import yaml
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.limits import read_settings_text
 from gridmap_cli.readers.bag_integrity import verify_bag
+from gridmap_cli.readers.mcap_bulk import Batch
 from gridmap_cli.readers.mcap_log import McapSource
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros_recording import (
@@ -101,6 +102,12 @@ class BagSource:
 
     def survey(self) -> Survey:
         self._verify()
+        if not self.path.is_dir():
+            from gridmap_cli.readers.bag_bulk import survey_bag
+
+            quick = survey_bag(self.path)
+            if quick is not None:
+                return quick
         try:
             with self._reader() as reader:
                 counts: Counter[str] = Counter()
@@ -142,8 +149,19 @@ class BagSource:
         except _damaged() as exc:
             raise self._fail(exc) from exc
 
+    def bulk(self, topics: Sequence[str]) -> tuple[list[Batch], list[str]]:
+        """A ROS 1 bag's topics that can be decoded in bulk (:mod:`~gridmap_cli.readers.
+        bag_bulk`), decoded; and the topics left for :meth:`messages`."""
+        if self.path.is_dir():
+            return [], list(topics)
+        from gridmap_cli.readers.bag_bulk import read_bulk
+
+        return read_bulk(self.path, topics)
+
     def messages(self, topics: Sequence[str], every_topic: bool) -> Iterator[Message]:
         self._verify()
+        if not topics and not every_topic:
+            return  # (rosbags reads every connection when given none)
         wanted = set(topics)
         name = str(self.path)
         try:
@@ -151,8 +169,9 @@ class BagSource:
                 connections = [
                     c for c in reader.connections if every_topic or c.topic in wanted
                 ]  # fmt: skip
-                messages = reader.messages(connections=connections)
-                for index, (con, log_time, raw) in enumerate(messages, start=1):
+                seen: Counter[str] = Counter()  # messages of each topic so far: names a bad one
+                for con, log_time, raw in reader.messages(connections=connections):
+                    seen[con.topic] += 1
                     type_name = fold_type(con.msgtype)
                     if con.topic not in wanted:
                         yield name, con.topic, type_name, log_time, None
@@ -163,7 +182,7 @@ class BagSource:
                         text = " ".join(str(exc).split())[:200]
                         raise InputFileError(
                             self.path,
-                            f"message {index} ({con.topic}, {type_name}, log time "
+                            f"message {seen[con.topic]} of {con.topic} ({type_name}, log time "
                             f"{log_time / 1e9:.9f} s) does not decode "
                             f"({type(exc).__name__}: {text})",
                         ) from exc

@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,7 @@ from mcap_ros1.decoder import DecoderFactory as Ros1DecoderFactory
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.readers.mcap_bulk import Batch, read_bulk
 from gridmap_cli.readers.mcap_channels import (
     DAMAGED,
     message_type,
@@ -66,23 +68,51 @@ class McapSource:
         self._verify()
         return survey_mcap(self.path)
 
+    def bulk(self, topics: Sequence[str]) -> tuple[list[Batch], list[str]]:
+        """The topics whose messages can be decoded in bulk (:mod:`~gridmap_cli.readers.
+        mcap_bulk`), decoded; and the topics left for :meth:`messages`."""
+        path = self.path
+        factories = _factories()
+        decoders: dict[int, Callable[[bytes], Any]] = {}
+
+        def decoder_for(channel: Channel, schema: Schema | None) -> Callable[[bytes], Any]:
+            if channel.id not in decoders:
+                decoders[channel.id] = _decoder(path, factories, channel, schema)
+            return decoders[channel.id]
+
+        try:
+            with open(path, "rb") as handle:
+                reader = open_reader(path, handle)
+                summary = read_summary(path, reader)
+                return read_bulk(path, handle, reader, summary, topics, decoder_for)
+        except InputFileError:
+            raise
+        except DAMAGED as exc:
+            if isinstance(exc, OSError) and not isinstance(exc, EOFError):
+                raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
+            raise InputFileError(
+                path, f"truncated or damaged MCAP data ({type(exc).__name__}: {exc})"
+            ) from exc
+
     def messages(self, topics: Sequence[str], every_topic: bool) -> Iterator[Message]:
         self._verify()
+        if not topics and not every_topic:
+            return  # every topic read in bulk: nothing to walk the chunks for
         path = self.path
         wanted = set(topics)
-        factories = [Ros1DecoderFactory(), Ros2DecoderFactory(), JsonDecoderFactory()]
+        factories = _factories()
         decoders: dict[int, Callable[[bytes], Any]] = {}
+        seen: Counter[str] = Counter()  # messages of each topic so far: names a bad one
         name = str(path)
         try:
             with open(path, "rb") as handle:
                 reader = open_reader(path, handle)
                 read_summary(path, reader)
-                for index, (schema, channel, message) in enumerate(
-                    reader.iter_messages(
-                        topics=None if every_topic else list(topics), log_time_order=True
-                    ),
-                    start=1,
+                for schema, channel, message in reader.iter_messages(
+                    topics=None if every_topic else list(topics), log_time_order=True
                 ):
+                    seen[channel.topic] += 1
+                    index = seen[channel.topic]
                     type_name = message_type(schema)
                     if channel.topic not in wanted:
                         yield name, channel.topic, type_name, message.log_time, None
@@ -124,6 +154,10 @@ def read_mcap(
     return read_recording([McapSource(Path(source))], options, strict, every_topic)
 
 
+def _factories() -> list[McapDecoderFactory]:
+    return [Ros1DecoderFactory(), Ros2DecoderFactory(), JsonDecoderFactory()]
+
+
 def _decoder(
     path: Path, factories: list[McapDecoderFactory], channel: Channel, schema: Schema | None
 ) -> Callable[[bytes], Any]:
@@ -162,14 +196,14 @@ def _decode(
     data: bytes,
 ) -> Any:
     """One message decoded; any failure (a length claiming more bytes than the message holds,
-    JSON nested past the interpreter's recursion limit) names the message by its index in
-    log-time order."""
+    JSON nested past the interpreter's recursion limit) names the message by its place among
+    its topic's messages in log-time order (whatever other topics were read with it)."""
     try:
         return decoder(data)
     except Exception as exc:  # RecursionError, genpy/CDR/JSON errors: all mean a bad message
         raise InputFileError(
             path,
-            f"message {index} ({channel.topic}, {type_name or 'no schema'}, log time "
+            f"message {index} of {channel.topic} ({type_name or 'no schema'}, log time "
             f"{log_time / 1e9:.9f} s) does not decode ({type(exc).__name__}: {_short(exc)})",
         ) from exc
 

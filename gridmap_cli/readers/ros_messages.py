@@ -141,6 +141,10 @@ class MessageAccumulator:
         self.r_key: list[int] = []
         self.r_range: list[float] = []
         self.r_f32: list[bool] = []
+        # readings decoded in bulk (ros_batches): arrays of the same four, after the lists
+        self.r_chunks: list[
+            tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.float64], bool]
+        ] = []
         self.range_topics = set(plan.range_topics)
         self.topic_types: dict[str, str] = {}
 
@@ -371,10 +375,22 @@ class MessageAccumulator:
             names = order
         index = {name: i for i, name in enumerate(names)}
         remap = np.array([index[k] for k in self.keys], dtype=np.int32)
-        stamp = np.asarray(self.r_stamp, dtype=np.int64)
-        sensor = remap[np.asarray(self.r_key, dtype=np.intp)]
-        rng = np.asarray(self.r_range, dtype=np.float64)
-        f32 = np.asarray(self.r_f32, dtype=bool)
+        stamp = np.concatenate(
+            [np.asarray(self.r_stamp, dtype=np.int64), *(c[0] for c in self.r_chunks)]
+        )
+        key = np.concatenate(
+            [np.asarray(self.r_key, dtype=np.intp), *(c[1] for c in self.r_chunks)]
+        ).astype(np.intp)
+        sensor = remap[key]
+        rng = np.concatenate(
+            [np.asarray(self.r_range, dtype=np.float64), *(c[2] for c in self.r_chunks)]
+        )
+        f32 = np.concatenate(
+            [
+                np.asarray(self.r_f32, dtype=bool),
+                *(np.full(len(c[0]), c[3], dtype=bool) for c in self.r_chunks),
+            ]
+        )
         rng[f32] = float32_decimal(rng[f32])  # at once: one by one was most of the read time
         if sensors and len(rng):
             # no echo is stored at the sensor's maximum range, as in the CSV layout

@@ -16,8 +16,10 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from gridmap_cli.errors import GridmapError, InputFileError
+from gridmap_cli.readers.mcap_bulk import Batch, bulk_enabled
 from gridmap_cli.readers.mcap_channels import METADATA_NAME
 from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.ros_batches import add_columns
 from gridmap_cli.readers.ros_messages import MessageAccumulator
 from gridmap_cli.readers.ros_topics import ChannelInfo, Plan, Refusals, Survey, plan_topics
 from gridmap_cli.records import RangeLog
@@ -134,9 +136,37 @@ def read_recording(
     acc = MessageAccumulator(survey.path, plan, opts.robot, refusals)
     spans: dict[str, list[int]] = {}
     topics = plan.topics()
-    streams = [s.messages(topics, every_topic) for s in sources]
+    batches: list[tuple[int, int, int, Batch]] = []
+    rest: list[Sequence[str]] = []
+    for i, source in enumerate(sources):
+        bulk = getattr(source, "bulk", None)
+        if bulk is None or every_topic or not bulk_enabled():
+            rest.append(topics)
+            continue
+        done, left = bulk(topics)
+        for b in done:
+            first = b.columns.arrays
+            batches.append((int(first["log_ns"][0]), i, int(first["pos"][0]), b))
+        rest.append(left)
+    # a channel decoded in bulk joins the stream where its first message would have (ties: as
+    # the merge orders them, by file, then by place in the file)
+    batches.sort(key=lambda entry: entry[:3])
+    pending = (entry[3] for entry in batches)
+    batch = next(pending, None)
+
+    def add_batch(b: Batch) -> None:
+        log_ns = b.columns.arrays["log_ns"]
+        first, last = int(log_ns[0]), int(log_ns[-1])
+        span = spans.setdefault(b.topic, [first, last])
+        span[0], span[1] = min(span[0], first), max(span[1], last)
+        add_columns(acc, b.source, b.topic, b.type_name, b.columns)
+
+    streams = [s.messages(t, every_topic) for s, t in zip(sources, rest, strict=True)]
     merged = streams[0] if len(streams) == 1 else heapq.merge(*streams, key=lambda m: m[3])
     for path, topic, type_name, log_time, msg in merged:
+        while batch is not None and int(batch.columns.arrays["log_ns"][0]) <= log_time:
+            add_batch(batch)
+            batch = next(pending, None)
         span = spans.get(topic)
         if span is None:
             spans[topic] = [log_time, log_time]
@@ -144,6 +174,9 @@ def read_recording(
             span[1] = log_time  # log-time order: the latest so far
         if msg is not None:
             acc.add(path, topic, type_name, log_time, msg)
+    while batch is not None:
+        add_batch(batch)
+        batch = next(pending, None)
     log = acc.finish(survey.metadata.get(METADATA_NAME, {}))
     base = acc.base_frame()
     below = tuple(f for f in acc.tree.order if acc.tree.lookup(base, f) is not None)

@@ -421,7 +421,7 @@ def _scan_claims(topic: str, data: bytes) -> bytes:
     return data[:at] + struct.pack("<I", 0x7FFFFFFF) + data[at + 4 :]
 
 
-edited_mcap_case("ros1-array-claims-gigabytes", "ros1", ": message 3 ", "does not decode",
+edited_mcap_case("ros1-array-claims-gigabytes", "ros1", ": message 1 of /scan ", "does not decode",
                  message=_scan_claims)  # fmt: skip
 edited_mcap_case(
     "ros1-schema-does-not-parse",

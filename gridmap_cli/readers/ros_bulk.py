@@ -1,0 +1,345 @@
+"""Bulk decoding of ROS messages from their raw bytes with numpy, column by column.
+
+The MCAP and ROS 1 bag readers hand over the raw bytes of many messages of one channel at once:
+one buffer, and each message's data offset and length in it. The layouts of the messages gridmap
+reads most (``sensor_msgs/Range``, ``sensor_msgs/LaserScan``, ``nav_msgs/Odometry``,
+``tf2_msgs/TFMessage``) are fixed up to their strings and arrays, so every field of every message
+is one gather: the offset of the first string is known, and the offsets after it follow from
+the string's length (read in bulk too). Two serialisations:
+
+- ROS 2 CDR (little-endian, ``00 01`` encapsulation): primitives aligned to their size, counted
+  from just after the 4-byte encapsulation header; strings carry their terminating NUL.
+- ROS 1: no alignment, no NUL; the header starts with a ``uint32`` sequence number.
+
+A decoder returns None when anything is not as expected (big-endian CDR, a length running past
+its message, a NUL inside a string, a message of an unexpected size); the reader then decodes
+that channel message by message with the ROS libraries, which raise the precise error. Values
+are the ones the libraries give: float32 fields widened to float64, stamps as integers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+IntArray = npt.NDArray[np.int64]
+Arr = npt.NDArray[Any]
+
+#: The message types decoded in bulk, by folded type name.
+TF_TYPES = frozenset({"tf2_msgs/TFMessage", "tf/tfMessage"})  # one layout, two names
+BULK_TYPES = frozenset(
+    {"sensor_msgs/Range", "sensor_msgs/LaserScan", "nav_msgs/Odometry", *TF_TYPES}
+)
+
+
+class Layout(Exception):
+    """The bytes are not laid out as the bulk decoder expects (decode message by message)."""
+
+
+@dataclass
+class Raw:
+    """Raw messages of one channel: ``buf`` (bytes, uint8), each message's data ``offset`` and
+    ``length`` in it (int64, (N,)), its log time (ns) and a file-order position (int64, (N,))."""
+
+    buf: npt.NDArray[np.uint8]
+    offset: IntArray
+    length: IntArray
+    log_ns: IntArray
+    pos: IntArray
+
+
+@dataclass
+class Columns:
+    """Decoded messages of one channel, one row per message (per transform for TF).
+
+    ``arrays`` are row-aligned; a string column holds indexes into ``names[column]``. Laser
+    ranges are ragged: ``ranges`` holds them flat, row ``i`` has ``arrays["count"][i]``.
+    """
+
+    arrays: dict[str, Arr]
+    names: dict[str, list[str]] = field(default_factory=dict)
+    ranges: npt.NDArray[np.float32] | None = None
+
+    def __len__(self) -> int:
+        return len(self.arrays["log_ns"])
+
+    def name_column(self, column: str) -> list[str]:
+        """The column as a list of strings (for small columns and error messages)."""
+        names = self.names[column]
+        return [names[i] for i in self.arrays[column].tolist()]
+
+
+def concat(parts: list[Columns]) -> Columns:
+    """Rows of several Columns, in log-time order (ties in file order, then transform order)."""
+    if len(parts) == 1:
+        out = parts[0]
+    else:
+        arrays = {k: np.concatenate([p.arrays[k] for p in parts]) for k in parts[0].arrays}
+        names: dict[str, list[str]] = {}
+        for column in parts[0].names:
+            merged: dict[str, int] = {}
+            pieces = []
+            for p in parts:
+                remap = np.array(
+                    [merged.setdefault(n, len(merged)) for n in p.names[column]], dtype=np.int64
+                )
+                pieces.append(remap[p.arrays[column]] if len(remap) else p.arrays[column])
+            arrays[column] = np.concatenate(pieces)
+            names[column] = list(merged)
+        ranges = None
+        if parts[0].ranges is not None:
+            ranges = np.concatenate([p.ranges for p in parts if p.ranges is not None])
+        out = Columns(arrays, names, ranges)
+    sub = out.arrays.get("sub", np.zeros(len(out), dtype=np.int64))
+    order = np.lexsort((sub, out.arrays["pos"], out.arrays["log_ns"]))
+    if np.array_equal(order, np.arange(len(order))):
+        return out
+    return take(out, order)
+
+
+def take(cols: Columns, rows: npt.NDArray[np.intp]) -> Columns:
+    """The given rows, in the given order."""
+    arrays = {k: v[rows] for k, v in cols.arrays.items()}
+    ranges = None
+    if cols.ranges is not None:
+        count = cols.arrays["count"]
+        start = np.concatenate(([0], np.cumsum(count)[:-1])).astype(np.int64)
+        ranges = cols.ranges[_ragged_index(start[rows], count[rows])]
+    return Columns(arrays, cols.names, ranges)
+
+
+def _ragged_index(start: IntArray, count: Arr) -> IntArray:
+    """Flat indexes of the runs [start[i], start[i] + count[i])."""
+    count = count.astype(np.int64)
+    total = int(count.sum())
+    if total == 0:
+        return np.zeros(0, dtype=np.int64)
+    run_start = np.concatenate(([0], np.cumsum(count)[:-1]))
+    return np.repeat(start - run_start, count) + np.arange(total, dtype=np.int64)
+
+
+# ---------------------------------------------------------------------- byte access
+class _Reader:
+    """Gathers little-endian fields at per-message offsets, checking each stays inside its
+    message."""
+
+    def __init__(self, raw: Raw, cdr: bool) -> None:
+        self.buf = raw.buf
+        self.raw = raw
+        self.cdr = cdr
+        self.end = raw.offset + raw.length
+        if cdr:
+            if np.any(raw.length < 4):
+                raise Layout("short CDR message")
+            kind = self.get(raw.offset, np.dtype("<u2"))
+            if np.any(kind != 0x0100):  # CDR_LE: 00 01; anything else message by message
+                raise Layout("not little-endian CDR")
+            self.origin = raw.offset + 4
+        else:
+            self.origin = raw.offset
+
+    def get(self, at: IntArray, dtype: np.dtype[Any]) -> Arr:
+        size = dtype.itemsize
+        if np.any(at + size > self.end) or np.any(at < self.raw.offset):
+            raise Layout("field past the end of its message")
+        idx = at[:, None] + np.arange(size, dtype=np.int64)
+        out: Arr = self.buf[idx].view(dtype).reshape(-1)
+        return out
+
+    def align(self, at: IntArray, size: int) -> IntArray:
+        """``at`` moved to the next multiple of ``size`` from the CDR origin (ROS 1: as is)."""
+        if not self.cdr:
+            return at
+        rel = at - self.origin
+        return self.origin + (rel + size - 1) // size * size
+
+    def string(self, at: IntArray) -> tuple[IntArray, list[str], IntArray]:
+        """A string at ``at`` (aligned here): (index into the names, names, offset after it)."""
+        at = self.align(at, 4)
+        n = self.get(at, np.dtype("<u4")).astype(np.int64)
+        chars = at + 4
+        after = chars + n
+        if np.any(after > self.end):
+            raise Layout("string past the end of its message")
+        text = n - 1 if self.cdr else n
+        if self.cdr and (np.any(n < 1) or np.any(self.buf[np.maximum(after - 1, 0)] != 0)):
+            raise Layout("CDR string without its NUL")
+        index, names = _unique_strings(self.buf, chars, text)
+        return index, names, after
+
+
+def _unique_strings(
+    buf: npt.NDArray[np.uint8], start: IntArray, length: IntArray
+) -> tuple[IntArray, list[str]]:
+    """The strings buf[start:start+length] as indexes into their distinct values (first seen
+    first)."""
+    if len(start) == 0:
+        return np.zeros(0, dtype=np.int64), []
+    width = int(length.max())
+    if width == 0:
+        return np.zeros(len(start), dtype=np.int64), [""]
+    cols = np.arange(width, dtype=np.int64)
+    inside = cols < length[:, None]
+    mat = np.where(inside, buf[np.where(inside, start[:, None] + cols, 0)], 0).astype(np.uint8)
+    if np.any(inside & (mat == 0)):
+        raise Layout("NUL inside a string")
+    rows = np.ascontiguousarray(mat).view(np.dtype((np.void, width))).reshape(-1)
+    _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+    by_first = np.argsort(first, kind="stable")
+    rank = np.empty_like(by_first)
+    rank[by_first] = np.arange(len(by_first))
+    names = []
+    for i in first[by_first].tolist():
+        try:
+            names.append(bytes(buf[start[i] : start[i] + length[i]]).decode("utf-8"))
+        except UnicodeDecodeError as exc:
+            raise Layout("a string that is not UTF-8") from exc
+    return rank[inverse.reshape(-1)].astype(np.int64), names
+
+
+_U4 = np.dtype("<u4")
+_I4 = np.dtype("<i4")
+_F4 = np.dtype("<f4")
+_F8 = np.dtype("<f8")
+
+
+def _header(r: _Reader) -> tuple[IntArray, IntArray, list[str], IntArray]:
+    """std_msgs/Header: (stamp ns, frame index, frame names, offset after it)."""
+    at = r.origin if r.cdr else r.origin + 4  # ROS 1: uint32 seq first
+    sec = r.get(at, _I4).astype(np.int64) if r.cdr else r.get(at, _U4).astype(np.int64)
+    nsec = r.get(at + 4, _U4).astype(np.int64)
+    frame, names, after = r.string(at + 8)
+    return sec * 1_000_000_000 + nsec, frame, names, after
+
+
+def _base(raw: Raw) -> dict[str, Arr]:
+    return {"log_ns": raw.log_ns, "pos": raw.pos}
+
+
+def _floats(r: _Reader, at: IntArray, dtype: np.dtype[Any], n: int) -> list[Arr]:
+    at = r.align(at, dtype.itemsize)
+    return [r.get(at + i * dtype.itemsize, dtype) for i in range(n)]
+
+
+def decode_range(raw: Raw, cdr: bool) -> Columns:
+    """sensor_msgs/Range: stamp, frame, field_of_view, min_range, max_range, range (float32)."""
+    r = _Reader(raw, cdr)
+    stamp, frame, names, at = _header(r)
+    fov, rmin, rmax, rng = _floats(r, at + 1, _F4, 4)  # after the uint8 radiation_type
+    # ROS 2 Jazzy and later add ``float32 variance`` at the end
+    _exact_end(r, r.align(at + 1, 4) + 16, extra=4)
+    arrays = {**_base(raw), "stamp_ns": stamp, "frame": frame, "fov": fov, "min": rmin}
+    arrays.update({"max": rmax, "range": rng})
+    return Columns(arrays, {"frame": names})
+
+
+def decode_odometry(raw: Raw, cdr: bool) -> Columns:
+    """nav_msgs/Odometry: stamp, frame, child frame, position x y, orientation (qx qy qz qw)."""
+    r = _Reader(raw, cdr)
+    stamp, frame, names, at = _header(r)
+    child, child_names, at = r.string(at)
+    x, y, _z, qx, qy, qz, qw = _floats(r, at, _F8, 7)
+    # 36 covariance doubles, then the twist's 6 and its 36
+    _exact_end(r, r.align(at, 8) + 8 * (7 + 36 + 6 + 36))
+    arrays = {**_base(raw), "stamp_ns": stamp, "frame": frame, "child": child, "x": x, "y": y}
+    arrays.update({"qx": qx, "qy": qy, "qz": qz, "qw": qw})
+    return Columns(arrays, {"frame": names, "child": child_names})
+
+
+def decode_tf(raw: Raw, cdr: bool) -> Columns:
+    """tf2_msgs/TFMessage: one row per transform (``sub`` its place in the message): stamp,
+    parent and child frame, translation and rotation (float64)."""
+    r = _Reader(raw, cdr)
+    count = r.get(r.origin, _U4).astype(np.int64)
+    at = r.origin + 4
+    parts: list[Columns] = []
+    todo = np.arange(len(count))
+    j = 0
+    while True:
+        todo = todo[count[todo] > j]
+        if len(todo) == 0:
+            break
+        sub = _Reader.__new__(_Reader)
+        sub.buf, sub.cdr = r.buf, cdr
+        sub.raw = Raw(r.buf, raw.offset[todo], raw.length[todo], raw.log_ns[todo], raw.pos[todo])
+        sub.end, sub.origin = r.end[todo], r.origin[todo]
+        here = at[todo]
+        h = sub.align(here, 4)
+        sec = sub.get(h, _I4 if cdr else _U4).astype(np.int64)
+        if not cdr:  # ROS 1 header: seq, then the stamp
+            sec = sub.get(h + 4, _U4).astype(np.int64)
+            h = h + 4
+        nsec = sub.get(h + 4, _U4).astype(np.int64)
+        parent, parent_names, after = sub.string(h + 8)
+        child, child_names, after = sub.string(after)
+        values = _floats(sub, after, _F8, 7)
+        at[todo] = sub.align(after, 8) + 56
+        arrays = {
+            "log_ns": sub.raw.log_ns,
+            "pos": sub.raw.pos,
+            "sub": np.full(len(todo), j, dtype=np.int64),
+            "stamp_ns": sec * 1_000_000_000 + nsec,
+            "parent": parent,
+            "child": child,
+        }
+        arrays.update(dict(zip(("tx", "ty", "tz", "qx", "qy", "qz", "qw"), values, strict=True)))
+        parts.append(Columns(arrays, {"parent": parent_names, "child": child_names}))
+        j += 1
+    _exact_end(r, at)
+    if not parts:
+        empty: dict[str, Arr] = {
+            k: np.zeros(0, dtype=np.int64) for k in ("log_ns", "pos", "sub", "stamp_ns")
+        }
+        empty.update({"parent": np.zeros(0, dtype=np.int64), "child": np.zeros(0, np.int64)})
+        empty.update({k: np.zeros(0) for k in ("tx", "ty", "tz", "qx", "qy", "qz", "qw")})
+        return Columns(empty, {"parent": [], "child": []})
+    return concat(parts)
+
+
+def decode_scan(raw: Raw, cdr: bool) -> Columns:
+    """sensor_msgs/LaserScan: stamp, frame, angle_min, angle_increment, range_min, range_max
+    (float32) and the ranges (float32, ragged)."""
+    r = _Reader(raw, cdr)
+    stamp, frame, names, at = _header(r)
+    amin, _amax, ainc, _tinc, _scan_t, rmin, rmax = _floats(r, at, _F4, 7)
+    at = r.align(at, 4) + 28
+    count = r.get(at, _U4).astype(np.int64)
+    first = at + 4
+    after = first + 4 * count
+    if np.any(after > r.end):
+        raise Layout("ranges past the end of the message")
+    n_int = r.get(after, _U4).astype(np.int64)
+    _exact_end(r, after + 4 + 4 * n_int)
+    beam = _ragged_index(np.zeros(len(count), dtype=np.int64), count)
+    flat = np.repeat(first, count) + 4 * beam  # byte offset of each range
+    ranges = r.buf[flat[:, None] + np.arange(4, dtype=np.int64)].view(_F4).reshape(-1)
+    arrays = {**_base(raw), "stamp_ns": stamp, "frame": frame, "angle_min": amin}
+    arrays.update({"angle_increment": ainc, "range_min": rmin, "range_max": rmax, "count": count})
+    return Columns(arrays, {"frame": names}, ranges)
+
+
+def _exact_end(r: _Reader, end: IntArray, extra: int = 0) -> None:
+    """Each message ends where its layout says (CDR may pad to 4 bytes), or ``extra`` bytes
+    later (a field newer distributions append)."""
+    slack = r.end - end
+    slack = np.where(slack >= extra, slack - extra, slack) if extra else slack
+    if np.any(slack < 0) or np.any(slack >= (4 if r.cdr else 1)):
+        raise Layout("message size differs from its layout")
+
+
+DECODERS = {
+    "sensor_msgs/Range": decode_range,
+    "sensor_msgs/LaserScan": decode_scan,
+    "nav_msgs/Odometry": decode_odometry,
+    "tf2_msgs/TFMessage": decode_tf,
+    "tf/tfMessage": decode_tf,
+}
+
+
+def decode(type_name: str, raw: Raw, cdr: bool) -> Columns:
+    """Decode raw messages of ``type_name`` (one of :data:`BULK_TYPES`); raises
+    :class:`Layout` when they are not as expected."""
+    return DECODERS[type_name](raw, cdr)

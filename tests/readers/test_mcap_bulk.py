@@ -1,0 +1,101 @@
+"""Bulk decoding of MCAP channels (gridmap_cli/readers/mcap_bulk.py, ros_bulk.py): the same
+canonical log and the same errors as decoding message by message."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gridmap_cli.errors import InputFileError
+from gridmap_cli.readers.mcap_bulk import DECODE_ENV
+from gridmap_cli.readers.mcap_log import McapSource, read_mcap
+from gridmap_cli.records import RangeLog
+from tests.readers.mcap_helpers import Recording, S, drive, odometry, sonar_range, static_tf
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def assert_same(a: RangeLog, b: RangeLog) -> None:
+    for name in ("poses", "readings"):
+        x, y = getattr(a, name), getattr(b, name)
+        for f in x.__dataclass_fields__:
+            assert np.array_equal(getattr(x, f), getattr(y, f)), (name, f)
+    assert (a.truth is None) == (b.truth is None)
+    assert a.sensors == b.sensors
+    assert a.sensor_names == b.sensor_names
+
+
+def both(path: Path, monkeypatch: pytest.MonkeyPatch) -> tuple[RangeLog, RangeLog]:
+    bulk = read_mcap(path).log
+    monkeypatch.setenv(DECODE_ENV, "messages")
+    one_by_one = read_mcap(path).log
+    monkeypatch.delenv(DECODE_ENV)
+    return bulk, one_by_one
+
+
+def busy_log(path: Path, ros: int) -> Path:
+    """Two sonars (one with a leading '/'), TF with two transforms a message, odometry and
+    ground truth, zero stamps, NaN / inf / negative / beyond-max ranges."""
+    tf_type = "tf2_msgs/TFMessage" if ros == 2 else "tf/tfMessage"
+    with Recording(path, ros=ros) as rec:
+        static_tf(
+            rec,
+            rec.transform(0, "base_link", "s0", 0.1, 0.0, 0.0),
+            rec.transform(0, "base_link", "s1", -0.1, 0.0, math.pi),
+        )
+        drive(rec, steps=21)
+        values = [1.0, math.nan, math.inf, -1.0, 5.0, 0.05, 2.5]
+        for k in range(20):
+            ns = S + k * S // 10 + 1
+            for i, frame in enumerate(("s0", "/s1")):
+                msg = sonar_range(rec, 0 if k == 3 else ns, frame, values[(k + i) % len(values)])
+                rec.write("/sonar", "sensor_msgs/Range", ns, msg)
+            pair = [
+                rec.transform(ns, "map", "odom", 0.0, 0.0, 0.0),
+                rec.transform(ns, "odom", "base_link", 0.1 * k, 0.0, 0.01 * k),
+            ]
+            rec.write("/tf", tf_type, ns, {"transforms": pair})
+            truth = odometry(rec, ns, 0.1 * k, 0.01, 0.02 * k, frame="map")
+            rec.write("/ground_truth", "nav_msgs/Odometry", ns, truth)
+    return path
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_bulk_equals_message_by_message(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, ros: int
+) -> None:
+    path = busy_log(tmp_path / "busy.mcap", ros)
+    topics = ["/odom", "/ground_truth", "/sonar", "/tf_static", "/tf"]
+    batches, left = McapSource(path).bulk(topics)
+    assert left == []  # every channel in bulk
+    assert {b.topic for b in batches} == set(topics)
+    bulk, one_by_one = both(path, monkeypatch)
+    assert_same(bulk, one_by_one)
+    assert len(bulk.readings) > 20
+
+
+def test_bundled_ros2_sample(monkeypatch: pytest.MonkeyPatch) -> None:
+    bulk, one_by_one = both(ROOT / "samples" / "corridor_loop_ros2.mcap", monkeypatch)
+    assert_same(bulk, one_by_one)
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_bad_limits_same_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, ros: int) -> None:
+    path = tmp_path / "bad.mcap"
+    with Recording(path, ros=ros) as rec:
+        static_tf(rec, rec.transform(0, "base_link", "s0", 0.0, 0.0, 0.0))
+        drive(rec)
+        for k, rmin in enumerate((0.1, 0.1, 4.0, 0.1)):
+            ns = S + k * 1000
+            rec.write("/sonar", "sensor_msgs/Range", ns, sonar_range(rec, ns, "s0", 1.0, rmin=rmin))
+    messages = []
+    for mode in ("bulk", "messages"):
+        monkeypatch.setenv(DECODE_ENV, mode)
+        with pytest.raises(InputFileError) as err:
+            read_mcap(path)
+        messages.append(str(err.value))
+    assert messages[0] == messages[1]
+    assert "need 0 <= min_range < max_range, got 4.0 and 3.0" in messages[0]
