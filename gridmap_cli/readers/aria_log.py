@@ -42,6 +42,7 @@ from gridmap_cli.readers.aria_params import (
     DEFAULT_SONAR_MAX_RANGE_MM,
 )
 from gridmap_cli.readers.csv_log import seconds_to_ns
+from gridmap_cli.readers.text_source import parse_text
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor
 
@@ -88,15 +89,8 @@ def read_aria_log(source: str | Path | TextIO, name: str | None = None) -> Range
 
     Raises :class:`InputFileError` with ``path:line`` for anything malformed.
     """
-    if isinstance(source, str | Path):
-        path = str(source)
-        try:
-            # ARIA writes ASCII; latin-1 reads any byte so that errors can name the line
-            with open(source, encoding="latin-1", newline=None) as handle:
-                return _Parser(path).parse(handle)
-        except OSError as exc:
-            raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
-    return _Parser(name or str(getattr(source, "name", "<stream>"))).parse(source)
+    # ARIA writes ASCII; latin-1 reads any byte so that errors can name the line
+    return parse_text(source, name, lambda handle, path: _Parser(path).parse(handle), "latin-1")
 
 
 class _Parser:

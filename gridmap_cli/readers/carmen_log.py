@@ -30,6 +30,7 @@ from gridmap_cli.errors import InputFileError
 from gridmap_cli.limits import numbered_lines
 from gridmap_cli.readers.carmen_tracks import Event, build_tracks
 from gridmap_cli.readers.csv_log import seconds_to_ns
+from gridmap_cli.readers.text_source import parse_text
 from gridmap_cli.records import RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor
 
@@ -100,15 +101,8 @@ def read_carmen_log(source: str | Path | TextIO, name: str | None = None) -> Ran
 
     Raises :class:`InputFileError` with ``path:line`` for anything malformed.
     """
-    if isinstance(source, str | Path):
-        path = str(source)
-        try:
-            # CARMEN writes ASCII; latin-1 reads any byte so that errors can name the line
-            with open(source, encoding="latin-1", newline=None) as handle:
-                return _Parser(path).parse(handle)
-        except OSError as exc:
-            raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
-    return _Parser(name or str(getattr(source, "name", "<stream>"))).parse(source)
+    # CARMEN writes ASCII; latin-1 reads any byte so that errors can name the line
+    return parse_text(source, name, lambda handle, path: _Parser(path).parse(handle), "latin-1")
 
 
 class _Parser:

@@ -18,6 +18,7 @@ import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.limits import numbered_lines
+from gridmap_cli.readers.text_source import parse_text
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 
 POSE_COLUMNS = ("time", "x", "y", "theta")
@@ -66,16 +67,7 @@ def read_csv_log(source: str | Path | TextIO, name: str | None = None) -> RangeL
     Raises :class:`InputFileError` with ``path:line`` for anything malformed: missing columns,
     non-numeric or NaN poses, time not increasing, wrong field counts, negative ranges.
     """
-    if isinstance(source, str | Path):
-        path = str(source)
-        try:
-            with open(source, encoding="utf-8-sig", newline="") as handle:
-                return _read(handle, path)
-        except UnicodeDecodeError as exc:
-            raise InputFileError(path, f"not UTF-8 text ({exc.reason})") from exc
-        except OSError as exc:
-            raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
-    return _read(source, name or str(getattr(source, "name", "<stream>")))
+    return parse_text(source, name, _read, "utf-8-sig", newline="")
 
 
 def _read(handle: TextIO, path: str) -> RangeLog:
