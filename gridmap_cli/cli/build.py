@@ -245,7 +245,8 @@ def build(
     """Build an occupancy-grid map from LOG and write it as a map_server image + YAML, or as an
     OccupancyGrid in an MCAP file.
 
-    LOG is a CSV, ARIA .2d, MCAP, ROS 1 .bag file or a rosbag2 folder. Several ROS recordings
+    LOG is a CSV, ARIA .2d, CARMEN (.log, .clf, .gz), MCAP, ROS 1 .bag file or rosbag2 folder, or -
+    (a text log on standard input). Several ROS recordings
     (say, odometry and scans recorded into separate bags) are merged by time into one; with
     --fuse, several logs (separate runs through one place) are each mapped and their evidence
     added (README: "Several runs of one place").
