@@ -135,7 +135,8 @@ def plot_pose_spread(
     the map (grey = 1 - p, unknown pale blue, true walls in red); the smallest position spread f
     (metres) at which a reading's beam crossed each cell; the heading spread g (degrees) of
     those readings, with ``max_heading_deg`` (the build's limit, if any) marked on its colour
-    bar. Cells no beam crossed, and cells the map does not know, are pale blue. Arrays shape
+    bar. Cells the map knows that no beam axis crossed (reached only by a reading's wedge,
+    widened by g) are mid grey; cells the map does not know are pale blue. Arrays shape
     ``world.shape``, row 0 at the bottom.
     """
     check_plotting()
@@ -156,7 +157,11 @@ def plot_pose_spread(
     rgb = map_rgb(p_world)
     rgb[walls] = 0.5 * rgb[walls] + 0.5 * np.array([0.95, 0.1, 0.1])
     ax_map.imshow(rgb, origin="lower", extent=extent, interpolation="nearest")
-    ax_map.set_title("map (grey = 1 - p), true walls red", fontsize=9)
+    ax_map.set_title(
+        "map (grey = 1 - p), true walls red\nspread panels: mid grey = reached only through a "
+        "wedge widened by g",
+        fontsize=9,
+    )
     if title:
         fig.suptitle(title, fontsize=10)
     panels = (
@@ -182,6 +187,11 @@ def plot_pose_spread(
             vmin=0.0,
             vmax=max(top, 1e-9),
         )
+        # cells the map knows only through a wedge widened by g (no beam axis crossed them)
+        widened = ~np.isnan(p_world) & np.isnan(values)
+        shade = np.zeros((*widened.shape, 4))
+        shade[widened] = (0.55, 0.55, 0.55, 1.0)
+        ax.imshow(shade, origin="lower", extent=extent, interpolation="nearest")
         bar = fig.colorbar(image, ax=ax, fraction=0.046, pad=0.03)
         if limit is not None and math.isfinite(limit) and limit <= top:
             bar.ax.axhline(limit, color="red", linewidth=2)

@@ -103,3 +103,29 @@ def test_cli_spread_plot(tmp_path: Path) -> None:
     assert code == 2 and "--spread-plot" in err and "--odometry-error" in err
     code, _, err = run(*args, "--odometry-error", str(odo))
     assert code == 2 and "--odometry-error is for --spread-plot" in err
+
+
+def test_cli_spread_plot_of_a_log_that_describes_its_own_sensors(tmp_path: Path) -> None:
+    # a CARMEN log has no robot preset (its laser lines say what the sensor is): the plot
+    # must still be drawn, not silently skipped
+    from tests.readers.carmen_helpers import flaser, write
+    from tests.readers.test_carmen_log import corrected_log
+
+    log = write(tmp_path, [*corrected_log(), flaser([1.0] * 5, (1.0, 0.1, 0.1), 2.0)])
+    odo = tmp_path / "odometry.yaml"
+    save_odometry_error(DRIFT1, odo)
+    code, _, err = run("build", str(log), "-o", str(tmp_path / "ref.png"), "--pose", "global",
+                       "-q")  # fmt: skip
+    assert code == 0, err
+    code, _, err = run(
+        "build", str(log), "-o", str(tmp_path / "map.png"), "--mode", "error-aware",
+        "--map-mode", "scale", "--odometry-error", str(odo), "-q",
+    )  # fmt: skip
+    assert code == 0, err
+    plot = tmp_path / "spread.png"
+    code, _, err = run(
+        "evaluate", str(tmp_path / "map.yaml"), "--truth", str(tmp_path / "ref.yaml"),
+        "--log", str(log), "-q", "--spread-plot", str(plot), "--odometry-error", str(odo),
+    )  # fmt: skip
+    assert code == 0, err
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -184,7 +184,8 @@ def evaluate(
         if frame == "odometry":
             map_to_world = ev.odometry_frame_in_world(data)
         region = ev.sensed_region(truth.world, true_path, sensors)
-        if odometry is not None and robot_desc is not None:
+        if odometry is not None:
+            # robot_desc is None for logs that describe their own sensors (CARMEN)
             spread = _spread_in_world(data, robot_desc, odometry, pmap, truth.spec, map_to_world)
     warn(
         ev.check_comparable(
@@ -238,7 +239,7 @@ def evaluate(
 
 def _spread_in_world(
     log: RangeLog,
-    robot: RobotDescription,
+    robot: RobotDescription | None,
     odometry: OdometryError,
     pmap: ProbabilityMap,
     world: GridSpec,
