@@ -26,7 +26,9 @@ import json
 import math
 import os
 import platform
+import shutil
 import statistics
+import subprocess
 import sys
 import time
 from dataclasses import dataclass
@@ -317,6 +319,7 @@ def write_doc(
     args: argparse.Namespace,
     seconds: float,
     image: Path | None,
+    counts: tuple[str, ...] = (),
 ) -> str:
     modes = list(dict.fromkeys(r.mode for r in runs))
     lines = [
@@ -388,7 +391,9 @@ def write_doc(
         ]
     lines += [
         "",
-        f"This run took {seconds:.0f} s on {_machine()} ({len(runs)} maps).",
+        f"This run took {seconds:.0f} s on {_machine()} ("
+        + ", ".join([f"{len(runs)} simulated maps", *counts])
+        + ").",
         "",
     ]
     return "\n".join(lines)
@@ -505,6 +510,27 @@ def carmen_lines(
     return lines
 
 
+def scan_matching() -> tuple[float, list[str]]:
+    """Run ``bench/scan_match.py`` (it writes docs/scan-matching-results.md and its figure) on
+    one core, as its timings are stated, in its own process; its seconds and the lines that
+    point to it."""
+    started = time.perf_counter()
+    command = [sys.executable, str(Path(__file__).resolve().parent / "scan_match.py")]
+    taskset = shutil.which("taskset")
+    if taskset is not None:
+        command = [taskset, "-c", "0", *command]
+    subprocess.run(command, check=True, cwd=ROOT)
+    seconds = time.perf_counter() - started
+    return seconds, [
+        "",
+        "## Scan matching on the real logs",
+        "",
+        "`bench/scan_match.py`, run by `make experiment` on one core: odometry, scan-matched "
+        "and reference tracks and their maps side by side on the same CARMEN logs, in "
+        f"[scan-matching-results.md](scan-matching-results.md) ({seconds:.0f} s of this run).",
+    ]
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--modes", default=",".join(MODE_ARGS), help="comma-separated")
@@ -516,6 +542,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--image", type=Path, default=ROOT / "docs" / "images" / "experiments.png")
     parser.add_argument("--no-doc", action="store_true", help="print the scores only")
     parser.add_argument("--no-real", action="store_true", help="skip the CARMEN logs")
+    parser.add_argument(
+        "--no-scan-match", action="store_true", help="skip bench/scan_match.py on the CARMEN logs"
+    )
     args = parser.parse_args(argv)
     args.modes = tuple(m for m in args.modes.split(",") if m)
     args.worlds = tuple(w for w in args.worlds.split(",") if w)
@@ -537,17 +566,25 @@ def main(argv: list[str] | None = None) -> None:
         ).replace("NaN", "null")
     )  # fmt: skip
     real_lines: list[str] = []
+    real_maps = 0
     if not args.no_real and carmen.DATA.is_dir():
         real_runs, real_cal, real_truths = carmen.run_all(args.out / "carmen")
+        # the scored maps and each log's reference map
+        real_maps = len(real_runs) + len(real_truths)
         if not args.no_doc:
             real_image = args.image.with_name("experiments-carmen.png")
             carmen_figure(real_runs, real_truths, real_image)
             real_lines = carmen_lines(real_runs, real_cal, real_image)
     if args.no_doc:
         return
+    counts = [f"{real_maps} CARMEN maps, references included"] if real_maps else []
+    if not args.no_real and not args.no_scan_match and carmen.DATA.is_dir():
+        scan_seconds, scan_lines = scan_matching()
+        real_lines += scan_lines
+        counts.append(f"{scan_seconds:.0f} s of scan matching")
     figure(runs, truths, args.drifts, args.image)
     seconds = time.perf_counter() - started
-    text = write_doc(runs, calibration, args, seconds, args.image)
+    text = write_doc(runs, calibration, args, seconds, args.image, tuple(counts))
     args.doc.write_text(
         text.rstrip("\n").rsplit("\n", 1)[0]
         + "\n"

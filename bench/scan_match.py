@@ -250,6 +250,17 @@ def figure(results: list[LogResult], path: Path) -> None:
     plt.close(fig)
 
 
+def _nll_note(results: list[LogResult]) -> str:
+    """The map NLL of the odometry and the scan-matched map of each log, in words."""
+    parts = []
+    for r in results:
+        nll = {row.source: row.nll for row in r.rows}
+        parts.append(
+            f"{r.name}: odometry {nll['odometry']:.2f}, scan-matched {nll['scan-matched']:.2f}"
+        )
+    return "; ".join(parts) + " nats per cell"
+
+
 def write_doc(results: list[LogResult], sim: tuple[int, float] | None, path: Path) -> None:
     text = [
         "# Scan matching on real logs: odometry, scan-matched and reference side by side",
@@ -276,7 +287,7 @@ def write_doc(results: list[LogResult], sim: tuple[int, float] | None, path: Pat
         f"the {TOLERANCE_M} m F1 tolerance, so F1 understates how usable the maps look (the "
         "figure). NLL counts the reference's free cells, most of the cells, and a smeared "
         "odometry map that calls much of the area free is not punished there as much as its "
-        "look suggests (Freiburg: odometry 0.32, scan-matched 0.35 nats per cell).",
+        f"look suggests ({_nll_note(results)}).",
         "",
         "Time scan matching takes on one core (wall clock, `taskset -c 0`), and how many scans "
         "fell back to odometry (a poor match) or kept it along a degenerate direction (a "

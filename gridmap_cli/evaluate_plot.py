@@ -119,3 +119,88 @@ def plot_evaluation(
     with atomic_output(path) as tmp:
         fig.savefig(tmp, dpi=100, format="png")
     plt.close(fig)
+
+
+def plot_pose_spread(
+    path: Path,
+    p_world: npt.NDArray[np.float64],
+    position_m: npt.NDArray[np.float64],
+    heading_deg: npt.NDArray[np.float64],
+    walls: npt.NDArray[np.bool_],
+    world: GridSpec,
+    title: str = "",
+    max_heading_deg: float | None = None,
+) -> None:
+    """Write a PNG of where the map's uncertainty comes from, three panels on the world grid:
+    the map (grey = 1 - p, unknown pale blue, true walls in red); the smallest position spread f
+    (metres) at which a reading's beam crossed each cell; the heading spread g (degrees) of
+    those readings, with ``max_heading_deg`` (the build's limit, if any) marked on its colour
+    bar. Cells the map knows that no beam axis crossed (reached only by a reading's wedge,
+    widened by g) are mid grey; cells the map does not know are pale blue. Arrays shape
+    ``world.shape``, row 0 at the bottom.
+    """
+    check_plotting()
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    extent = (
+        world.origin_x_m,
+        world.origin_x_m + world.width * world.resolution_m,
+        world.origin_y_m,
+        world.origin_y_m + world.height * world.resolution_m,
+    )
+    aspect = world.width / max(world.height, 1)
+    fig, axes = plt.subplots(1, 3, figsize=(3 * 4.2 * aspect + 2.4, 5.4), squeeze=False)
+    ax_map, ax_f, ax_g = axes[0]
+    rgb = map_rgb(p_world)
+    rgb[walls] = 0.5 * rgb[walls] + 0.5 * np.array([0.95, 0.1, 0.1])
+    ax_map.imshow(rgb, origin="lower", extent=extent, interpolation="nearest")
+    ax_map.set_title(
+        "map (grey = 1 - p), true walls red\nspread panels: mid grey = reached only through a "
+        "wedge widened by g",
+        fontsize=9,
+    )
+    if title:
+        fig.suptitle(title, fontsize=10)
+    panels = (
+        (
+            ax_f,
+            position_m,
+            "smallest position spread f (m)\nof the readings that crossed a cell",
+            None,
+        ),
+        (ax_g, heading_deg, "heading spread g (deg) of those readings", max_heading_deg),
+    )
+    for ax, values, label, limit in panels:
+        ax.set_facecolor(UNKNOWN_RGB)
+        values = np.where(np.isnan(p_world), np.nan, values)
+        seen = values[np.isfinite(values)]
+        top = float(seen.max()) if seen.size else 1.0
+        image = ax.imshow(
+            np.ma.masked_invalid(values),
+            origin="lower",
+            extent=extent,
+            interpolation="nearest",
+            cmap="viridis",
+            vmin=0.0,
+            vmax=max(top, 1e-9),
+        )
+        # cells the map knows only through a wedge widened by g (no beam axis crossed them)
+        widened = ~np.isnan(p_world) & np.isnan(values)
+        shade = np.zeros((*widened.shape, 4))
+        shade[widened] = (0.55, 0.55, 0.55, 1.0)
+        ax.imshow(shade, origin="lower", extent=extent, interpolation="nearest")
+        bar = fig.colorbar(image, ax=ax, fraction=0.046, pad=0.03)
+        if limit is not None and math.isfinite(limit) and limit <= top:
+            bar.ax.axhline(limit, color="red", linewidth=2)
+            label += f"\n(red: the build's limit, {limit:g} deg)"
+        ax.set_title(label, fontsize=9)
+    for ax in axes[0]:
+        ax.set_xlabel("x (m, world)")
+        ax.set_ylabel("y (m, world)")
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.92))
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, dpi=100, format="png")
+    plt.close(fig)

@@ -79,3 +79,10 @@ def test_the_doc_states_the_simulators_drift_one_errors(
     doc = experiment.write_doc(runs, {"1": OdometryError().as_dict()}, args, 1.0, None)
     # OdometryErrorModel's defaults in the table's column order; 0.2 deg/m of heading drift
     assert "(The simulator's drift-1 errors: 0.01, 0.01, 0.02, 0.02, 0.00349; drift 2" in doc
+    # the closing line counts the simulated maps, and the real ones when there are any
+    assert "(1 simulated maps)." in doc
+    doc = experiment.write_doc(
+        runs, {"1": OdometryError().as_dict()}, args, 1.0, None,
+        ("39 CARMEN maps, references included", "25 s of scan matching"),
+    )  # fmt: skip
+    assert "(1 simulated maps, 39 CARMEN maps, references included, 25 s of scan matching)." in doc

@@ -168,7 +168,8 @@ if TYPE_CHECKING:
     default=math.degrees(ErrorAwareParams.max_heading_spread_rad),
     show_default=True,
     help="Error-aware mode: degrees of heading spread g beyond which a reading is left out "
-    "(weight 0) instead of spread over a wider wedge; inf keeps every reading.",
+    "(weight 0) instead of spread over a wider wedge (capped at 90 degrees); inf, the default, "
+    "keeps every reading.",
 )
 @click.option(
     "--draw-path",

@@ -18,14 +18,21 @@ from gridmap_cli.cli.common import (
     warn,
 )
 from gridmap_cli.errors import InputFileError, UsageError
+from gridmap_cli.models.error_aware import ErrorAwareParams
+from gridmap_cli.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.writers import check_output
 
 if TYPE_CHECKING:
+    import numpy.typing as npt
+
     # scipy.ndimage (0.3 s) comes with it: imported when the command runs
-    from gridmap_cli.evaluate import Evaluation
+    from gridmap_cli.evaluate import Evaluation, ProbabilityMap
+    from gridmap_cli.grid import GridSpec
+    from gridmap_cli.records import RangeLog
+    from gridmap_cli.robot import RobotDescription
 
 
 @click.command()
@@ -65,7 +72,20 @@ if TYPE_CHECKING:
     type=click.Path(path_type=Path),
     help="Write a PNG: the map with the true walls, and a reliability diagram (needs matplotlib).",
 )
-@click.option("--force", is_flag=True, help="Overwrite an existing --plot output.")
+@click.option(
+    "--spread-plot",
+    type=click.Path(path_type=Path),
+    help="Write a PNG of where the map's uncertainty comes from: per cell, the smallest "
+    "odometry position spread f (and its heading spread g) at which a reading of --log "
+    "crossed it, from --odometry-error (needs --log and matplotlib).",
+)
+@click.option(
+    "--odometry-error",
+    "odometry_file",
+    type=click.Path(path_type=Path),
+    help="--spread-plot: the odometry-error file the map was built with (gridmap calibrate).",
+)
+@click.option("--force", is_flag=True, help="Overwrite existing --plot / --spread-plot outputs.")
 @handle_errors
 def evaluate(
     map_yaml: Path,
@@ -80,6 +100,8 @@ def evaluate(
     as_json: bool,
     quiet: bool,
     plot: Path | None,
+    spread_plot: Path | None,
+    odometry_file: Path | None,
     force: bool,
 ) -> None:
     """Score the map MAP.yaml against the ground-truth world of --truth.
@@ -110,25 +132,43 @@ def evaluate(
     selection = Selection.parse(sensor_patterns, start, end)
     if selection and log_path is None:
         raise UsageError("--sensors, --start and --end choose part of --log; give --log")
+    if spread_plot is not None and (log_path is None or odometry_file is None):
+        raise UsageError(
+            "--spread-plot draws the pose spread of the readings of --log under the odometry "
+            "error of --odometry-error FILE: give both"
+        )
+    if spread_plot is not None and frame != "odometry":
+        raise UsageError(
+            "--spread-plot is for maps built from odometry (--frame odometry): a map built with "
+            "--pose global has no odometry spread"
+        )
+    if odometry_file is not None and spread_plot is None:
+        raise UsageError("--odometry-error is for --spread-plot")
     if log_path is not None:
         check_input(log_path)
+    if odometry_file is not None:
+        check_input(odometry_file)
     for given in (map_yaml, truth_yaml):
         if not given.is_file():
             raise InputFileError(given, "no such file" if not given.exists() else "not a file")
-    if plot is not None:
+    for out, flag in ((plot, "--plot"), (spread_plot, "--spread-plot")):
+        if out is None:
+            continue
         from gridmap_cli.evaluate_plot import check_plotting
 
         check_plotting()
-        if plot.suffix.lower() != ".png":
-            raise UsageError(f"{plot}: --plot writes a PNG; name it .png")
-        check_output(plot, force)
-        check_output_folder(plot)
+        if out.suffix.lower() != ".png":
+            raise UsageError(f"{out}: {flag} writes a PNG; name it .png")
+        check_output(out, force)
+        check_output_folder(out)
+    odometry = load_odometry_error(odometry_file) if odometry_file is not None else None
     robot_desc = load_robot(robot) if robot else None
     truth = ev.load_truth(truth_yaml)
     pmap = ev.load_probability_map(map_yaml)
     map_to_world = (0.0, 0.0, 0.0)
     region = None
     log_world = None
+    spread: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None = None
     if log_path is not None:
         data = resolve_format(log_path, log_format).read(log_path)
         data.require_truth("evaluate needs the true path")  # before the robot is looked up
@@ -144,6 +184,9 @@ def evaluate(
         if frame == "odometry":
             map_to_world = ev.odometry_frame_in_world(data)
         region = ev.sensed_region(truth.world, true_path, sensors)
+        if odometry is not None:
+            # robot_desc is None for logs that describe their own sensors (CARMEN)
+            spread = _spread_in_world(data, robot_desc, odometry, pmap, truth.spec, map_to_world)
     warn(
         ev.check_comparable(
             pmap, truth.spec, map_to_world, str(map_yaml), str(truth_yaml), log_world
@@ -161,6 +204,20 @@ def evaluate(
             truth.spec,
             title=f"{map_yaml.name} vs {truth_yaml.name}",
         )
+    if spread_plot is not None and spread is not None:
+        from gridmap_cli.evaluate_plot import plot_pose_spread
+
+        limit = math.degrees(ErrorAwareParams.max_heading_spread_rad)
+        plot_pose_spread(
+            spread_plot,
+            result.p_world,
+            spread[0],
+            spread[1],
+            truth.walls,
+            truth.spec,
+            title=f"{map_yaml.name}: where its uncertainty comes from",
+            max_heading_deg=limit if math.isfinite(limit) else None,
+        )
     if as_json:
         doc = {
             "map": str(map_yaml),
@@ -176,6 +233,31 @@ def evaluate(
         click.echo(_evaluation_table(map_yaml, truth_yaml, log_path, map_to_world, result))
     if plot is not None and not quiet:
         click.echo(f"gridmap: plot written to {plot}", err=True)
+    if spread_plot is not None and not quiet:
+        click.echo(f"gridmap: pose-spread plot written to {spread_plot}", err=True)
+
+
+def _spread_in_world(
+    log: RangeLog,
+    robot: RobotDescription | None,
+    odometry: OdometryError,
+    pmap: ProbabilityMap,
+    world: GridSpec,
+    map_to_world: tuple[float, float, float],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """The pose spread of ``log``'s readings on the map's grid, placed on the world grid: the
+    position spread (m) and the heading spread (deg), shape ``world.shape``."""
+    from gridmap_cli import evaluate as ev
+    from gridmap_cli.spread_map import pose_spread_map
+    from gridmap_cli.sync import synchronise
+
+    readings, _ = synchronise(log, robot)
+    spread = pose_spread_map(pmap.spec, readings, odometry)
+    placed = [
+        ev.map_in_world(ev.ProbabilityMap(pmap.spec, values, 0.5), world, map_to_world)
+        for values in (spread.position_m, np.degrees(spread.heading_rad))
+    ]
+    return placed[0], placed[1]
 
 
 def _evaluation_table(

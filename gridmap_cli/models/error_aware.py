@@ -65,7 +65,9 @@ class ErrorAwareParams:
 
     trust_length_m: float = 0.3
     redundant_looks: float = 30.0
-    max_heading_spread_rad: float = math.radians(30.0)
+    # no limit by default, the paper's behaviour: every limit tried (30, 60, 90 degrees) made
+    # the simulated claim and the CARMEN logs worse (docs/sensor-model.md)
+    max_heading_spread_rad: float = math.inf
     laser_relative_error: float = 0.005
     laser_no_echo_free_m: float = math.inf
 

@@ -203,7 +203,10 @@ def _read_rows(handle: TextIO, path: str) -> RangeLog:
             if sep and key.strip():
                 metadata[key.strip()] = value.strip()
             continue
-        header = next(csv.reader(io.StringIO(stripped)))
+        try:
+            header = next(csv.reader(io.StringIO(stripped)))
+        except csv.Error as exc:  # e.g. a lone carriage return inside the line
+            raise InputFileError(path, f"unreadable header row ({exc})", number) from exc
         header = [h.strip() for h in header]
         header_line = number
         break

@@ -206,3 +206,10 @@ def test_bulk_parse_equals_the_row_reader_on_any_table(cells: list[list[str]]) -
     lines = [f"{i / 10!r},{i},{-i},0.25,{','.join(row)}" for i, row in enumerate(cells)]
     text = "time,x,y,theta,a,b,c\n" + "\n".join(lines) + "\n"
     assert _same_log(text) is not None
+
+
+def test_a_carriage_return_inside_the_header_line_is_a_gridmap_error() -> None:
+    # found by the fuzz test: the csv module raises its own error on a lone \r in a field
+    text = "\x00\r# gridmap-csv: 1\ntime,x,y,theta,sonar0\n0.0,0.0,0.0,0.0,1.5\n"
+    with pytest.raises(InputFileError, match=r"^x\.csv:1: unreadable header row"):
+        read_csv_log(io.StringIO(text), name="x.csv")
