@@ -23,7 +23,6 @@ from gridmap_cli.grid import (
     LogOddsAccumulator,
     OccupancyMap,
 )
-from gridmap_cli.models import kernels
 from gridmap_cli.models.error_aware import ErrorAwareParams, ErrorAwareSonarModel, OdometrySpread
 from gridmap_cli.models.error_aware_mixed import ErrorAwareMixedModel
 from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
@@ -31,6 +30,8 @@ from gridmap_cli.models.ray import RayModel, RayParams
 from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
 from gridmap_cli.records import RangeLog, span_text
 from gridmap_cli.robot import RobotDescription
+from gridmap_cli.shards import accumulate_frequencies, accumulate_log_odds
+from gridmap_cli.shards import batch_bounds as batch_bounds  # callers cut batches as build does
 from gridmap_cli.sync import SensorReadings, SyncStats, select_readings, synchronise
 
 MAPPING_MODES = ("standard", "error-aware")
@@ -54,6 +55,8 @@ class BuildOptions:
     margin_m: float = 0.2
     max_cells: int = DEFAULT_MAX_CELLS
     batch_size: int = 20_000
+    #: Processes mapping the readings; the map does not depend on it (:mod:`gridmap_cli.shards`).
+    jobs: int = 1
 
 
 @dataclass(frozen=True)
@@ -153,35 +156,12 @@ def accumulate(
     options: BuildOptions,
     progress: Callable[[int], object] | None = None,
 ) -> int:
-    """Add every reading of ``plan`` to ``grid`` in batches; returns the cell updates."""
-    updates = 0
-    kernels.plan(sum(len(part) for _, part in plan.parts))
-    for model, part in plan.parts:
-        for start, stop in batch_bounds(part.stamp_ns, options.batch_size):
-            batch = _select(part, slice(start, stop))
-            updates += model.accumulate(grid, batch)
-            if progress is not None:
-                progress(len(batch))
-    return updates
-
-
-def batch_bounds(stamp_ns: npt.NDArray[np.int64], size: int) -> list[tuple[int, int]]:
-    """Consecutive [start, stop) batches of about ``size`` readings, each cut where the stamp
-    changes, so a scan's beams (one stamp) stay in one batch: the error-aware laser model
-    compares a beam with its neighbours. A single stamp holding more than ``size`` readings
-    is kept whole."""
-    n = stamp_ns.shape[0]
-    bounds = []
-    start = 0
-    while start < n:
-        stop = min(start + size, n)
-        if stop < n:
-            # move the cut forward to the first reading of a new stamp
-            stop = int(np.searchsorted(stamp_ns, stamp_ns[stop - 1], side="right"))
-            stop = max(stop, start + 1)
-        bounds.append((start, stop))
-        start = stop
-    return bounds
+    """Add every reading of ``plan`` to ``grid`` on ``options.jobs`` processes; returns the cell
+    updates. The grid is the same to the byte for every number of jobs (:mod:`gridmap_cli.shards`
+    says how)."""
+    if isinstance(grid, LogOddsAccumulator):
+        return accumulate_log_odds(plan, grid, options.batch_size, options.jobs, progress)
+    return accumulate_frequencies(plan, grid, options.batch_size, options.jobs, progress)
 
 
 def _by_model(

@@ -200,7 +200,8 @@ if TYPE_CHECKING:
 )
 @click.option("--scheduler", metavar="ADDRESS", help="Dask scheduler for --executor dask.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
-              help="--fuse with the local executor: logs mapped at once.")  # fmt: skip
+              help="Processes mapping at once: the readings of one log (the map is the same "
+              "bytes for every N), or with --fuse and the local executor, the logs.")  # fmt: skip
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -330,6 +331,7 @@ def build(
         sonar=sonar,
         error_aware=error_aware,
         odometry_error=odometry_error,
+        jobs=jobs,
     )
     with progress_bar(len(data.readings), quiet, "mapping") as bar:
         result = build_map(data, robot_desc, options, progress=bar.update)
@@ -440,7 +442,7 @@ def _fuse_options(
     """Usage checks of --fuse and its options; the initial pose of each log (or None)."""
     ctx = click.get_current_context()
     given = [
-        name for name in ("initial_poses", "executor", "scheduler", "jobs")
+        name for name in ("initial_poses", "executor", "scheduler")
         if ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT
     ]  # fmt: skip
     if not fuse:
