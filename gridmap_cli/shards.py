@@ -124,6 +124,10 @@ def accumulate_log_odds(
         for model, part in plan.parts
         for start, stop in batch_bounds(part.stamp_ns, SHARD_READINGS)
     ]
+    if jobs > 1 and len(tasks) > 1:
+        # load the compiled kernels (numba, about 0.45 s) once, here: forked workers inherit them
+        kernels.plan(planned)
+        kernels.compiled(planned)
     values, counts = grid.difference_arrays()
     updates = 0
     for task, (shard_values, shard_counts, n) in zip(
