@@ -1,7 +1,8 @@
 """A build's readings mapped on one process or several (``gridmap build --jobs N``), the map
 the same to the byte whatever N is.
 
-Log-odds (standard mode): each sensor model's readings are cut into shards of
+Log-odds (standard mode): each sensor model's share of each chunk of synchronised readings
+(:meth:`~gridmap_cli.pipeline.BuildPlan.parts`) is cut into shards of at most
 :data:`SHARD_READINGS` readings (at a change of stamp, as batches are), the same shards for every
 N. Each shard is mapped into zeroed difference arrays of the whole grid (:func:`log_odds_shard`,
 on a worker when N > 1), and the main process adds the shards' arrays to the grid's in shard
@@ -20,7 +21,7 @@ the model's own ``accumulate`` does with ``--jobs 1``; the caps happen there, in
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from itertools import islice
 from typing import TYPE_CHECKING, Any, TypeVar, cast
@@ -67,17 +68,17 @@ def batch_bounds(stamp_ns: npt.NDArray[np.int64], size: int) -> list[tuple[int, 
     return bounds
 
 
-def in_order(fn: Callable[..., T], tasks: Sequence[tuple[Any, ...]], jobs: int) -> Iterator[T]:
+def in_order(fn: Callable[..., T], tasks: Iterable[tuple[Any, ...]], jobs: int) -> Iterator[T]:
     """``fn(*task)`` of every task, yielded in the order of ``tasks``: here when ``jobs`` is 1,
-    else on ``jobs`` local processes with at most :data:`AHEAD_PER_WORKER` tasks each ahead."""
-    if jobs <= 1 or len(tasks) <= 1:
+    else on ``jobs`` local processes with at most :data:`AHEAD_PER_WORKER` tasks each ahead.
+    ``tasks`` is read as results are taken, so only the tasks in flight are held."""
+    if jobs <= 1:
         for task in tasks:
             yield fn(*task)
         return
-    workers = min(jobs, len(tasks))
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
         queued = iter(tasks)
-        ahead = islice(queued, workers * AHEAD_PER_WORKER)
+        ahead = islice(queued, jobs * AHEAD_PER_WORKER)
         pending: deque[Future[T]] = deque(pool.submit(fn, *task) for task in ahead)
         while pending:
             result = pending.popleft().result()
@@ -88,26 +89,27 @@ def in_order(fn: Callable[..., T], tasks: Sequence[tuple[Any, ...]], jobs: int) 
 
 def log_odds_shard(
     spec: GridSpec, model: Any, readings: SensorReadings, batch_size: int, planned: int
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], int]:
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], int, int]:
     """One shard's evidence: the value and count difference arrays of a zeroed grid over
-    ``spec`` after the shard's batches (shape ``(height * (width + 1),)``), and the cell updates.
-    ``planned`` is the build's reading count, so the kernels choose as the whole build does."""
+    ``spec`` after the shard's batches (shape ``(height * (width + 1),)``), the cell updates and
+    the readings mapped. ``planned`` is the build's reading count, so the kernels choose as the
+    whole build does."""
     kernels.plan(planned)
     grid = LogOddsAccumulator(spec)
     updates = 0
     for start, stop in batch_bounds(readings.stamp_ns, batch_size):
         updates += model.accumulate(grid, select_readings(readings, slice(start, stop)))
     values, counts = grid.difference_arrays()
-    return values, counts, updates
+    return values, counts, updates, len(readings)
 
 
 def batch_runs(
     spec: GridSpec, model: Any, readings: SensorReadings, planned: int
-) -> tuple[WeightedRuns, int]:
-    """An error-aware model's weighted runs of one batch, and its cell updates."""
+) -> tuple[WeightedRuns, int, int]:
+    """An error-aware model's weighted runs of one batch, its cell updates and readings."""
     kernels.plan(planned)
-    runs: tuple[WeightedRuns, int] = model.runs(spec, readings)
-    return runs
+    runs, updates = model.runs(spec, readings)
+    return runs, updates, len(readings)
 
 
 def accumulate_log_odds(
@@ -117,27 +119,28 @@ def accumulate_log_odds(
     jobs: int,
     progress: Callable[[int], object] | None = None,
 ) -> int:
-    """Add every reading of ``plan`` to ``grid`` shard by shard; returns the cell updates."""
-    planned = sum(len(part) for _, part in plan.parts)
-    tasks = [
+    """Add every reading of ``plan`` to ``grid`` shard by shard; returns the cell updates.
+
+    A shard is a model's share of one chunk of :meth:`BuildPlan.parts`, cut at
+    :data:`SHARD_READINGS`: the same shards whatever ``jobs`` is."""
+    planned = plan.sync.used
+    tasks = (
         (grid.spec, model, select_readings(part, slice(start, stop)), batch_size, planned)
-        for model, part in plan.parts
+        for model, part in plan.parts()
         for start, stop in batch_bounds(part.stamp_ns, SHARD_READINGS)
-    ]
-    if jobs > 1 and len(tasks) > 1:
+    )
+    if jobs > 1:
         # load the compiled kernels (numba, about 0.45 s) once, here: forked workers inherit them
         kernels.plan(planned)
         kernels.compiled(planned)
     values, counts = grid.difference_arrays()
     updates = 0
-    for task, (shard_values, shard_counts, n) in zip(
-        tasks, in_order(log_odds_shard, tasks, jobs), strict=True
-    ):
+    for shard_values, shard_counts, n, mapped in in_order(log_odds_shard, tasks, jobs):
         values += shard_values
         counts += shard_counts
         updates += n
         if progress is not None:
-            progress(len(task[2]))
+            progress(mapped)
     return updates
 
 
@@ -152,16 +155,18 @@ def accumulate_frequencies(
     processes and added here in order; returns the cell updates."""
     from gridmap_cli.models.error_aware import add_runs
 
-    planned = sum(len(part) for _, part in plan.parts)
+    planned = plan.sync.used
+    ((model, _),) = plan.models  # error-aware mode maps with one model
+    tasks = (
+        (grid.spec, model, select_readings(part, slice(start, stop)), planned)
+        for _, part in plan.parts()
+        for start, stop in batch_bounds(part.stamp_ns, batch_size)
+    )
+    cap = cast(Any, model).params.redundant_looks
     updates = 0
-    for model, part in plan.parts:
-        tasks = [
-            (grid.spec, model, select_readings(part, slice(start, stop)), planned)
-            for start, stop in batch_bounds(part.stamp_ns, batch_size)
-        ]
-        for task, (runs, n) in zip(tasks, in_order(batch_runs, tasks, jobs), strict=True):
-            add_runs(grid, runs, cast(Any, model).params.redundant_looks)
-            updates += n
-            if progress is not None:
-                progress(len(task[2]))
+    for runs, n, mapped in in_order(batch_runs, tasks, jobs):
+        add_runs(grid, runs, cap)
+        updates += n
+        if progress is not None:
+            progress(mapped)
     return updates

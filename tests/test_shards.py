@@ -64,11 +64,11 @@ def test_a_log_of_one_shard_maps_as_one_grid_batch_by_batch() -> None:
     log = read_log(LOG, None, ReadOptions(robot=robot))
     options = BuildOptions(batch_size=2_000)
     plan = plan_build(log, robot, options)
-    assert sum(len(part) for _, part in plan.parts) < shards.SHARD_READINGS
+    assert plan.sync.used < shards.SHARD_READINGS
     sharded = LogOddsAccumulator(plan.spec)
     pipeline.accumulate(plan, sharded, options)
     direct = LogOddsAccumulator(plan.spec)
-    for model, part in plan.parts:
+    for model, part in plan.parts():
         for start, stop in shards.batch_bounds(part.stamp_ns, options.batch_size):
             model.accumulate(direct, select_readings(part, slice(start, stop)))
     assert np.array_equal(sharded.log_odds(), direct.log_odds())
@@ -79,3 +79,19 @@ def test_results_come_back_in_the_order_of_the_tasks() -> None:
     tasks = [(2, k) for k in range(12)]
     assert list(shards.in_order(pow, tasks, 3)) == [2**k for k in range(12)]
     assert list(shards.in_order(pow, tasks, 1)) == [2**k for k in range(12)]
+
+
+def test_a_log_synchronised_in_chunks_maps_as_in_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    whole = built(tmp_path, LOG, "whole")
+    # chunks of a few scans: bounds and sync counts are gathered over many, the shards follow them
+    monkeypatch.setattr(pipeline, "SYNC_CHUNK_READINGS", 700)
+    assert built(tmp_path, LOG, "chunked") == whole
+    robot = load_robot("p3at")
+    log = read_log(LOG, None, ReadOptions(robot=robot))
+    chunked = plan_build(log, robot, BuildOptions())
+    monkeypatch.setattr(pipeline, "SYNC_CHUNK_READINGS", 10**9)
+    one = plan_build(log, robot, BuildOptions())
+    assert len(chunked.chunks) > 10
+    assert (chunked.sync, chunked.spec) == (one.sync, one.spec)
