@@ -30,6 +30,7 @@ from gridmap_cli.cli.common import (
 from gridmap_cli.errors import UsageError
 from gridmap_cli.executors import EXECUTORS, check_dask, fuse_dask, fuse_local
 from gridmap_cli.fuse import FuseJob, Partial, fused_map, parse_initial_pose
+from gridmap_cli.heap import keep_scratch_memory
 from gridmap_cli.models.error_aware import ErrorAwareParams
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
@@ -311,6 +312,7 @@ def build(
         _write_fused(total, output, to_mcap, map_mode, occupied, free, force, started, quiet,
                      as_json, len(logs))  # fmt: skip
         return
+    keep_scratch_memory()  # every check passed: from here on, the build's own process
     whole = read_input(logs, log_format, read_options)
     data = whole
     if robot_desc is None:
