@@ -79,7 +79,7 @@ def counts(world: str, robot_name: str, seed: int) -> Counts:
     maps = []
     for l_occ, l_free in ((1.0, 0.0), (0.0, 1.0)):
         grid = LogOddsAccumulator(plan.spec)
-        for model, part in plan.parts:
+        for model, part in plan.parts():
             assert isinstance(model, StandardSonarModel | RayModel)
             model.l_occ, model.l_free = l_occ, l_free  # counts, not evidence
             for a, b in batch_bounds(part.stamp_ns, 20_000):

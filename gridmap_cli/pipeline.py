@@ -6,7 +6,8 @@ callback), no file output (writers do that).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import dataclasses
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -23,15 +24,22 @@ from gridmap_cli.grid import (
     LogOddsAccumulator,
     OccupancyMap,
 )
-from gridmap_cli.models import kernels
 from gridmap_cli.models.error_aware import ErrorAwareParams, ErrorAwareSonarModel, OdometrySpread
 from gridmap_cli.models.error_aware_mixed import ErrorAwareMixedModel
 from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
 from gridmap_cli.models.ray import RayModel, RayParams
 from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
 from gridmap_cli.records import RangeLog, span_text
-from gridmap_cli.robot import RobotDescription
-from gridmap_cli.sync import SensorReadings, SyncStats, select_readings, synchronise
+from gridmap_cli.robot import RangeSensor, RobotDescription
+from gridmap_cli.shards import accumulate_frequencies, accumulate_log_odds
+from gridmap_cli.shards import batch_bounds as batch_bounds  # callers cut batches as build does
+from gridmap_cli.sync import (
+    SensorReadings,
+    SyncStats,
+    select_readings,
+    sensors_for_log,
+    synchronise,
+)
 
 MAPPING_MODES = ("standard", "error-aware")
 #: The coarsest cell size build takes: a range sensor sees a few metres, so coarser cells map
@@ -54,6 +62,8 @@ class BuildOptions:
     margin_m: float = 0.2
     max_cells: int = DEFAULT_MAX_CELLS
     batch_size: int = 20_000
+    #: Processes mapping the readings; the map does not depend on it (:mod:`gridmap_cli.shards`).
+    jobs: int = 1
 
 
 @dataclass(frozen=True)
@@ -88,14 +98,44 @@ class SensorModel(Protocol):
 _select = select_readings
 
 
+#: Log readings synchronised at a time, by build and by inspect: with the models' bounds kept and
+#: the readings let go, a chunk at a time, the synchronised readings never exist for the whole
+#: log at once (the hour log's 576,000 were about 40 MiB, three times over).
+SYNC_CHUNK_READINGS = 100_000
+
+
 @dataclass(frozen=True)
 class BuildPlan:
     """What build has settled before it maps a reading: the sync's result, each sensor model
-    with its share of the readings, and the grid that holds them all."""
+    and the kind of sensor it maps, and the grid that holds them all. :meth:`parts` gives the
+    readings, synchronised again chunk by chunk, to the models."""
 
     sync: SyncStats
-    parts: list[tuple[SensorModel, SensorReadings]]
+    models: list[tuple[SensorModel, str]]  # (model, "ray" | "sonar" | "all")
     spec: GridSpec
+    log: RangeLog
+    robot: RobotDescription | None
+    chunks: list[tuple[int, int]]  # [start, stop) of log readings, cut where the stamp changes
+    narrow: npt.NDArray[np.bool_]  # per sensor: mapped as a ray
+
+    def parts(self) -> Iterator[tuple[SensorModel, SensorReadings]]:
+        """Each model with its share of the readings, chunk after chunk, in time order."""
+        for start, stop in self.chunks:
+            readings, _ = synchronise(self.log, self.robot, slice(start, stop))
+            yield from _split(self.models, self.narrow, readings)
+
+
+def _split(
+    models: list[tuple[SensorModel, str]], narrow: npt.NDArray[np.bool_], readings: SensorReadings
+) -> Iterator[tuple[SensorModel, SensorReadings]]:
+    is_ray = narrow[readings.sensor]
+    for model, kind in models:
+        if kind == "all":
+            part = readings
+        else:
+            part = _select(readings, is_ray if kind == "ray" else ~is_ray)
+        if len(part) > 0:
+            yield model, part
 
 
 def plan_build(log: RangeLog, robot: RobotDescription | None, options: BuildOptions) -> BuildPlan:
@@ -104,24 +144,40 @@ def plan_build(log: RangeLog, robot: RobotDescription | None, options: BuildOpti
     ``gridmap inspect`` calls this too, so that its verdict is build's own: the errors are
     :func:`build_map`'s (a sensor without mounting, :class:`NoDataError` when no reading can be
     mapped, :class:`MapSizeError` when the data spans an absurd area, a mode that cannot take
-    the log's sensors).
+    the log's sensors). The readings are synchronised chunk by chunk and only the stats and
+    bounds kept: minima and maxima of chunks are the whole's, to the bit.
     """
     if options.mode not in MAPPING_MODES:
         raise GridmapError(f"unknown mapping mode '{options.mode}' (known: {MAPPING_MODES})")
-    readings, stats = synchronise(log, robot)
-    if len(readings) == 0:
+    sensors = sensors_for_log(log, robot)
+    narrow = np.array([s.kind == "laser" or s.beam_width_rad <= 0.0 for s in sensors], dtype=bool)
+    bounding = _bounding_models(sensors, narrow, options)
+    chunks = batch_bounds(log.readings.stamp_ns, SYNC_CHUNK_READINGS)
+    totals = np.zeros(4, dtype=np.int64)  # total, used, outside odometry, below minimum range
+    boxes = []  # (xmin, ymin, xmax, ymax) of each chunk and model
+    kinds = np.zeros(2, dtype=bool)  # any ray, any sonar reading kept
+    for start, stop in chunks:
+        readings, chunk_stats = synchronise(log, robot, slice(start, stop))
+        totals += dataclasses.astuple(chunk_stats)
+        if len(readings) == 0:
+            continue
+        is_ray = narrow[readings.sensor]
+        kinds |= (bool(is_ray.any()), bool(not is_ray.all()))
+        boxes += [model.bounds(part) for model, part in _split(bounding, narrow, readings)]
+    stats = SyncStats(*(int(v) for v in totals))
+    if stats.used == 0:
         raise NoDataError(_why_empty(log, stats))
-    parts = _by_model(readings, options)
-    boxes = np.array([model.bounds(part) for model, part in parts])  # (xmin, ymin, xmax, ymax)
-    xmin, ymin, _, _ = boxes.min(axis=0)
-    _, _, xmax, ymax = boxes.max(axis=0)
+    box = np.array(boxes)
+    xmin, ymin, _, _ = box.min(axis=0)
+    _, _, xmax, ymax = box.max(axis=0)
     try:
         spec = GridSpec.covering(
             xmin, ymin, xmax, ymax, options.resolution_m, options.margin_m, options.max_cells
         )
     except MapSizeError as exc:
         raise MapSizeError(f"{log.source}: {exc}") from exc
-    return BuildPlan(stats, parts, spec)
+    models = _mapping_models(sensors, narrow, options, bool(kinds[0]), bool(kinds[1]))
+    return BuildPlan(stats, models, spec, log, robot, chunks, narrow)
 
 
 def build_map(
@@ -153,58 +209,52 @@ def accumulate(
     options: BuildOptions,
     progress: Callable[[int], object] | None = None,
 ) -> int:
-    """Add every reading of ``plan`` to ``grid`` in batches; returns the cell updates."""
-    updates = 0
-    kernels.plan(sum(len(part) for _, part in plan.parts))
-    for model, part in plan.parts:
-        for start, stop in batch_bounds(part.stamp_ns, options.batch_size):
-            batch = _select(part, slice(start, stop))
-            updates += model.accumulate(grid, batch)
-            if progress is not None:
-                progress(len(batch))
-    return updates
+    """Add every reading of ``plan`` to ``grid`` on ``options.jobs`` processes; returns the cell
+    updates. The grid is the same to the byte for every number of jobs (:mod:`gridmap_cli.shards`
+    says how)."""
+    if isinstance(grid, LogOddsAccumulator):
+        return accumulate_log_odds(plan, grid, options.batch_size, options.jobs, progress)
+    return accumulate_frequencies(plan, grid, options.batch_size, options.jobs, progress)
 
 
-def batch_bounds(stamp_ns: npt.NDArray[np.int64], size: int) -> list[tuple[int, int]]:
-    """Consecutive [start, stop) batches of about ``size`` readings, each cut where the stamp
-    changes, so a scan's beams (one stamp) stay in one batch: the error-aware laser model
-    compares a beam with its neighbours. A single stamp holding more than ``size`` readings
-    is kept whole."""
-    n = stamp_ns.shape[0]
-    bounds = []
-    start = 0
-    while start < n:
-        stop = min(start + size, n)
-        if stop < n:
-            # move the cut forward to the first reading of a new stamp
-            stop = int(np.searchsorted(stamp_ns, stamp_ns[stop - 1], side="right"))
-            stop = max(stop, start + 1)
-        bounds.append((start, stop))
-        start = stop
-    return bounds
+def _bounding_models(
+    sensors: tuple[RangeSensor, ...], narrow: npt.NDArray[np.bool_], options: BuildOptions
+) -> list[tuple[SensorModel, str]]:
+    """The models whose bounds hold every cell the readings touch, whichever kinds of sensor
+    turn out to have readings (the error-aware mixed model bounds each kind by its own model)."""
+    if options.mode == "error-aware":
+        return [(_error_aware_model(sensors, narrow, options, bool(narrow.any()), True), "all")]
+    return _mapping_models(sensors, narrow, options, True, True)
 
 
-def _by_model(
-    readings: SensorReadings, options: BuildOptions
-) -> list[tuple[SensorModel, SensorReadings]]:
-    """Each model with its share of the readings; models without readings are left out.
+def _mapping_models(
+    sensors: tuple[RangeSensor, ...],
+    narrow: npt.NDArray[np.bool_],
+    options: BuildOptions,
+    any_ray: bool,
+    any_sonar: bool,
+) -> list[tuple[SensorModel, str]]:
+    """Each model and the kind of reading it maps; models without readings are left out.
 
     Narrow-beam sensors (kind "laser" or beam width 0) go to the ray model, the others to the
     sonar model. Log-odds sums do not depend on order, so the models may run one after the other.
     """
-    narrow = np.array([s.kind == "laser" or s.beam_width_rad <= 0.0 for s in readings.sensors])
-    is_ray = narrow[readings.sensor]
     if options.mode == "error-aware":
-        return [(_error_aware_model(readings, narrow, options), readings)]
-    parts: list[tuple[SensorModel, SensorReadings]] = [
-        (RayModel(options.ray, options.resolution_m), _select(readings, is_ray)),
-        (StandardSonarModel(options.sonar, options.resolution_m), _select(readings, ~is_ray)),
-    ]
-    return [(model, part) for model, part in parts if len(part) > 0]
+        return [(_error_aware_model(sensors, narrow, options, any_ray, any_sonar), "all")]
+    models: list[tuple[SensorModel, str]] = []
+    if any_ray:
+        models.append((RayModel(options.ray, options.resolution_m), "ray"))
+    if any_sonar:
+        models.append((StandardSonarModel(options.sonar, options.resolution_m), "sonar"))
+    return models
 
 
 def _error_aware_model(
-    readings: SensorReadings, narrow: npt.NDArray[np.bool_], options: BuildOptions
+    sensors: tuple[RangeSensor, ...],
+    narrow: npt.NDArray[np.bool_],
+    options: BuildOptions,
+    any_ray: bool,
+    any_sonar: bool,
 ) -> SensorModel:
     """Sonar cones, laser rays, or both: the error-aware model for the log's sensors."""
     if options.odometry_error is None:
@@ -214,16 +264,15 @@ def _error_aware_model(
     sonar = ErrorAwareSonarModel(
         options.sonar, options.error_aware, options.odometry_error, options.resolution_m
     )
-    is_ray = narrow[readings.sensor]
-    if not is_ray.any():
+    if not any_ray:
         return sonar
     ray = ErrorAwareRayModel(
         options.error_aware,
         options.odometry_error,
-        ScanLayout.of(readings.sensors, narrow),
+        ScanLayout.of(sensors, narrow),
         options.sonar.band_half_m(options.resolution_m),
     )
-    if is_ray.all():
+    if not any_sonar:
         return ray
     return ErrorAwareMixedModel(sonar, ray, narrow)
 

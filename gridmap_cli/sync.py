@@ -157,10 +157,20 @@ def interpolate_pose(
     return x, y, theta, valid
 
 
-def synchronise(log: RangeLog, robot: RobotDescription | None) -> tuple[SensorReadings, SyncStats]:
-    """Attach the sensor pose (odometry frame) to every usable reading of ``log``."""
+def synchronise(
+    log: RangeLog, robot: RobotDescription | None, chunk: slice = slice(None)
+) -> tuple[SensorReadings, SyncStats]:
+    """Attach the sensor pose (odometry frame) to every usable reading of ``log``, or of the
+    readings ``chunk`` of it: each reading's pose depends on the pose track alone, so chunks
+    synchronised one by one give the whole's readings, bit for bit."""
     sensors = sensors_for_log(log, robot)
-    r = log.readings
+    whole = log.readings
+    r = dataclasses.replace(
+        whole,
+        stamp_ns=whole.stamp_ns[chunk],
+        sensor=whole.sensor[chunk],
+        range_m=whole.range_m[chunk],
+    )
     x, y, theta, valid = interpolate_pose(log.poses, r.stamp_ns)
     min_r = np.asarray([s.min_range_m for s in sensors], dtype=np.float64)[r.sensor]
     max_r = np.asarray([s.max_range_m for s in sensors], dtype=np.float64)[r.sensor]

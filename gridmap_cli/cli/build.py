@@ -30,6 +30,7 @@ from gridmap_cli.cli.common import (
 from gridmap_cli.errors import UsageError
 from gridmap_cli.executors import EXECUTORS, check_dask, fuse_dask, fuse_local
 from gridmap_cli.fuse import FuseJob, Partial, fused_map, parse_initial_pose
+from gridmap_cli.heap import keep_scratch_memory
 from gridmap_cli.models.error_aware import ErrorAwareParams
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
@@ -201,7 +202,8 @@ if TYPE_CHECKING:
 )
 @click.option("--scheduler", metavar="ADDRESS", help="Dask scheduler for --executor dask.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
-              help="--fuse with the local executor: logs mapped at once.")  # fmt: skip
+              help="Processes mapping at once: the readings of one log (the map is the same "
+              "bytes for every N), or with --fuse and the local executor, the logs.")  # fmt: skip
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -312,6 +314,7 @@ def build(
         _write_fused(total, output, to_mcap, map_mode, occupied, free, force, started, quiet,
                      as_json, len(logs))  # fmt: skip
         return
+    keep_scratch_memory()  # every check passed: from here on, the build's own process
     whole = read_input(logs, log_format, read_options)
     data = whole
     if robot_desc is None:
@@ -332,6 +335,7 @@ def build(
         sonar=sonar,
         error_aware=error_aware,
         odometry_error=odometry_error,
+        jobs=jobs,
     )
     with progress_bar(len(data.readings), quiet, "mapping") as bar:
         result = build_map(data, robot_desc, options, progress=bar.update)
@@ -442,7 +446,7 @@ def _fuse_options(
     """Usage checks of --fuse and its options; the initial pose of each log (or None)."""
     ctx = click.get_current_context()
     given = [
-        name for name in ("initial_poses", "executor", "scheduler", "jobs")
+        name for name in ("initial_poses", "executor", "scheduler")
         if ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT
     ]  # fmt: skip
     if not fuse:

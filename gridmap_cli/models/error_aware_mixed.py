@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.grid import FrequencyAccumulator
+from gridmap_cli.grid import FrequencyAccumulator, GridSpec
 from gridmap_cli.models.error_aware import ErrorAwareSonarModel, WeightedRuns, add_runs
 from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel
 from gridmap_cli.models.sector import F64
@@ -35,6 +35,7 @@ class ErrorAwareMixedModel:
         self.sonar = sonar
         self.ray = ray
         self.narrow = narrow
+        self.params = sonar.params  # one accumulator, one cap on redundant looks
 
     def _parts(
         self, readings: SensorReadings
@@ -59,12 +60,18 @@ class ErrorAwareMixedModel:
 
     def accumulate(self, grid: FrequencyAccumulator, readings: SensorReadings) -> int:
         """Add both kinds' counts to ``grid``, trust class by class; returns cell updates."""
+        runs, updates = self.runs(grid.spec, readings)
+        add_runs(grid, runs, self.params.redundant_looks)
+        return updates
+
+    def runs(self, spec: GridSpec, readings: SensorReadings) -> tuple[WeightedRuns, int]:
+        """Both kinds' weighted runs of cells, and the number of cell updates."""
         parts: list[WeightedRuns] = []
         updates = 0
         for model, part in self._parts(readings):
-            runs, n = model.runs(grid.spec, part)
+            runs, n = model.runs(spec, part)
             parts.append(runs)
             updates += n
-        if parts:
-            add_runs(grid, WeightedRuns.concatenate(parts), self.sonar.params.redundant_looks)
-        return updates
+        if not parts:
+            return WeightedRuns.empty(), 0
+        return WeightedRuns.concatenate(parts), updates
