@@ -9,9 +9,10 @@ ROS library and compared field by field, so a schema that differs from the stand
 falls back to message-by-message reading instead of giving wrong values.
 
 A channel is read in bulk when its type is one of :data:`~gridmap_cli.readers.ros_bulk.
-BULK_TYPES`, its encoding ``cdr`` or ``ros1``, and the message indexes account for every one
-of its messages; the others (and a channel whose bytes are not as expected) are left to the
-per-message reader.
+BULK_TYPES` with encoding ``cdr`` or ``ros1``, or one of gridmap's JSON types
+(:data:`~gridmap_cli.readers.json_bulk.JSON_TYPES`, encoding ``json``, checked against
+``json.loads`` the same way), and the message indexes account for every one of its messages;
+the others (and a channel whose bytes are not as expected) are left to the per-message reader.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from mcap.stream_reader import get_chunk_data_stream
 from mcap.summary import Summary
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.readers import ros_bulk
+from gridmap_cli.readers import json_bulk, ros_bulk
 from gridmap_cli.readers.mcap_channels import message_type
 from gridmap_cli.readers.ros_bulk import Columns, Layout, Raw
 
@@ -76,7 +77,7 @@ def read_bulk(
             continue
         schema = summary.schemas.get(ch.schema_id)
         type_name = message_type(schema)
-        if type_name not in ros_bulk.BULK_TYPES or ch.message_encoding not in ("cdr", "ros1"):
+        if not _bulk_channel(type_name, ch.message_encoding):
             continue
         channels[ch.id] = (ch, schema, type_name, ch.message_encoding == "cdr")
     # a topic is read in bulk only if all its channels are
@@ -109,7 +110,10 @@ def read_bulk(
             offset = index["offset"].astype(np.int64)
             try:
                 raw = _raw(buf, offset, ordinal)
-                cols = ros_bulk.decode(type_name, raw, cdr)
+                if ch.message_encoding == "json":
+                    cols = json_bulk.decode(type_name, raw)
+                else:
+                    cols = ros_bulk.decode(type_name, raw, cdr)
                 first = bytes(buf[raw.offset[0] : raw.offset[0] + raw.length[0]])
                 try:
                     msg = decoder_for(ch, schema)(first)
@@ -137,6 +141,15 @@ def read_bulk(
         batches.append(Batch(str(path), topic, type_name, ros_bulk.concat(pieces)))
         done.add(topic)
     return batches, [t for t in topics if t not in done]
+
+
+def _bulk_channel(type_name: str, message_encoding: str) -> bool:
+    """True for the channels decoded in bulk: ROS messages of :data:`~gridmap_cli.readers.
+    ros_bulk.BULK_TYPES` and gridmap's JSON messages of :data:`~gridmap_cli.readers.json_bulk.
+    JSON_TYPES`."""
+    if message_encoding == "json":
+        return type_name in json_bulk.JSON_TYPES
+    return type_name in ros_bulk.BULK_TYPES and message_encoding in ("cdr", "ros1")
 
 
 def _raw(buf: npt.NDArray[np.uint8], offset: npt.NDArray[np.int64], ordinal: int) -> Raw:
@@ -197,6 +210,8 @@ def _chunk_data(path: Path, handle: Any, start: int) -> bytes:
 # ---------------------------------------------------------------------- the library's view
 def matches(type_name: str, cols: Columns, pos: int, msg: Any) -> bool:
     """True if the rows of the message at ``pos`` hold what the ROS library decoded from it."""
+    if type_name in json_bulk.JSON_TYPES:
+        return json_bulk.matches(type_name, cols, pos, msg)
     a = cols.arrays
 
     def stamp(header: Any) -> int:

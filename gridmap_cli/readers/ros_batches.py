@@ -35,12 +35,14 @@ def add_columns(
     plan = acc.plan
     if type_name in TF_TYPES:
         _tf(acc, cols, static=topic in plan.static_topics)
-    elif type_name == "nav_msgs/Odometry":
+    elif type_name in ("nav_msgs/Odometry", "gridmap.Pose2D"):
         track = {plan.odom_topic: acc.odom, plan.truth_topic: acc.truth}.get(topic)
         if track is None and topic == plan.reference_topic:
             track = acc.reference
         if track is not None:
             _poses(acc, track, topic, cols)
+    elif type_name == "gridmap.RangeReading" and topic in acc.range_topics:
+        _json_readings(acc, topic, cols)
     elif type_name == "sensor_msgs/Range":
         _ranges(acc, topic, cols)
     elif type_name == "sensor_msgs/LaserScan":
@@ -185,12 +187,39 @@ def _scans(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
     acc.r_chunks.append((_stamps(cols)[row_of][valid], keys, out, True))
 
 
+def _json_readings(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
+    """gridmap.RangeReading: NaN is no reading; a negative range is an error; the rest (inf
+    included) is kept as written, not a float32."""
+    a = cols.arrays
+    value = a["range"].astype(np.float64)
+    keep = ~np.isnan(value)
+    bad = keep & (value < 0.0)
+    n = int(np.argmax(bad)) if bad.any() else len(value)
+    rows = np.flatnonzero(keep[:n])
+    # sensor names become keys in order of their first kept reading, as one by one
+    sensor = a["sensor"][rows]
+    names = cols.names["sensor"]
+    first = np.unique(sensor, return_index=True)[1] if len(sensor) else np.zeros(0, np.int64)
+    keys = np.zeros(len(names), dtype=np.int64)
+    for i in np.sort(first).tolist():
+        keys[int(sensor[i])] = acc._key(names[int(sensor[i])])
+    if n < len(value):
+        raise InputFileError(
+            acc.message_path, f"{_where(acc, topic, cols, n)}: negative range {float(value[n])}"
+        )
+    acc.r_chunks.append((_stamps(cols)[rows], keys[sensor], value[rows], False))
+
+
 def _poses(acc: MessageAccumulator, track: _Track, topic: str, cols: Columns) -> None:
     a = cols.arrays
     stamps = _stamps(cols).tolist()
     xs, ys = a["x"].astype(np.float64).tolist(), a["y"].astype(np.float64).tolist()
-    quats = zip(a["qx"].tolist(), a["qy"].tolist(), a["qz"].tolist(), a["qw"].tolist(), strict=True)
-    thetas = [yaw_of(q) for q in quats]
+    if "theta" in a:  # gridmap.Pose2D
+        thetas = a["theta"].astype(np.float64).tolist()
+    else:
+        quats = zip(a["qx"].tolist(), a["qy"].tolist(), a["qz"].tolist(), a["qw"].tolist(),
+                    strict=True)  # fmt: skip
+        thetas = [yaw_of(q) for q in quats]
     finite = np.isfinite(a["x"]) & np.isfinite(a["y"]) & np.isfinite(np.asarray(thetas))
     n = len(stamps) if finite.all() else int(np.argmax(~finite))
     if track is acc.odom:
