@@ -19,7 +19,6 @@ from gridmap_cli.cli.common import (
     check_output_folder,
     handle_errors,
     json_text,
-    make_read_options,
     progress_bar,
     read_input,
     selection_options,
@@ -42,6 +41,7 @@ from gridmap_cli.pipeline import (
     build_map,
 )
 from gridmap_cli.readers import format_names
+from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import load_robot, preset_names, robot_from_log
 from gridmap_cli.selection import Selection, apply_selection
@@ -222,12 +222,7 @@ def build(
     free: float,
     no_echo_free: float,
     pose: str,
-    odom_topic: str | None,
-    range_topics: tuple[str, ...],
-    odom_frame: str | None,
-    base_frame: str | None,
-    pose_topic: str | None,
-    map_frame: str | None,
+    topics: ReadOptions,
     sensor_patterns: tuple[str, ...],
     start: str | None,
     end: str | None,
@@ -294,9 +289,7 @@ def build(
     preview = output.with_name(f"{output.stem}_path.png") if draw_path else None
     if preview is not None:
         check_output(preview, force)
-    read_options = make_read_options(
-        odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
-    )
+    read_options = dataclasses.replace(topics, robot=robot_desc)
     if fuse:
         fuse_jobs = [
             FuseJob(log=log.resolve(), log_format=log_format,

@@ -21,7 +21,6 @@ from gridmap_cli.errors import GridmapError, InputFileError, UsageError
 from gridmap_cli.readers import STDIN_NAME, read_bytes, read_logs
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
-from gridmap_cli.robot import RobotDescription
 from gridmap_cli.selection import EXCLUDE
 
 if TYPE_CHECKING:
@@ -181,9 +180,21 @@ def check_output_folder(output: Path) -> None:
         raise GridmapError(f"{output}: directory {folder} does not exist")
 
 
-def topic_options(func: Callable[P, R]) -> Callable[P, R]:
-    """The topic and frame choices of ROS recordings (MCAP, bag, rosbag2), for build and
-    inspect."""
+#: The options :func:`topic_options` adds, named as :class:`ReadOptions` fields.
+TOPIC_FIELDS = ("odom_topic", "range_topics", "odom_frame", "base_frame", "pose_topic", "map_frame")
+
+
+def topic_options(func: Callable[..., R]) -> Callable[..., R]:
+    """The topic and frame choices of ROS recordings (MCAP, bag, rosbag2), for the commands that
+    read one: the command receives them together as ``topics``, a :class:`ReadOptions` without
+    a robot (``dataclasses.replace(topics, robot=...)`` completes it)."""
+
+    @functools.wraps(func)
+    def gathered(*args: Any, **kwargs: Any) -> R:
+        chosen = {name: kwargs.pop(name) for name in TOPIC_FIELDS}
+        chosen["range_topics"] = tuple(chosen["range_topics"])
+        return func(*args, topics=ReadOptions(**chosen), **kwargs)
+
     options = [
         click.option(
             "--odom-topic",
@@ -212,8 +223,8 @@ def topic_options(func: Callable[P, R]) -> Callable[P, R]:
         click.option("--map-frame", help="ROS: the reference track's frame in TF [default: map]."),
     ]
     for option in reversed(options):
-        func = option(func)
-    return func
+        gathered = option(gathered)
+    return gathered
 
 
 def selection_options(sensors: bool = True) -> Callable[[Callable[P, R]], Callable[P, R]]:
@@ -258,26 +269,6 @@ def warn(notes: tuple[str, ...], quiet: bool = False) -> None:
     if not quiet:
         for note in notes:
             click.echo(f"Warning: {note}", err=True)
-
-
-def make_read_options(
-    odom_topic: str | None,
-    range_topics: tuple[str, ...],
-    odom_frame: str | None,
-    base_frame: str | None,
-    pose_topic: str | None,
-    map_frame: str | None,
-    robot: RobotDescription | None,
-) -> ReadOptions:
-    return ReadOptions(
-        odom_topic=odom_topic,
-        range_topics=tuple(range_topics),
-        odom_frame=odom_frame,
-        base_frame=base_frame,
-        pose_topic=pose_topic,
-        map_frame=map_frame,
-        robot=robot,
-    )
 
 
 def _plain(value: Any) -> Any:

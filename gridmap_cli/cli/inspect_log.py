@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -11,11 +12,11 @@ from gridmap_cli.cli.common import (
     check_input,
     handle_errors,
     json_text,
-    make_read_options,
     selection_options,
     topic_options,
 )
 from gridmap_cli.readers import format_names, resolve_format
+from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot
 from gridmap_cli.selection import Selection
 
@@ -32,12 +33,7 @@ def inspect(
     logs: tuple[Path, ...],
     robot: str | None,
     log_format: str | None,
-    odom_topic: str | None,
-    range_topics: tuple[str, ...],
-    odom_frame: str | None,
-    base_frame: str | None,
-    pose_topic: str | None,
-    map_frame: str | None,
+    topics: ReadOptions,
     sensor_patterns: tuple[str, ...],
     start: str | None,
     end: str | None,
@@ -58,9 +54,7 @@ def inspect(
     for log in logs:
         check_input(log)
     fmt = resolve_format(logs[0], log_format)
-    read_options = make_read_options(
-        odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
-    )
+    read_options = dataclasses.replace(topics, robot=robot_desc)
     if fmt.sources is None:
         read_options.refuse_topic_flags(fmt.name.upper())
     description = describe_log(logs, fmt, read_options, selection)

@@ -3,6 +3,7 @@ that trajectory tools read (TUM for evo, or CSV)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -13,10 +14,10 @@ from gridmap_cli.cli.common import (
     check_input,
     check_output_folder,
     handle_errors,
-    make_read_options,
     topic_options,
 )
 from gridmap_cli.readers import format_names, read_logs
+from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.scan_match import STATUS_NAMES, match_log
 from gridmap_cli.sync import POSE_SOURCES, select_poses
@@ -59,12 +60,7 @@ def trajectory(
     pose: str,
     robot: str | None,
     log_format: str | None,
-    odom_topic: str | None,
-    range_topics: tuple[str, ...],
-    odom_frame: str | None,
-    base_frame: str | None,
-    pose_topic: str | None,
-    map_frame: str | None,
+    topics: ReadOptions,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -81,9 +77,7 @@ def trajectory(
     robot_desc = load_robot(robot) if robot else None
     for log in logs:
         check_input(log)
-    read_options = make_read_options(
-        odom_topic, range_topics, odom_frame, base_frame, pose_topic, map_frame, robot_desc
-    )
+    read_options = dataclasses.replace(topics, robot=robot_desc)
     data = read_logs(logs, log_format, read_options)
     summary: dict[str, object] = {"output": str(output), "pose": pose}
     if pose == "scan-matched":
