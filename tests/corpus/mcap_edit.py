@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
@@ -15,15 +16,20 @@ def edit_mcap(
     target: Path,
     message: Callable[[str, bytes], bytes] = lambda topic, data: data,
     schema: Callable[[str, bytes], bytes] = lambda name, data: data,
+    compression: CompressionType = CompressionType.ZSTD,
+    **writer_options: Any,
 ) -> Path:
     """Copy ``source`` to ``target`` passing each message's bytes through ``message(topic,
-    data)`` and each schema's definition through ``schema(name, data)``."""
+    data)`` and each schema's definition through ``schema(name, data)``; ``compression`` and
+    ``writer_options`` (``chunk_size``, ``enable_crcs``, ``enable_data_crcs``) go to the
+    writer, data CRCs on unless said otherwise."""
     with open(source, "rb") as handle, open(target, "wb") as out:
         reader = make_reader(handle)
         summary = reader.get_summary()
         assert summary is not None
         header = reader.get_header()
-        writer = Writer(out, compression=CompressionType.ZSTD, enable_data_crcs=True)
+        options = {"enable_data_crcs": True, **writer_options}
+        writer = Writer(out, compression=compression, **options)
         writer.start(profile=header.profile, library="gridmap corpus")
         schemas = {
             k: writer.register_schema(s.name, s.encoding, schema(s.name, s.data))

@@ -8,10 +8,10 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from mcap.reader import make_reader
-from mcap.writer import CompressionType, Writer
+from mcap.writer import CompressionType
 
 from gridmap_cli.readers.mcap_integrity import MAX_CHUNK_BYTES, McapDamage, verify_mcap
+from tests.corpus.mcap_edit import edit_mcap
 from tests.helpers import names, run
 
 SAMPLE = Path(__file__).resolve().parents[2] / "samples" / "corridor_loop.mcap"
@@ -21,30 +21,8 @@ CHUNK, DATA_END, FOOTER, MESSAGE_INDEX, CHUNK_INDEX = 0x06, 0x0F, 0x02, 0x07, 0x
 def rewrite(target: Path, compression: CompressionType, **kwargs: bool) -> Path:
     """The corridor sample rewritten with other compression and CRC settings; small chunks, so
     there are several."""
-    with open(SAMPLE, "rb") as handle, open(target, "wb") as out:
-        reader = make_reader(handle)
-        summary = reader.get_summary()
-        assert summary is not None
-        writer = Writer(out, chunk_size=64 * 1024, compression=compression, **kwargs)
-        writer.start(profile="ros1", library="gridmap tests")
-        schemas = {
-            k: writer.register_schema(s.name, s.encoding, s.data)
-            for k, s in summary.schemas.items()
-        }
-        channels = {
-            k: writer.register_channel(
-                c.topic, c.message_encoding, schemas.get(c.schema_id, 0), dict(c.metadata)
-            )
-            for k, c in summary.channels.items()
-        }
-        for meta in reader.iter_metadata():
-            writer.add_metadata(meta.name, dict(meta.metadata))
-        for _, channel, message in reader.iter_messages(log_time_order=True):
-            writer.add_message(
-                channels[channel.id], message.log_time, message.data, message.publish_time
-            )
-        writer.finish()
-    return target
+    options = {"enable_data_crcs": False, **kwargs}  # the mcap writer's defaults otherwise
+    return edit_mcap(SAMPLE, target, compression=compression, chunk_size=64 * 1024, **options)
 
 
 def records(data: bytes) -> Iterator[tuple[int, int, int]]:
