@@ -124,16 +124,23 @@ def ray_rows(spec: GridSpec, seg: RaySegments) -> RayRows:
     """The per-segment part of :func:`row_runs` (shared with the compiled kernel)."""
     u0, v0 = _grid_units(spec, seg.x0_m, seg.y0_m)
     u1, v1 = _grid_units(spec, seg.x1_m, seg.y1_m)
+    # the set of cells does not depend on the direction of travel: walk every segment upwards
+    # from (ua, va) to (ub, vb)
     down = v1 < v0
     ua, va = np.where(down, u1, u0), np.where(down, v1, v0)
     ub, vb = np.where(down, u0, u1), np.where(down, v0, v1)
     ra_f = np.floor(va)
     ra = ra_f.astype(np.int64)
     rb = np.floor(vb).astype(np.int64)
+    # rows ra + p for p = p_lo .. p_hi lie in the grid
     p_lo = np.maximum(-ra, 0)
     p_hi = np.minimum(rb, spec.height - 1) - ra
     active = seg.echo | (u0 != u1) | (v0 != v1)
     counts = np.where(active, np.maximum(p_hi - p_lo + 1, 0), 0)
+    # The segment enters row ra + p (p >= 1) on v = ra + p, at u = ua + (p + off) * slope with
+    # off = ra - va in (-1, 0] (exact). Written this way the rounding error stays near
+    # eps * |ub - ua| even for nearly horizontal segments, whose slope is huge. With va == vb
+    # there is one row and no crossing, so the slope is never used.
     dv = vb - va
     with np.errstate(divide="ignore", invalid="ignore"):
         slope = np.where(dv > 0.0, (ub - ua) / dv, 0.0)
@@ -151,31 +158,9 @@ def row_runs(spec: GridSpec, seg: RaySegments) -> RowRuns:
     and Woo's traversal. Segments of length 0 give their one cell when they have an echo and
     nothing otherwise.
     """
-    u0, v0 = _grid_units(spec, seg.x0_m, seg.y0_m)
-    u1, v1 = _grid_units(spec, seg.x1_m, seg.y1_m)
-    # the set of cells does not depend on the direction of travel: walk every segment upwards
-    # from (ua, va) to (ub, vb)
-    down = v1 < v0
-    ua, va = np.where(down, u1, u0), np.where(down, v1, v0)
-    ub, vb = np.where(down, u0, u1), np.where(down, v0, v1)
-    ra_f = np.floor(va)
-    ra = ra_f.astype(np.int64)
-    rb = np.floor(vb).astype(np.int64)
-    # rows ra + p for p = p_lo .. p_hi lie in the grid
-    p_lo = np.maximum(-ra, 0)
-    p_hi = np.minimum(rb, spec.height - 1) - ra
-    active = seg.echo | (u0 != u1) | (v0 != v1)
-    counts = np.where(active, np.maximum(p_hi - p_lo + 1, 0), 0)
-
-    # The segment enters row ra + p (p >= 1) on v = ra + p, at u = ua + (p + off) * slope with
-    # off = ra - va in (-1, 0] (exact). Written this way the rounding error stays near
-    # eps * |ub - ua| even for nearly horizontal segments, whose slope is huge. With va == vb
-    # there is one row and no crossing, so the slope is never used.
-    dv = vb - va
-    with np.errstate(divide="ignore", invalid="ignore"):
-        slope = np.where(dv > 0.0, (ub - ua) / dv, 0.0)
-    off = ra_f - va
-
+    rows = ray_rows(spec, seg)
+    ra, rb, p_lo, counts = rows.ra, rows.rb, rows.p_lo, rows.counts
+    off, slope, ua, ub = rows.off, rows.slope, rows.ua, rows.ub
     total = int(counts.sum())
     starts = np.cumsum(counts) - counts
     p = np.arange(total, dtype=np.int64) - np.repeat(starts - p_lo, counts)
@@ -189,7 +174,7 @@ def row_runs(spec: GridSpec, seg: RaySegments) -> RowRuns:
     has = counts > 0
     first = has & (p_lo == 0)
     u_in[starts[first]] = ua[first]
-    last = has & (ra + p_hi == rb)
+    last = has & (ra + p_lo + counts - 1 == rb)  # the run of the segment's own last row
     u_out[(starts + counts - 1)[last]] = ub[last]
     c_in = np.floor(u_in).astype(np.int64)
     c_out = np.floor(u_out).astype(np.int64)
@@ -197,8 +182,7 @@ def row_runs(spec: GridSpec, seg: RaySegments) -> RowRuns:
     col1 = np.maximum(c_in, c_out)
     row = np.repeat(ra, counts) + p
     segment = np.repeat(np.arange(counts.shape[0], dtype=np.int64), counts)
-    inside = (np.minimum(ua, ub) >= 0.0) & (np.maximum(ua, ub) < spec.width)
-    if bool(inside[has].all()):
+    if rows.inside:
         return RowRuns(row, col0, col1, segment)
     keep = (col1 >= 0) & (col0 <= spec.width - 1)
     return RowRuns(
