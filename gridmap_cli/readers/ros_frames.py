@@ -174,6 +174,14 @@ def _rotate_arrays(
     )
 
 
+def _yaws(q: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """:func:`yaw_of` of (N, 4) quaternions at once (a pose track's worth)."""
+    x, y, z, w = q.T
+    planar = (x == 0.0) & (y == 0.0)
+    tilted = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return np.asarray(wrap_angle(np.where(planar, 2.0 * np.arctan2(z, w), tilted)))
+
+
 @dataclass
 class TransformSeries:
     """The transforms of one parent -> child pair on ``/tf``, as they arrive (any order)."""
@@ -321,6 +329,5 @@ class TransformBuffer:
             trans = trans + _rotate_arrays(rot, t)
             rot = _qmul_arrays(rot, q)
         ok = ~np.isnan(trans).any(axis=1) & ~np.isnan(rot).any(axis=1)
-        yaw = [yaw_of((float(q[0]), float(q[1]), float(q[2]), float(q[3]))) for q in rot[ok]]
-        planar = np.column_stack((trans[ok, 0], trans[ok, 1], np.asarray(yaw, dtype=np.float64)))
+        planar = np.column_stack((trans[ok, 0], trans[ok, 1], _yaws(rot[ok])))
         return stamps[ok], planar.reshape(-1, 3)

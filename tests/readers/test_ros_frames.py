@@ -93,3 +93,22 @@ def test_transform_series_gives_its_own_samples_exactly_and_nan_outside() -> Non
     assert got[2, :3].tolist() == [2.0, 2.0, 0.0]
     assert yaw_of(tuple(got[2, 3:].tolist())) == pytest.approx(0.4)  # type: ignore[arg-type]
     assert series.changes()
+
+
+@given(st.floats(-10, 10), st.floats(-0.3, 0.3), st.floats(-0.3, 0.3))
+def test_yaws_of_many_quaternions_are_yaw_of_each(yaw: float, roll: float, pitch: float) -> None:
+    from gridmap_cli.readers.ros_frames import _yaws
+
+    flat = quaternion_of_yaw(yaw)
+    cr, sr, cp, sp = (
+        math.cos(roll / 2),
+        math.sin(roll / 2),
+        math.cos(pitch / 2),
+        math.sin(pitch / 2),
+    )
+    cy, sy = flat[3], flat[2]
+    tilted = (sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+              cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy)  # fmt: skip
+    many = _yaws(np.array([flat, tilted]))
+    assert many[0] == pytest.approx(yaw_of(flat), abs=1e-12)
+    assert many[1] == pytest.approx(yaw_of(tilted), abs=1e-12)
