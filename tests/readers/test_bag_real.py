@@ -66,10 +66,13 @@ def test_the_split_tiago_bags_give_the_clear_error_with_both_time_spans(tmp_path
 
 
 def test_inspect_of_a_tiago_bag_lists_what_its_mcap_lists() -> None:
-    code, out, _ = run("inspect", str(BAGS / "tiago_sonar.bag"))
-    assert code in (0, 1)
+    code, out, err = run("inspect", str(BAGS / "tiago_sonar.bag"))
+    assert code == 1 and err.startswith(f"Error: {BAGS / 'tiago_sonar.bag'}: no odometry")
     assert "/sonar_base  sensor_msgs/Range  ros1      609" in out
     assert "609 messages, log time 2025-04-08 14:35:33.381 UTC to 14:35:53.932 UTC (20.6 s)" in out
+    _, from_mcap, _ = run("inspect", str(MCAPS / "tiago_sonar_range_ros1.mcap"))
+    rows = [line for line in out.splitlines() if line.startswith("  /sonar_base ")]
+    assert rows == [line for line in from_mcap.splitlines() if line.startswith("  /sonar_base ")]
 
 
 def test_the_evo_bag_and_its_rosbag2_copy_give_the_same_tf_odometry() -> None:
