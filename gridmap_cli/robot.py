@@ -248,10 +248,31 @@ def _laser_beams(
             f"{MAX_LASER_SAMPLES:,} beams per laser (MAX_LASER_SAMPLES)",
             line,
         )
-    step = (last - first) / (samples - 1) if samples > 1 else 0.0
+    return laser_beams(name, x, y, yaw, first, last, samples, rmin, rmax)
+
+
+def laser_beams(
+    name: str,
+    x_m: float,
+    y_m: float,
+    yaw_rad: float,
+    first_deg: float,
+    last_deg: float,
+    samples: int,
+    min_range_m: float,
+    max_range_m: float,
+) -> list[RangeSensor]:
+    """One ray sensor per beam of a scanning laser, ``<name>_0`` .. ``<name>_<samples-1>``:
+    beam i points ``first_deg + i * (last_deg - first_deg) / (samples - 1)`` degrees from the
+    laser's axis ``yaw_rad``.
+
+    Robot descriptions and ARIA logs both describe a laser this way; computing its beams in one
+    place gives the same laser the same beam directions to the bit, whichever file described it.
+    """
+    step = (last_deg - first_deg) / (samples - 1) if samples > 1 else 0.0
     return [
-        RangeSensor(f"{name}_{i}", x, y, yaw + math.radians(first + i * step), 0.0, rmin, rmax,
-                    "laser")
+        RangeSensor(f"{name}_{i}", x_m, y_m, yaw_rad + math.radians(first_deg + i * step), 0.0,
+                    min_range_m, max_range_m, "laser")
         for i in range(samples)
     ]  # fmt: skip
 

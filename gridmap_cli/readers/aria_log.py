@@ -44,7 +44,7 @@ from gridmap_cli.readers.aria_params import (
 from gridmap_cli.readers.csv_log import seconds_to_ns
 from gridmap_cli.readers.text_source import parse_text
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
-from gridmap_cli.robot import RangeSensor
+from gridmap_cli.robot import RangeSensor, laser_beams
 
 MAGIC = "LaserOdometryLog"
 
@@ -66,7 +66,7 @@ def sniff(head: bytes) -> bool:
 class _Laser:
     number: int
     pose: tuple[float, float, float] | None = None  # x_m, y_m, yaw_rad
-    conf: tuple[float, float, int] | None = None  # first_rad, last_rad, samples
+    conf: tuple[float, float, int] | None = None  # first_deg, last_deg, samples
     line: int = 0
     max_range_m: float | None = None  # gridmap's sick<N>maxRange:, None in ARIA's own logs
     min_range_m: float = 0.0  # gridmap's sick<N>minRange:
@@ -201,7 +201,7 @@ class _Parser:
                             f"{tag}: {samples:.0f} samples, above gridmap's limit of "
                             f"{MAX_LASER_SAMPLES:,} beams per laser (MAX_LASER_SAMPLES)",
                         )
-                    laser.conf = (math.radians(first), math.radians(last), int(samples))
+                    laser.conf = (first, last, int(samples))
                     laser.line = line
                 elif kind == "maxrange":
                     (mm,) = self.numbers(line, tag, values, 1)[:1]
@@ -320,16 +320,11 @@ class _Parser:
                     f"laser {number}: minimum range {laser.min_range_m * 1000.0:g} mm is not "
                     f"below the maximum range {rmax * 1000.0:g} mm",
                 )
-            step = (last - first) / (samples - 1) if samples > 1 else 0.0
             offsets[f"laser{number}"] = len(sensors)
-            for i in range(samples):
-                name = f"laser{number}_{i}"
-                names.append(name)
-                sensors.append(
-                    RangeSensor(
-                        name, lx, ly, lth + first + i * step, 0.0, laser.min_range_m, rmax, "laser"
-                    )
-                )
+            beams = laser_beams(f"laser{number}", lx, ly, lth, first, last, samples,
+                                laser.min_range_m, rmax)  # fmt: skip
+            sensors += beams
+            names += [beam.name for beam in beams]
         return sensors, names, offsets
 
     def readings(
