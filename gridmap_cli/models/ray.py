@@ -50,8 +50,8 @@ class RayParams:
     readings. The clamp is not here: one grid has one clamp (BuildOptions.clamp_p).
     """
 
-    p_occupied: float = 0.55
-    p_free: float = 0.43
+    p_occupied: float = 0.7
+    p_free: float = 0.4
     no_echo_free_m: float = math.inf
 
     def __post_init__(self) -> None:

@@ -336,8 +336,7 @@ def test_a_laser_scan_maps_the_walls_of_a_room() -> None:
     cx, cy = spec.cell_center(cols, rows)
     to_wall = np.minimum(HALF_ROOM_M - np.abs(cx), HALF_ROOM_M - np.abs(cy))  # < 0 outside
 
-    # a wall cell seen by one or two rays has p 0.55-0.60 (one hit is weak evidence:
-    # docs/sensor-model.md); the walls are the cells with more hits than misses
+    # the walls are the cells with more hits than misses (docs/sensor-model.md)
     occupied = prob > 0.5
     assert occupied.sum() >= 0.8 * 4 * 2 * HALF_ROOM_M / res, "the walls are mapped"
     assert np.all(np.abs(to_wall[occupied]) <= res + 1e-9), "occupied only on the walls"
