@@ -154,13 +154,13 @@ def _bulk_channel(type_name: str, message_encoding: str) -> bool:
 
 def _raw(buf: npt.NDArray[np.uint8], offset: npt.NDArray[np.int64], ordinal: int) -> Raw:
     """Message records at ``offset`` in a decompressed chunk -> their data."""
-    if np.any(offset + _MESSAGE_HEAD > len(buf)):
+    if np.any(offset < 0) or np.any(offset + _MESSAGE_HEAD > len(buf)):
         raise Layout("message index points past the chunk")
-    head = buf[offset[:, None] + np.arange(_MESSAGE_HEAD, dtype=np.int64)]
-    if np.any(head[:, 0] != 0x05):
+    if np.any(buf[offset] != 0x05):
         raise Layout("message index points at something else")
-    length = head[:, 1:9].copy().view("<u8").reshape(-1).astype(np.int64) - (_MESSAGE_HEAD - 9)
-    log_ns = head[:, 15:23].copy().view("<u8").reshape(-1).astype(np.int64)
+    word = ros_bulk.words(buf)
+    length = word[offset + 1].astype(np.int64) - (_MESSAGE_HEAD - 9)
+    log_ns = word[offset + 15].astype(np.int64)
     data = offset + _MESSAGE_HEAD
     if np.any(length < 0) or np.any(data + length > len(buf)):
         raise Layout("message runs past the chunk")
