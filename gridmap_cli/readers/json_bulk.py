@@ -232,8 +232,10 @@ def _compact_columns(
                 value = np.where(column >= 48, value * 10 + digit, value)  # not - or the end
             values.append(np.where(matrix[:, 0] == 45, -value, value))
         else:
-            # numpy reads bytes as ``float`` does (Python's own parser), as ``json`` does
-            values.append(texts.astype(np.float64))
+            # numpy reads bytes as ``float`` does (Python's own parser), as ``json`` does; but
+            # ``json`` reads -0 as the integer 0, which is +0.0 as a float
+            number = texts.astype(np.float64)
+            values.append(np.where(texts == b"-0", 0.0, number))
     arrays: dict[str, Arr] = {"log_ns": raw.log_ns, "pos": raw.pos}
     arrays["stamp_ns"] = values[0] * 1_000_000_000 + values[1]
     if type_name == "gridmap.Pose2D":
