@@ -219,8 +219,9 @@ def _compact_columns(
         state = automaton[state * 256]  # then the end
         texts = matrix.view(f"S{width}").reshape(-1)
         ok = state == 9
-        if kind == "num":
-            ok |= np.isin(texts, _SPECIAL)
+        if kind == "num" and not ok.all():
+            odd = ~ok
+            ok[odd] = np.isin(texts[odd], _SPECIAL)
         if not ok.all():
             return None
         if kind == "int":
