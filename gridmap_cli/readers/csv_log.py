@@ -10,8 +10,9 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Iterator
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 import numpy as np
 import numpy.typing as npt
@@ -247,7 +248,7 @@ def _read_rows(handle: TextIO, path: str) -> RangeLog:
     # csv.reader counts the physical lines it consumed; offset by the lines before the data
     rows = csv.reader(line for _, line in lines)
     line_no = header_line
-    for fields in rows:
+    for fields in _csv_rows(rows, path, header_line):
         line_no = rows.line_num + header_line
         if not fields or (len(fields) == 1 and not fields[0].strip()):
             continue
@@ -302,6 +303,21 @@ def _read_rows(handle: TextIO, path: str) -> RangeLog:
         metadata=metadata,
         names_are_columns=True,
     )
+
+
+def _csv_rows(rows: Any, path: str, header_line: int) -> Iterator[list[str]]:
+    """The rows of a ``csv.reader``, its own errors (a lone carriage return inside a row) as
+    :class:`InputFileError` at the line they stopped on."""
+    while True:
+        try:
+            fields = next(rows)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            raise InputFileError(
+                path, f"unreadable row ({exc})", rows.line_num + header_line
+            ) from exc
+        yield fields
 
 
 def _check_header(path: str, line: int, header: list[str]) -> dict[str, bool]:

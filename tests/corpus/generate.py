@@ -107,6 +107,8 @@ for _name, _text, _line, _fragment in [
     ("nul-in-field", csv_text({1: "0.1,0.05,0.0,0.0,1\x005,2.0\n"}), 5, "not a number"),
     ("line-too-long", csv_text({2: "0.2" + ",1" * 600_000 + "\n"}), 6, "MAX_LINE_CHARS"),
     ("header-only", CSV_HEAD, 3, "no data rows after the header"),
+    # found by the fuzz test: csv's own error for a carriage return inside a row
+    ("lone-carriage-return", csv_text({0: "0.\r,0.00,0.0,0.0,1.5,2.0\n"}), 4, "unreadable row"),
 ]:  # fmt: skip
     text_case(f"csv-{_name}", "csv", "log.csv", _text, _line, _fragment)
 
