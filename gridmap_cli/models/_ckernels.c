@@ -1,8 +1,8 @@
-/* gridmap's compiled mapping kernels: the inner loops of the sonar cone (standard and
- * error-aware) and of the ray model, over one batch of readings.
+/* gridmap's compiled mapping kernels: the inner loops of the sonar cone and of the ray model,
+ * standard and error-aware, over one batch of readings.
  *
  * Each kernel repeats its numpy reference (gridmap_cli/models/sector.py, standard.py, ray.py,
- * error_aware.py) operation for operation, in the same order, so that the grids are equal bit
+ * error_aware.py, error_aware_ray.py) operation for operation, in the same order, so that the grids are equal bit
  * for bit: the per-reading trigonometry stays in numpy; here the row and span arithmetic is
  * plain IEEE +, -, *, /, sqrt, floor and ceil (built with -ffp-contract=off: no fused
  * multiply-adds), and float evidence goes into a per-batch difference array in the order
@@ -109,25 +109,31 @@ static inline void wedge(double sin_r, double cos_r, double sin_l, double cos_l,
 /* ---- difference arrays ------------------------------------------------------------- */
 
 /* A float delta over the index range [base, base + size) of a difference array, with the
- * run ends held back until every start is in (np.bincount's order). */
+ * run ends held back until every start is in (np.bincount's order). The reference then adds
+ * the whole delta to the sums. Where a batch has few runs for the range it spans, only the
+ * indices they touched are added (the others would add +0.0), so a small batch on a large
+ * grid costs its runs, not the grid; calloc maps a large delta as zero pages. */
 typedef struct {
     double *delta;
     int64_t base, size;
-    int64_t *end_at;
+    int64_t *start_at, *end_at;
     double *end_value;
-    int64_t ends, cap;
+    int64_t runs, cap;
+    int sparse; /* few runs for the range: starts are kept, and only touched entries move */
 } Delta;
 
-static int delta_open(Delta *d, int64_t base, int64_t size, int64_t max_ends)
+static int delta_open(Delta *d, int64_t base, int64_t size, int64_t max_runs)
 {
     memset(d, 0, sizeof *d);
     d->base = base;
     d->size = size > 0 ? size : 0;
-    d->cap = max_ends > 0 ? max_ends : 0;
+    d->cap = max_runs > 0 ? max_runs : 0;
+    d->sparse = d->cap < d->size / 32;
     d->delta = calloc((size_t)d->size + 1, sizeof(double));
+    d->start_at = d->sparse ? malloc(((size_t)d->cap + 1) * sizeof(int64_t)) : NULL;
     d->end_at = malloc(((size_t)d->cap + 1) * sizeof(int64_t));
     d->end_value = malloc(((size_t)d->cap + 1) * sizeof(double));
-    if (!d->delta || !d->end_at || !d->end_value) {
+    if (!d->delta || (d->sparse && !d->start_at) || !d->end_at || !d->end_value) {
         PyErr_NoMemory();
         return -1;
     }
@@ -137,16 +143,35 @@ static int delta_open(Delta *d, int64_t base, int64_t size, int64_t max_ends)
 static inline void delta_run(Delta *d, int64_t start, int64_t end, double value)
 {
     d->delta[start - d->base] += value;
-    d->end_at[d->ends] = end;
-    d->end_value[d->ends] = -value;
-    d->ends++;
+    if (d->sparse)
+        d->start_at[d->runs] = start;
+    d->end_at[d->runs] = end;
+    d->end_value[d->runs] = -value;
+    d->runs++;
+}
+
+/* Move one touched entry of the delta into the sums (an index touched twice moves once). */
+static inline void delta_move(Delta *d, int64_t at, double *sums)
+{
+    double *v = &d->delta[at - d->base];
+    if (*v != 0.0) {
+        sums[at] += *v;
+        *v = 0.0;
+    }
 }
 
 /* The held-back ends, then the delta into the running sums. */
 static void delta_close(Delta *d, double *sums)
 {
-    for (int64_t k = 0; k < d->ends; k++)
+    for (int64_t k = 0; k < d->runs; k++)
         d->delta[d->end_at[k] - d->base] += d->end_value[k];
+    if (d->sparse) {
+        for (int64_t k = 0; k < d->runs; k++) {
+            delta_move(d, d->start_at[k], sums);
+            delta_move(d, d->end_at[k], sums);
+        }
+        return;
+    }
     for (int64_t k = 0; k < d->size; k++)
         sums[d->base + k] += d->delta[k];
 }
@@ -154,6 +179,7 @@ static void delta_close(Delta *d, double *sums)
 static void delta_free(Delta *d)
 {
     free(d->delta);
+    free(d->start_at);
     free(d->end_at);
     free(d->end_value);
 }
@@ -358,6 +384,58 @@ done:
 
 /* ---- the ray model's free runs (ray.py row_runs) ------------------------------------- */
 
+/* What ray.py's RayRows holds, per segment. */
+typedef struct {
+    const int64_t *ra, *rb, *p_lo, *counts;
+    const double *off, *slope, *ua, *ub;
+} RayRows;
+
+/* The run of segment i in its row ra + p (row_runs); returns 0 when clipping drops it. */
+static inline int ray_run(const RayRows *r, Py_ssize_t i, int64_t p, int clip, int64_t width,
+                          int64_t *col0, int64_t *col1)
+{
+    int64_t p_hi = r->p_lo[i] + r->counts[i] - 1;
+    double pf = (double)p;
+    double u_in = (pf + r->off[i]) * r->slope[i] + r->ua[i];
+    double u_out = (pf + 1.0 + r->off[i]) * r->slope[i] + r->ua[i];
+    if (p == r->p_lo[i] && r->p_lo[i] == 0)
+        u_in = r->ua[i];
+    if (p == p_hi && r->ra[i] + p_hi == r->rb[i])
+        u_out = r->ub[i];
+    int64_t c_in = (int64_t)floor(u_in), c_out = (int64_t)floor(u_out);
+    *col0 = c_in < c_out ? c_in : c_out;
+    *col1 = c_in < c_out ? c_out : c_in;
+    if (clip) {
+        if (*col1 < 0 || *col0 > width - 1)
+            return 0;
+        if (*col0 < 0)
+            *col0 = 0;
+        if (*col1 > width - 1)
+            *col1 = width - 1;
+    }
+    return 1;
+}
+
+/* The index range of the difference array the segments' rows touch, and their run count. */
+static void ray_range(const RayRows *r, Py_ssize_t n, int64_t stride, int64_t *base,
+                      int64_t *size, int64_t *runs)
+{
+    int64_t lo_row = INT64_MAX, hi_row = -1, total = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        if (r->counts[i] <= 0)
+            continue;
+        total += r->counts[i];
+        int64_t first = r->ra[i] + r->p_lo[i], last = first + r->counts[i] - 1;
+        if (first < lo_row)
+            lo_row = first;
+        if (last > hi_row)
+            hi_row = last;
+    }
+    *base = hi_row < 0 ? 0 : lo_row * stride;
+    *size = hi_row < 0 ? 0 : (hi_row - lo_row + 1) * stride;
+    *runs = total;
+}
+
 static PyObject *ray_batch(PyObject *self, PyObject *args)
 {
     (void)self;
@@ -386,52 +464,21 @@ static PyObject *ray_batch(PyObject *self, PyObject *args)
         PyErr_SetString(PyExc_ValueError, "value_sums: not a whole number of grid rows");
         goto done;
     }
-    const int64_t *ra = I64(b[0]), *rb = I64(b[1]), *p_lo = I64(b[2]), *counts = I64(b[3]);
-    const double *off = F64(b[4]), *slope = F64(b[5]), *ua = F64(b[6]), *ub = F64(b[7]);
+    RayRows r = {I64(b[0]), I64(b[1]), I64(b[2]), I64(b[3]),
+                 F64(b[4]), F64(b[5]), F64(b[6]), F64(b[7])};
     double *value_sums = (double *)b[8].view.buf;
     int64_t *count_sums = (int64_t *)b[9].view.buf;
-
-    int64_t lo_row = INT64_MAX, hi_row = -1, runs = 0;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        if (counts[i] <= 0)
-            continue;
-        runs += counts[i];
-        int64_t first = ra[i] + p_lo[i], last = ra[i] + p_lo[i] + counts[i] - 1;
-        if (first < lo_row)
-            lo_row = first;
-        if (last > hi_row)
-            hi_row = last;
-    }
-    int64_t base = hi_row < 0 ? 0 : lo_row * stride;
-    int64_t size = hi_row < 0 ? 0 : (hi_row - lo_row + 1) * stride;
+    int64_t base, size, runs;
+    ray_range(&r, n, stride, &base, &size, &runs);
     if (delta_open(&delta, base, size, runs) != 0)
         goto done;
     long long cells = 0;
     for (Py_ssize_t i = 0; i < n; i++) {
-        int64_t count = counts[i];
-        if (count <= 0)
-            continue;
-        int64_t p_hi = p_lo[i] + count - 1;
-        for (int64_t p = p_lo[i]; p <= p_hi; p++) {
-            double pf = (double)p;
-            double u_in = (pf + off[i]) * slope[i] + ua[i];
-            double u_out = (pf + 1.0 + off[i]) * slope[i] + ua[i];
-            if (p == p_lo[i] && p_lo[i] == 0)
-                u_in = ua[i];
-            if (p == p_hi && ra[i] + p_hi == rb[i])
-                u_out = ub[i];
-            int64_t c_in = (int64_t)floor(u_in), c_out = (int64_t)floor(u_out);
-            int64_t col0 = c_in < c_out ? c_in : c_out;
-            int64_t col1 = c_in < c_out ? c_out : c_in;
-            if (clip) {
-                if (col1 < 0 || col0 > width - 1)
-                    continue;
-                if (col0 < 0)
-                    col0 = 0;
-                if (col1 > width - 1)
-                    col1 = width - 1;
-            }
-            int64_t at = (ra[i] + p) * stride;
+        for (int64_t p = r.p_lo[i]; p < r.p_lo[i] + r.counts[i]; p++) {
+            int64_t col0, col1;
+            if (!ray_run(&r, i, p, clip, width, &col0, &col1))
+                continue;
+            int64_t at = (r.ra[i] + p) * stride;
             count_sums[at + col0] += 1;
             count_sums[at + col1 + 1] -= 1;
             cells += col1 - col0 + 1;
@@ -446,6 +493,114 @@ done:
     return result;
 }
 
+/* ---- the error-aware laser (error_aware_ray.py ErrorAwareRayModel.runs, add_runs) ----- */
+
+/* One trust class's laser readings: the free segment along each beam (looked through with
+ * the reading's weight), then the hit ring of each echo (free_m < r <= look_m of the wedge:
+ * the disk of look_m, +1, less that of ring_in_m, -1), looked at with ring_look and hit with
+ * ring_hit. The reference's order: every part's starts, part by part, then the ends. */
+static PyObject *spread_ray_batch(PyObject *self, PyObject *args)
+{
+    (void)self;
+    double ox, oy, res;
+    int64_t width, height;
+    int clip;
+    PyObject *o[24];
+    if (!PyArg_ParseTuple(args, "dddLLOOOOOOOOpOOOOOOOOOOOOOOOO", &ox, &oy, &res, &width,
+                          &height, &o[0], &o[1], &o[2], &o[3], &o[4], &o[5], &o[6], &o[7],
+                          &clip, &o[8], &o[9], &o[10], &o[11], &o[12], &o[13], &o[14], &o[15],
+                          &o[16], &o[17], &o[18], &o[19], &o[20], &o[21], &o[22], &o[23]))
+        return NULL;
+    Buf b[24] = {0};
+    PyObject *result = NULL;
+    Delta looks = {0}, hits = {0};
+    int64_t stride = width + 1;
+    if (take(o[0], &b[0], -1, 0, "ra") != 0)
+        goto done;
+    Py_ssize_t m = b[0].view.len / 8;
+    static const char *names[] = {
+        "ra",    "rb",    "p_lo", "counts",      "off",    "slope",     "ua",        "ub",
+        "free_look", "x", "y",    "sin_r",       "cos_r",  "sin_l",     "cos_l",     "j0",
+        "ring_counts", "look_m",  "ring_in_m",   "ring_look", "ring_hit"};
+    for (int i = 1; i < 21; i++)
+        if (take(o[i], &b[i], m, 0, names[i]) != 0)
+            goto done;
+    if (take(o[21], &b[21], height * stride, 1, "look_sums") != 0 ||
+        take(o[22], &b[22], height * stride, 1, "hit_sums") != 0 ||
+        take(o[23], &b[23], height * stride, 1, "seen_sums") != 0)
+        goto done;
+    RayRows r = {I64(b[0]), I64(b[1]), I64(b[2]), I64(b[3]),
+                 F64(b[4]), F64(b[5]), F64(b[6]), F64(b[7])};
+    const double *free_look = F64(b[8]), *x = F64(b[9]), *y = F64(b[10]), *sin_r = F64(b[11]),
+                 *cos_r = F64(b[12]), *sin_l = F64(b[13]), *cos_l = F64(b[14]),
+                 *look_m = F64(b[17]), *ring_in_m = F64(b[18]), *ring_look = F64(b[19]),
+                 *ring_hit = F64(b[20]);
+    const int64_t *j0 = I64(b[15]), *ring_counts = I64(b[16]);
+    double *look_sums = (double *)b[21].view.buf, *hit_sums = (double *)b[22].view.buf;
+    int64_t *seen_sums = (int64_t *)b[23].view.buf;
+
+    int64_t free_base, free_size, free_runs, ring_base, ring_size, ring_rows;
+    ray_range(&r, m, stride, &free_base, &free_size, &free_runs);
+    row_range(j0, ring_counts, m, stride, &ring_base, &ring_size, &ring_rows);
+    int64_t lo_at = free_base, hi_at = free_base + free_size;
+    if (free_size == 0 || (ring_size > 0 && ring_base < lo_at))
+        lo_at = ring_base;
+    if (free_size == 0 || (ring_size > 0 && ring_base + ring_size > hi_at))
+        hi_at = ring_base + ring_size;
+    if (free_size == 0 && ring_size == 0)
+        lo_at = hi_at = 0;
+    if (delta_open(&looks, lo_at, hi_at - lo_at, free_runs + 2 * ring_rows) != 0 ||
+        delta_open(&hits, lo_at, hi_at - lo_at, 2 * ring_rows) != 0)
+        goto done;
+
+    long long cells = 0;
+    for (Py_ssize_t i = 0; i < m; i++) {
+        for (int64_t p = r.p_lo[i]; p < r.p_lo[i] + r.counts[i]; p++) {
+            int64_t col0, col1;
+            if (!ray_run(&r, i, p, clip, width, &col0, &col1))
+                continue;
+            int64_t at = (r.ra[i] + p) * stride;
+            seen_sums[at + col0] += 1;
+            seen_sums[at + col1 + 1] -= 1;
+            cells += col1 - col0 + 1;
+            delta_run(&looks, at + col0, at + col1 + 1, free_look[i]);
+        }
+    }
+    for (int part = 0; part < 2; part++) {
+        const double *radius = part == 0 ? look_m : ring_in_m;
+        int sign = part == 0 ? 1 : -1;
+        for (Py_ssize_t i = 0; i < m; i++) {
+            if (ring_counts[i] <= 0)
+                continue;
+            double look = part == 0 ? ring_look[i] : -ring_look[i];
+            double hit = part == 0 ? ring_hit[i] : -ring_hit[i];
+            for (int64_t k = 0; k < ring_counts[i]; k++) {
+                int64_t row = j0[i] + k;
+                double dy = oy + ((double)row + 0.5) * res - y[i];
+                double lo, hi;
+                int64_t c0, c1;
+                wedge(sin_r[i], cos_r[i], sin_l[i], cos_l[i], dy, &lo, &hi);
+                if (!span(lo, hi, dy, radius[i], x[i], ox, res, width, &c0, &c1))
+                    continue;
+                int64_t at = row * stride;
+                seen_sums[at + c0] += sign;
+                seen_sums[at + c1 + 1] -= sign;
+                cells += sign * (c1 - c0 + 1);
+                delta_run(&looks, at + c0, at + c1 + 1, look);
+                delta_run(&hits, at + c0, at + c1 + 1, hit);
+            }
+        }
+    }
+    delta_close(&looks, look_sums);
+    delta_close(&hits, hit_sums);
+    result = PyLong_FromLongLong(cells);
+done:
+    delta_free(&looks);
+    delta_free(&hits);
+    release(b, 24);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"sector_batch", sector_batch, METH_VARARGS,
      "One batch of nested sonar sectors into the running difference arrays; returns the "
@@ -455,6 +610,9 @@ static PyMethodDef methods[] = {
      "arrays; returns the echo rings' cells."},
     {"ray_batch", ray_batch, METH_VARARGS,
      "One chunk of rays' free runs into the running difference arrays; returns the cells."},
+    {"spread_ray_batch", spread_ray_batch, METH_VARARGS,
+     "One trust class's error-aware laser readings (free segments, hit rings) into the looks, "
+     "hits and seen difference arrays; returns the cell updates."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -37,12 +38,14 @@ from gridmap_cli.models.error_aware import (
     OdometrySpread,
     WeightedRuns,
     add_runs,
+    trust_class,
     trust_weight,
     weighted_runs,
     within_spread,
 )
-from gridmap_cli.models.ray import RaySegments, row_runs
-from gridmap_cli.models.sector import F64, I64, sector_bounds, sector_rows
+from gridmap_cli.models.kernels import compiled
+from gridmap_cli.models.ray import RaySegments, ray_rows, row_runs
+from gridmap_cli.models.sector import F64, I64, sector_bounds, sector_row_range, sector_rows
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.sync import SensorReadings
 
@@ -207,10 +210,66 @@ class ErrorAwareRayModel:
         return sector_bounds(ev.x_m, ev.y_m, ev.theta_rad, ev.half_width_rad, reach)
 
     def accumulate(self, grid: FrequencyAccumulator, readings: SensorReadings) -> int:
-        """Add the readings' counts to ``grid``; returns the number of cell updates."""
+        """Add the readings' counts to ``grid``; returns the number of cell updates.
+
+        The compiled kernel when it is built (:mod:`gridmap_cli.models.kernels`), else the
+        numpy reference, :meth:`runs` and :func:`add_runs`: the same grid bit for bit."""
+        kernels = compiled()
+        if kernels is not None:
+            return self._accumulate_compiled(kernels, grid, readings)
         runs, updates = self.runs(grid.spec, readings)
         add_runs(grid, runs, self.params.redundant_looks)
         return updates
+
+    def _accumulate_compiled(
+        self, kernels: Any, grid: FrequencyAccumulator, readings: SensorReadings
+    ) -> int:
+        """:meth:`runs` and :func:`add_runs` in one kernel call per trust class, in class
+        order; the same runs in the same order, so the same sums to the bit."""
+        readings = within_spread(readings, self.odometry, self.params.max_heading_spread_rad)
+        if len(readings) == 0:
+            return 0
+        spec = grid.spec
+        ev = self.evidence(readings)
+        rows = ray_rows(spec, self._segments(ev))
+        # readings without echo have no ring: look_m == 0 gives them no rows
+        j0, counts, right, left = sector_row_range(
+            spec, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m, inner_m=ev.ring_in_m
+        )
+        ring_look = ev.weight * ev.ring_look
+        free_part: list[F64 | I64] = [rows.ra, rows.rb, rows.p_lo, rows.counts, rows.off,
+                                      rows.slope, rows.ua, rows.ub]  # fmt: skip
+        ring_part: list[F64 | I64] = [
+            ev.weight, ev.x_m, ev.y_m, np.sin(right), np.cos(right), np.sin(left),
+            np.cos(left), j0, counts, ev.look_m, ev.ring_in_m, ring_look, ring_look * ev.hit,
+        ]  # fmt: skip
+        reading_class = trust_class(ev.weight)
+        classes = np.unique(reading_class)
+        updates = 0
+        for k in classes:
+            keep = slice(None) if len(classes) == 1 else reading_class == k
+            sums = grid.difference_arrays(cap=self.params.redundant_looks * 4.0 ** -float(k))
+            free = [np.ascontiguousarray(a[keep]) for a in free_part]
+            ring = [np.ascontiguousarray(a[keep]) for a in ring_part]
+            updates += int(
+                kernels.spread_ray_batch(
+                    spec.origin_x_m, spec.origin_y_m, spec.resolution_m, spec.width,
+                    spec.height, *free, not rows.inside, *ring, *sums,
+                )
+            )  # fmt: skip
+        return updates
+
+    @staticmethod
+    def _segments(ev: RayEvidence) -> RaySegments:
+        """The looked-through segment of each reading's beam, up to ``free_m``."""
+        c, s = np.cos(ev.theta_rad), np.sin(ev.theta_rad)
+        return RaySegments(
+            x0_m=ev.x_m,
+            y0_m=ev.y_m,
+            x1_m=ev.x_m + ev.free_m * c,
+            y1_m=ev.y_m + ev.free_m * s,
+            echo=np.zeros(len(ev.x_m), dtype=bool),  # free space only: no end cell
+        )
 
     def runs(self, spec: GridSpec, readings: SensorReadings) -> tuple[WeightedRuns, int]:
         """The readings' weighted runs of cells, and the number of cell updates."""
@@ -218,15 +277,7 @@ class ErrorAwareRayModel:
         if len(readings) == 0:
             return WeightedRuns.empty(), 0
         ev = self.evidence(readings)
-        c, s = np.cos(ev.theta_rad), np.sin(ev.theta_rad)
-        segments = RaySegments(
-            x0_m=ev.x_m,
-            y0_m=ev.y_m,
-            x1_m=ev.x_m + ev.free_m * c,
-            y1_m=ev.y_m + ev.free_m * s,
-            echo=np.zeros(len(readings), dtype=bool),  # free space only: no end cell
-        )
-        free = row_runs(spec, segments)
+        free = row_runs(spec, self._segments(ev))
         echo = ev.look_m > 0.0
         idx = np.flatnonzero(echo)
         wide = sector_rows(
