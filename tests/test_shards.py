@@ -38,9 +38,12 @@ def test_jobs_give_the_map_of_one_job_byte_for_byte(
         assert built(tmp_path, LOG, f"j{jobs}", "--jobs", jobs) == one
 
 
+@pytest.mark.parametrize("kernels", ["compiled", "numpy"])
 def test_error_aware_jobs_give_the_map_of_one_job_byte_for_byte(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, kernels: str
 ) -> None:
+    # compiled: the main process maps alone whatever --jobs is; numpy: workers compute the runs
+    monkeypatch.setenv("GRIDMAP_KERNELS", kernels)
     log = tmp_path / "laser.2d"
     code, _, stderr = run(
         "simulate", str(SAMPLES / "worlds" / "office.yaml"), str(SAMPLES / "paths" / "office.yaml"),

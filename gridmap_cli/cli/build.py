@@ -202,8 +202,10 @@ if TYPE_CHECKING:
 )
 @click.option("--scheduler", metavar="ADDRESS", help="Dask scheduler for --executor dask.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Processes mapping at once: the readings of one log (the map is the same "
-              "bytes for every N), or with --fuse and the local executor, the logs.")  # fmt: skip
+              help="Processes mapping at once: the readings of one log in standard mode (the "
+              "map is the same bytes for every N; error-aware mode maps in one process when "
+              "the compiled kernels are built), or with --fuse and the local executor, the "
+              "logs.")  # fmt: skip
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
