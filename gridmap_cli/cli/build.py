@@ -308,7 +308,10 @@ def build(
                      as_json, len(logs))  # fmt: skip
         return
     keep_scratch_memory()  # every check passed: from here on, the build's own process
-    whole = read_input(logs, log_format, read_options)
+    # a long log's readings stay in its file, read again for each pass, unless scan matching
+    # or a time window needs them held
+    stream = pose != "scan-matched" and selection.start is None and selection.end is None
+    whole = read_input(logs, log_format, dataclasses.replace(read_options, stream=stream))
     data = whole
     if robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
@@ -330,14 +333,14 @@ def build(
         odometry_error=odometry_error,
         jobs=jobs,
     )
-    with progress_bar(len(data.readings), quiet, "mapping") as bar:
+    with progress_bar(data.reading_count, quiet, "mapping") as bar:
         result = build_map(data, robot_desc, options, progress=bar.update)
     if mode == "error-aware" and map_mode == "trinary" and not to_mcap:
         warn(undecided_note(result.map.prob, occupied, free), quiet)
     yaml_path: Path | None
     if to_mcap:
         # stamped at the last reading: the map is what the robot knew then
-        stamp = int(data.readings.stamp_ns[-1]) if len(data.readings) else 0
+        stamp = data.reading_span()[1] if data.reading_count else 0
         from gridmap_cli.writers.map_mcap import write_map_mcap  # the MCAP writer only when asked
 
         image_path = write_map_mcap(output, result.map, stamp_ns=stamp, force=force)
