@@ -3,6 +3,8 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 DEMO_OUT := out/demo
+# the compiled mapping kernels: pip builds them, so a change to them reinstalls
+KERNELS := setup.py gridmap_cli/models/_ckernels.c gridmap_cli/readers/_cwalk.c
 
 .PHONY: install dev demo test lint format bench samples goldens experiment corpus clean
 
@@ -10,13 +12,13 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
-# runtime install; the stamp is redone when pyproject.toml changes
-$(VENV)/.installed: pyproject.toml | $(BIN)/python
+# runtime install; redone when pyproject.toml or the C kernels change (pip builds them)
+$(VENV)/.installed: pyproject.toml $(KERNELS) | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e .
 	touch $@
 
 # runtime + development tools (pytest, hypothesis, ruff, mypy)
-$(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
+$(VENV)/.installed-dev: pyproject.toml $(KERNELS) | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $@ $(VENV)/.installed
 

@@ -263,14 +263,31 @@ class FrequencyAccumulator:
         A ring is a disk's runs less the inner disk's, with every value negated. Raises
         ValueError for a group that was already closed.
         """
+        self._enter(cap)
+        self._looks.add(row, col0, col1, look)
+        self._hits.add(row, col0, col1, hit)
+        self._seen.add(row, col0, col1, seen)
+
+    def difference_arrays(
+        self, cap: float = math.inf
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.int64]]:
+        """The looks, hits and seen difference arrays (:meth:`SpanSums.difference_array`) of
+        the group ``cap``, entered as :meth:`add` enters it: for compiled kernels, which must
+        add to them exactly as :meth:`add` does."""
+        self._enter(cap)
+        return (
+            self._looks.difference_array(),
+            self._hits.difference_array(),
+            self._seen.difference_array(),
+        )
+
+    def _enter(self, cap: float) -> None:
+        """Close the open group when ``cap`` names another; ValueError for a closed one."""
         if cap != self._cap:
             if cap in self._closed:
                 raise ValueError(f"evidence group with cap {cap} arrived after it was closed")
             self._close_group()
             self._cap = cap
-        self._looks.add(row, col0, col1, look)
-        self._hits.add(row, col0, col1, hit)
-        self._seen.add(row, col0, col1, seen)
 
     def _open_group(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """The open group's looks and hits, capped; the difference arrays can leave -1e-17

@@ -30,7 +30,6 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.grid import FrequencyAccumulator, GridSpec, LogOddsAccumulator
-from gridmap_cli.models import kernels
 from gridmap_cli.sync import SensorReadings, select_readings
 
 if TYPE_CHECKING:
@@ -88,13 +87,11 @@ def in_order(fn: Callable[..., T], tasks: Iterable[tuple[Any, ...]], jobs: int) 
 
 
 def log_odds_shard(
-    spec: GridSpec, model: Any, readings: SensorReadings, batch_size: int, planned: int
+    spec: GridSpec, model: Any, readings: SensorReadings, batch_size: int
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], int, int]:
     """One shard's evidence: the value and count difference arrays of a zeroed grid over
     ``spec`` after the shard's batches (shape ``(height * (width + 1),)``), the cell updates and
-    the readings mapped. ``planned`` is the build's reading count, so the kernels choose as the
-    whole build does."""
-    kernels.plan(planned)
+    the readings mapped."""
     grid = LogOddsAccumulator(spec)
     updates = 0
     for start, stop in batch_bounds(readings.stamp_ns, batch_size):
@@ -104,10 +101,9 @@ def log_odds_shard(
 
 
 def batch_runs(
-    spec: GridSpec, model: Any, readings: SensorReadings, planned: int
+    spec: GridSpec, model: Any, readings: SensorReadings
 ) -> tuple[WeightedRuns, int, int]:
     """An error-aware model's weighted runs of one batch, its cell updates and readings."""
-    kernels.plan(planned)
     runs, updates = model.runs(spec, readings)
     return runs, updates, len(readings)
 
@@ -123,16 +119,11 @@ def accumulate_log_odds(
 
     A shard is a model's share of one chunk of :meth:`BuildPlan.parts`, cut at
     :data:`SHARD_READINGS`: the same shards whatever ``jobs`` is."""
-    planned = plan.sync.used
     tasks = (
-        (grid.spec, model, select_readings(part, slice(start, stop)), batch_size, planned)
+        (grid.spec, model, select_readings(part, slice(start, stop)), batch_size)
         for model, part in plan.parts()
         for start, stop in batch_bounds(part.stamp_ns, SHARD_READINGS)
     )
-    if jobs > 1:
-        # load the compiled kernels (numba, about 0.45 s) once, here: forked workers inherit them
-        kernels.plan(planned)
-        kernels.compiled(planned)
     values, counts = grid.difference_arrays()
     updates = 0
     for shard_values, shard_counts, n, mapped in in_order(log_odds_shard, tasks, jobs):
@@ -155,15 +146,21 @@ def accumulate_frequencies(
     processes and added here in order; returns the cell updates."""
     from gridmap_cli.models.error_aware import add_runs
 
-    planned = plan.sync.used
     ((model, _),) = plan.models  # error-aware mode maps with one model
     tasks = (
-        (grid.spec, model, select_readings(part, slice(start, stop)), planned)
+        (grid.spec, model, select_readings(part, slice(start, stop)))
         for _, part in plan.parts()
         for start, stop in batch_bounds(part.stamp_ns, batch_size)
     )
-    cap = cast(Any, model).params.redundant_looks
     updates = 0
+    if jobs == 1:  # the model's own accumulate: the compiled kernel where there is one
+        for _, part in plan.parts():
+            for start, stop in batch_bounds(part.stamp_ns, batch_size):
+                updates += model.accumulate(grid, select_readings(part, slice(start, stop)))
+                if progress is not None:
+                    progress(stop - start)
+        return updates
+    cap = cast(Any, model).params.redundant_looks
     for runs, n, mapped in in_order(batch_runs, tasks, jobs):
         add_runs(grid, runs, cap)
         updates += n

@@ -18,12 +18,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
 from gridmap_cli.grid import FrequencyAccumulator, GridSpec
-from gridmap_cli.models.sector import F64, I64, sector_bounds, sector_rows
+from gridmap_cli.models.kernels import compiled
+from gridmap_cli.models.sector import F64, I64, sector_bounds, sector_row_range, sector_rows
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.sync import SensorReadings, select_readings
 
@@ -165,9 +166,48 @@ class ErrorAwareSonarModel:
         return sector_bounds(ev.x_m, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m)
 
     def accumulate(self, grid: FrequencyAccumulator, readings: SensorReadings) -> int:
-        """Add the readings' counts to ``grid``; returns the number of cell updates."""
+        """Add the readings' counts to ``grid``; returns the number of cell updates.
+
+        The compiled kernel when it is built (:mod:`gridmap_cli.models.kernels`), else the
+        numpy reference, :meth:`runs` and :func:`add_runs`: the same grid bit for bit."""
+        kernels = compiled()
+        if kernels is not None:
+            return self._accumulate_compiled(kernels, grid, readings)
         runs, updates = self.runs(grid.spec, readings)
         add_runs(grid, runs, self.params.redundant_looks)
+        return updates
+
+    def _accumulate_compiled(
+        self, kernels: Any, grid: FrequencyAccumulator, readings: SensorReadings
+    ) -> int:
+        """:meth:`runs` and :func:`add_runs` in one kernel call per trust class, in class
+        order; the same runs in the same order, so the same sums to the bit."""
+        readings = within_spread(readings, self.odometry, self.params.max_heading_spread_rad)
+        if len(readings) == 0:
+            return 0
+        ev = self.evidence(readings)
+        spec = grid.spec
+        wide = sector_row_range(
+            spec, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m, inner_m=ev.free_m
+        )
+        narrow = sector_row_range(spec, ev.y_m, ev.theta_rad, ev.free_half_width_rad, ev.free_m)
+        per_reading: list[F64 | I64] = [ev.x_m, ev.y_m]
+        for j0, counts, right, left in (wide, narrow):
+            per_reading += [np.sin(right), np.cos(right), np.sin(left), np.cos(left), j0, counts]
+        per_reading += [ev.look_m, ev.free_m, ev.weight, ev.hit]
+        reading_class = trust_class(ev.weight)
+        classes = np.unique(reading_class)
+        updates = 0
+        for k in classes:
+            keep = slice(None) if len(classes) == 1 else reading_class == k
+            sums = grid.difference_arrays(cap=self.params.redundant_looks * 4.0 ** -float(k))
+            arrays = [np.ascontiguousarray(a[keep]) for a in per_reading]
+            updates += int(
+                kernels.spread_batch(
+                    spec.origin_x_m, spec.origin_y_m, spec.resolution_m, spec.width,
+                    spec.height, *arrays, *sums,
+                )
+            )  # fmt: skip
         return updates
 
     def runs(self, spec: GridSpec, readings: SensorReadings) -> tuple[WeightedRuns, int]:
@@ -243,6 +283,11 @@ def trust_weight(f_m: F64, trust_length_m: float) -> F64:
     return trust_length_m * trust_length_m / (trust_length_m * trust_length_m + f_m * f_m)
 
 
+def trust_class(weight: F64) -> I64:
+    """Each reading's trust class (M,): class k holds weights in (2^-(k+1), 2^-k]."""
+    return np.floor(-np.log2(weight)).astype(np.int64)
+
+
 def weighted_runs(
     parts: Sequence[tuple[I64, I64, I64, I64, int, bool]],
     weight: F64,
@@ -264,8 +309,7 @@ def weighted_runs(
             hits.append(np.zeros_like(look))
         looks.append(look)
     reading = np.concatenate([p[0] for p in parts])
-    # trust class k holds weights in (2^-(k+1), 2^-k]
-    reading_class = np.floor(-np.log2(weight)).astype(np.int64)
+    reading_class = trust_class(weight)
     return WeightedRuns(
         row=np.concatenate([p[1] for p in parts]),
         col0=np.concatenate([p[2] for p in parts]),

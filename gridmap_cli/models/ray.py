@@ -268,7 +268,7 @@ def _accumulate_chunk(
 ) -> int:
     """The compiled kernel when it pays (:mod:`gridmap_cli.models.kernels`), else numpy: the
     same grid bit for bit."""
-    kernels = compiled(seg.echo.shape[0])
+    kernels = compiled()
     if kernels is None:
         runs = row_runs(grid.spec, seg)
         grid.add_observations(runs.row, runs.col0, runs.col1)

@@ -118,7 +118,7 @@ def accumulate_sectors(grid: LogOddsAccumulator, ev: SectorEvidence) -> int:
     The compiled kernel when it pays (:mod:`gridmap_cli.models.kernels`), else the numpy
     reference, :func:`accumulate_sectors_numpy`: the same grid bit for bit.
     """
-    kernels = compiled(ev.x_m.shape[0])
+    kernels = compiled()
     if kernels is None:
         return accumulate_sectors_numpy(grid, ev)
     spec: GridSpec = grid.spec

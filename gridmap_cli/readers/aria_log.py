@@ -107,6 +107,13 @@ class _Parser:
         return InputFileError(self.path, detail, line)
 
     def numbers(self, line: int, tag: str, values: str, count: int | None = None) -> list[float]:
+        try:  # the common case in one go; the loop below finds and words a bad token
+            out = list(map(float, values.split()))
+        except ValueError:
+            pass
+        else:
+            if all(map(math.isfinite, out)) and (count is None or len(out) >= count):
+                return out
         out = []
         for token in values.split():
             try:
@@ -330,10 +337,12 @@ class _Parser:
     def readings(
         self, data: list[_Block], names: list[str], offsets: dict[str, int]
     ) -> RangeReadings:
+        n_sonar = sum(1 for name in names if name.startswith("sonar"))
+        if not any(block.lasers for block in data):
+            return self.sonar_readings(data, n_sonar, offsets.get("sonar", 0))
         stamps: list[np.ndarray] = []
         index: list[np.ndarray] = []
         ranges: list[np.ndarray] = []
-        n_sonar = sum(1 for name in names if name.startswith("sonar"))
         for block in data:
             if block.sonar is not None:
                 line, values = block.sonar
@@ -368,6 +377,29 @@ class _Parser:
             stamp_ns=np.concatenate(stamps),
             sensor=np.concatenate(index).astype(np.int32),
             range_m=np.concatenate(ranges),
+        )
+
+    def sonar_readings(self, data: list[_Block], n_sonar: int, offset: int) -> RangeReadings:
+        """:meth:`readings` of a log without laser lines, all blocks at once: the same
+        readings in the same order, and the same first error."""
+        lines = [b.sonar for b in data if b.sonar is not None]
+        stamps = np.array([b.stamp_ns for b in data if b.sonar is not None], dtype=np.int64)
+        wrong = next((i for i, (_, v) in enumerate(lines) if len(v) != n_sonar), len(lines))
+        mm = np.array([v for _, v in lines[:wrong]], dtype=np.float64).reshape(wrong, n_sonar)
+        negative = (mm < 0).any(axis=1)
+        if negative.any():
+            raise self.error(lines[int(np.argmax(negative))][0], "sonar: negative range")
+        if wrong < len(lines):
+            line, values = lines[wrong]
+            raise self.error(
+                line, f"sonar: expected {n_sonar} ranges (one per unit), found {len(values)}"
+            )
+        present = mm > 0  # 0 is no reading, as in sick<N>: lines
+        block, unit = np.nonzero(present)
+        return RangeReadings(
+            stamp_ns=stamps[block],
+            sensor=(offset + unit).astype(np.int32),
+            range_m=mm[present] / 1000.0,
         )
 
     def laser_ranges(

@@ -18,10 +18,12 @@ from typing import IO
 
 from gridmap_cli.errors import DamagedAtError, InputFileError
 from gridmap_cli.readers.mcap_integrity import MAX_CHUNK_BYTES
+from gridmap_cli.readers.walk import compiled_walk
 
 VERSION_LINE = b"#ROSBAG V2.0\n"
 _MSG_DATA, _BAG_HEADER, _INDEX, _CHUNK, _CHUNK_INFO, _CONNECTION = 2, 3, 4, 5, 6, 7
 _KNOWN_OPS = {_MSG_DATA, _BAG_HEADER, _INDEX, _CHUNK, _CHUNK_INFO, _CONNECTION}
+_KNOWN_OPS_BYTES = bytes(sorted(_KNOWN_OPS))
 _COMPRESSIONS = ("none", "bz2", "lz4")
 
 
@@ -196,7 +198,21 @@ def _chunk(path: Path, at: int, fields: dict[bytes, bytes], data: bytes, data_at
         raise BagDamage(
             path, at, f"chunk holds {len(raw)} bytes uncompressed, its header says {usize}"
         )
-    for inner_at, inner, _ in _records(path, raw, data_at if compression == "none" else at,
-                                       "chunk"):  # fmt: skip
-        if inner[b"op"][0] not in (_MSG_DATA, _CONNECTION):
-            raise BagDamage(path, inner_at, "record of another kind inside a chunk")
+    base = data_at if compression == "none" else at
+    walk = compiled_walk()
+    if walk is not None:
+        bad, others = walk.bag_records(raw, _KNOWN_OPS_BYTES, _MSG_DATA)
+        if bad < 0:  # sound: only the records that are not messages are left to look at
+            for pos in others:
+                (hlen,) = struct.unpack_from("<I", raw, pos)
+                _in_chunk(
+                    path, base + pos, _fields(path, base + pos, raw[pos + 4 : pos + 4 + hlen])
+                )
+            return
+    for inner_at, inner, _ in _records(path, raw, base, "chunk"):
+        _in_chunk(path, inner_at, inner)
+
+
+def _in_chunk(path: Path, at: int, fields: dict[bytes, bytes]) -> None:
+    if fields[b"op"][0] not in (_MSG_DATA, _CONNECTION):
+        raise BagDamage(path, at, "record of another kind inside a chunk")

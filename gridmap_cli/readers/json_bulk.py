@@ -27,9 +27,8 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from numpy.lib.stride_tricks import sliding_window_view
 
-from gridmap_cli.readers.ros_bulk import Arr, Columns, Layout, Raw, _ragged_index
+from gridmap_cli.readers.ros_bulk import Arr, Columns, Layout, Raw, _ragged_index, words
 
 #: gridmap's JSON message types decoded in bulk.
 JSON_TYPES = frozenset({"gridmap.Pose2D", "gridmap.RangeReading"})
@@ -100,26 +99,57 @@ def _number_automaton(fraction: bool) -> npt.NDArray[np.int64]:
 _AUTOMATA = {"int": _number_automaton(False), "num": _number_automaton(True)}
 _NAME_BYTES = np.zeros(256, dtype=bool)
 _NAME_BYTES[0x20:0x7F] = True
-_NAME_BYTES[[0x22, 0x5C]] = False  # printable ASCII but " and \ (no escapes)
-_PAD = 64  # zero bytes after a chunk's copy, so a window of a field never runs past it
-_last: list[tuple[npt.NDArray[np.uint8], Arr, npt.NDArray[np.uint8]]] = []  # the last chunk's
+_NAME_BYTES[[0x22, 0x5C]] = False  # printable ASCII but " and \\ (no escapes)
+#: bytes looked at first for a field's end (a multiple of 8); the longest fields take a second
+#: look of the field's whole width
+_FIRST_LOOK = {"int": 16, "num": 24, "str": 16}
+_PAD = 80  # zero bytes after a chunk's copy, so a window of a field never runs past it
+_last: list[tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint64]]] = []  # the last chunk's
 
 
-def _chunk(buf: npt.NDArray[np.uint8]) -> tuple[Arr, npt.NDArray[np.uint8]]:
-    """The positions of the bytes that end a field in the chunk, and the chunk padded with
-    zeros (once per chunk: the reader decodes its channels one after the other)."""
+def _chunk(buf: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint64]:
+    """The 8 bytes from each place of the chunk padded with zeros (once per chunk: the reader
+    decodes its channels one after the other)."""
     if not _last or _last[0][0] is not buf:
-        padded = np.concatenate((buf, np.zeros(_PAD, dtype=np.uint8)))
-        ends = np.flatnonzero((buf == 34) | (buf == 44) | (buf == 125))  # " , }
-        _last[:] = [(buf, ends, padded)]
-    return _last[0][1], _last[0][2]
+        _last[:] = [(buf, words(np.concatenate((buf, np.zeros(_PAD, dtype=np.uint8)))))]
+    return _last[0][1]
+
+
+def _literal(text: bytes) -> list[tuple[int, int, int]]:
+    """``text`` as (place, 8 bytes, mask) words to compare with :func:`words` at a message's
+    place: whole words, the last one overlapping the one before (or masked, for a short text)."""
+    if len(text) < 8:
+        pad = text.ljust(8, b"\0")
+        mask = (b"\xff" * len(text)).ljust(8, b"\0")
+        return [(0, int.from_bytes(pad, "little"), int.from_bytes(mask, "little"))]
+    places = [*range(0, len(text) - 7, 8), len(text) - 8]
+    full = (1 << 64) - 1
+    return [(i, int.from_bytes(text[i : i + 8], "little"), full) for i in dict.fromkeys(places)]
+
+
+_LITERALS = {
+    name: [_literal(p) if isinstance(p, bytes) else [] for p in parts]
+    for name, parts in _COMPACT.items()
+}
+
+
+def _window(at: Arr, word: npt.NDArray[np.uint64], width: int) -> npt.NDArray[np.uint8]:
+    """The ``width`` bytes (a multiple of 8) from each place ``at``, shape (N, width)."""
+    gathered = np.stack([word[at + i] for i in range(0, width, 8)], axis=1)
+    return gathered.view(np.uint8)
+
+
+def _stop(window: npt.NDArray[np.uint8]) -> Arr:
+    """The place of the first " , or } in each row of ``window`` (-1 if none), (N,)."""
+    stop = (window == 0x22) | (window == 0x2C) | (window == 0x7D)
+    first = stop.argmax(axis=1)
+    return np.where(stop[np.arange(len(first)), first], first, -1)
 
 
 def _compact(type_name: str, raw: Raw) -> Columns | None:
     """The messages as columns, if every one has gridmap's compact layout."""
-    buf = raw.buf
     end = raw.offset + raw.length
-    stops, padded = _chunk(buf)
+    word = _chunk(raw.buf)
     at = raw.offset
     fields: list[tuple[str, npt.NDArray[np.uint8], Arr]] = []
     parts = _COMPACT[type_name]
@@ -128,27 +158,32 @@ def _compact(type_name: str, raw: Raw) -> Columns | None:
             k = len(part)
             if np.any(at + k > end):
                 return None
-            text = sliding_window_view(padded, k)[at]
-            if np.any(text != np.frombuffer(part, dtype=np.uint8)):
-                return None
+            for place, value, mask in _LITERALS[type_name][i]:
+                got = word[at + place]
+                if mask != (1 << 64) - 1:
+                    got = got & np.uint64(mask)
+                if np.any(got != np.uint64(value)):
+                    return None
             at = at + k
             continue
-        j = np.searchsorted(stops, at)
-        if np.any(j >= len(stops)):
-            return None
-        stop = stops[j]
+        # the field ends at the first " , or } within its longest width (the byte after it
+        # included): a look at the first bytes, then at all of them if some field is longer
+        limit = _WIDTH[part]
+        window = _window(at, word, _FIRST_LOOK[part])
+        length = _stop(window)
+        if np.any(length < 0):
+            window = _window(at, word, (limit + 8) // 8 * 8)
+            length = _stop(window[:, : limit + 1])
+            if np.any(length < 0):
+                return None
         nxt = parts[i + 1]
         assert isinstance(nxt, bytes)
-        if np.any(buf[stop] != nxt[0]):
+        if np.any(window[np.arange(len(at)), length] != nxt[0]):
             return None
-        length = stop - at
         width = max(int(length.max()), 1)
-        if width > min(_WIDTH[part], _PAD):
-            return None
         inside = np.arange(width, dtype=np.int64) < length[:, None]
-        window = sliding_window_view(padded, width)[at]
-        fields.append((part, np.where(inside, window, 0).astype(np.uint8), length))
-        at = stop
+        fields.append((part, np.where(inside, window[:, :width], np.uint8(0)), length))
+        at = at + length
     if np.any(at != end):
         return None
     return _compact_columns(type_name, raw, fields)
@@ -184,8 +219,9 @@ def _compact_columns(
         state = automaton[state * 256]  # then the end
         texts = matrix.view(f"S{width}").reshape(-1)
         ok = state == 9
-        if kind == "num":
-            ok |= np.isin(texts, _SPECIAL)
+        if kind == "num" and not ok.all():
+            odd = ~ok
+            ok[odd] = np.isin(texts[odd], _SPECIAL)
         if not ok.all():
             return None
         if kind == "int":
@@ -197,7 +233,10 @@ def _compact_columns(
                 value = np.where(column >= 48, value * 10 + digit, value)  # not - or the end
             values.append(np.where(matrix[:, 0] == 45, -value, value))
         else:
-            values.append(np.array(list(map(float, texts.tolist())), dtype=np.float64))
+            # numpy reads bytes as ``float`` does (Python's own parser), as ``json`` does; but
+            # ``json`` reads -0 as the integer 0, which is +0.0 as a float
+            number = texts.astype(np.float64)
+            values.append(np.where(texts == b"-0", 0.0, number))
     arrays: dict[str, Arr] = {"log_ns": raw.log_ns, "pos": raw.pos}
     arrays["stamp_ns"] = values[0] * 1_000_000_000 + values[1]
     if type_name == "gridmap.Pose2D":

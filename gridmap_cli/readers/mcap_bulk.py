@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 from mcap.reader import SeekingReader
-from mcap.records import Channel, Chunk, Schema
+from mcap.records import Channel, Chunk, Message, Schema
 from mcap.stream_reader import get_chunk_data_stream
 from mcap.summary import Summary
 
@@ -143,6 +143,52 @@ def read_bulk(
     return batches, [t for t in topics if t not in done]
 
 
+def indexed_messages(
+    path: Path, handle: Any, summary: Summary | None, topics: Sequence[str]
+) -> list[tuple[Schema | None, Channel, Message]] | None:
+    """The messages of ``topics``, found through the message indexes, in the order the
+    library's reader yields them (log time, then chunk, then place in the chunk); None when
+    the indexes do not account for every message (the library's reader then walks the chunks).
+
+    For the few messages of the topics not read in bulk (a sensor list): the library would
+    decode every record of each chunk that holds one of them.
+    """
+    if summary is None or not summary.chunk_indexes or summary.statistics is None:
+        return None
+    channels = {i: ch for i, ch in summary.channels.items() if ch.topic in set(topics)}
+    counts = summary.statistics.channel_message_counts
+    found: list[tuple[int, int, int, Message]] = []
+    try:
+        for ordinal, ci in enumerate(summary.chunk_indexes):
+            todo = [i for i in ci.message_index_offsets if i in channels]
+            if not todo:
+                continue
+            entries = _message_index(path, handle, ci.message_index_offsets, todo)
+            if entries is None:
+                return None
+            buf = np.frombuffer(_chunk_data(path, handle, ci.chunk_start_offset), np.uint8)
+            for channel_id, index in entries.items():
+                if len(index) == 0:
+                    continue
+                raw = _raw(buf, index["offset"].astype(np.int64), ordinal)
+                spans = zip(raw.offset.tolist(), raw.length.tolist(), strict=True)
+                for (start, length), log_ns in zip(spans, raw.log_ns.tolist(), strict=True):
+                    data = buf[start : start + length].tobytes()
+                    msg = Message(channel_id=channel_id, log_time=log_ns, data=data,
+                                  publish_time=log_ns, sequence=0)  # fmt: skip
+                    found.append((log_ns, ci.chunk_start_offset, start, msg))
+    except (Layout, InputFileError):
+        return None
+    if any(sum(1 for f in found if f[3].channel_id == i) != counts.get(i, 0) for i in channels):
+        return None
+    found.sort(key=lambda f: f[:3])
+    out = []
+    for *_, msg in found:
+        channel = channels[msg.channel_id]
+        out.append((summary.schemas.get(channel.schema_id), channel, msg))
+    return out
+
+
 def _bulk_channel(type_name: str, message_encoding: str) -> bool:
     """True for the channels decoded in bulk: ROS messages of :data:`~gridmap_cli.readers.
     ros_bulk.BULK_TYPES` and gridmap's JSON messages of :data:`~gridmap_cli.readers.json_bulk.
@@ -154,13 +200,13 @@ def _bulk_channel(type_name: str, message_encoding: str) -> bool:
 
 def _raw(buf: npt.NDArray[np.uint8], offset: npt.NDArray[np.int64], ordinal: int) -> Raw:
     """Message records at ``offset`` in a decompressed chunk -> their data."""
-    if np.any(offset + _MESSAGE_HEAD > len(buf)):
+    if np.any(offset < 0) or np.any(offset + _MESSAGE_HEAD > len(buf)):
         raise Layout("message index points past the chunk")
-    head = buf[offset[:, None] + np.arange(_MESSAGE_HEAD, dtype=np.int64)]
-    if np.any(head[:, 0] != 0x05):
+    if np.any(buf[offset] != 0x05):
         raise Layout("message index points at something else")
-    length = head[:, 1:9].copy().view("<u8").reshape(-1).astype(np.int64) - (_MESSAGE_HEAD - 9)
-    log_ns = head[:, 15:23].copy().view("<u8").reshape(-1).astype(np.int64)
+    word = ros_bulk.words(buf)
+    length = word[offset + 1].astype(np.int64) - (_MESSAGE_HEAD - 9)
+    log_ns = word[offset + 15].astype(np.int64)
     data = offset + _MESSAGE_HEAD
     if np.any(length < 0) or np.any(data + length > len(buf)):
         raise Layout("message runs past the chunk")

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import IO
 
 from gridmap_cli.errors import DamagedAtError, InputFileError
+from gridmap_cli.readers.walk import compiled_walk
 
 MAGIC = b"\x89MCAP0\r\n"
 #: The largest chunk gridmap decompresses (bytes of records once decompressed). Writers use
@@ -37,6 +38,7 @@ MAX_CHUNK_BYTES = 512 * 1024 * 1024
 _HEADER, _FOOTER, _SCHEMA, _CHANNEL, _MESSAGE, _CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
 _CHUNK_INDEX, _ATTACHMENT, _DATA_END = 0x08, 0x09, 0x0F
 _IN_CHUNK = (_SCHEMA, _CHANNEL, _MESSAGE)
+_IN_CHUNK_BYTES = bytes(_IN_CHUNK)
 _FOOTER_LENGTH = 20  # summary_start u64, summary_offset_start u64, summary_crc u32
 _MESSAGE_FIXED = 22  # channel_id u16, sequence u32, log_time u64, publish_time u64
 _BLOCK = 1 << 20
@@ -189,6 +191,12 @@ class _Walker:
                 f"the chunk's data at bytes {body_start + data_at}..{body_start + length} is "
                 "damaged",
             )
+        walk = compiled_walk()
+        if (
+            walk is not None
+            and walk.mcap_records(data, _IN_CHUNK_BYTES, _MESSAGE, _MESSAGE_FIXED) < 0
+        ):
+            return  # sound: the Python walk below words the error when it is not
         for offset, opcode, rec_len, fits in _records(data):
             if not fits:
                 raise self.damage(

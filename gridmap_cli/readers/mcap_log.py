@@ -12,17 +12,18 @@ import contextlib
 import io
 import json
 from collections import Counter
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 from mcap.decoder import DecoderFactory as McapDecoderFactory
 from mcap.records import Channel, Schema
+from mcap.records import Message as McapMessage
 from mcap_ros1.decoder import DecoderFactory as Ros1DecoderFactory
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.readers.mcap_bulk import Batch, read_bulk
+from gridmap_cli.readers.mcap_bulk import Batch, bulk_enabled, indexed_messages, read_bulk
 from gridmap_cli.readers.mcap_channels import (
     DAMAGED,
     message_type,
@@ -107,10 +108,16 @@ class McapSource:
         try:
             with open(path, "rb") as handle:
                 reader = open_reader(path, handle)
-                read_summary(path, reader)
-                for schema, channel, message in reader.iter_messages(
-                    topics=None if every_topic else list(topics), log_time_order=True
-                ):
+                summary = read_summary(path, reader)
+                # the few messages of topics not read in bulk: through the indexes
+                found: Iterable[tuple[Schema | None, Channel, McapMessage]] | None = None
+                if not every_topic and bulk_enabled():
+                    found = indexed_messages(path, handle, summary, topics)
+                if found is None:
+                    found = reader.iter_messages(
+                        topics=None if every_topic else list(topics), log_time_order=True
+                    )
+                for schema, channel, message in found:
                     seen[channel.topic] += 1
                     index = seen[channel.topic]
                     type_name = message_type(schema)

@@ -72,6 +72,12 @@ class Columns:
         return [names[i] for i in self.arrays[column].tolist()]
 
 
+def words(buf: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint64]:
+    """The 8 bytes from each place of ``buf`` as a little-endian uint64, shape
+    (len(buf) - 7,): a view, so ``words(buf)[at]`` gathers 8 bytes a place in one step."""
+    return np.ndarray((max(len(buf) - 7, 0),), dtype="<u8", buffer=buf, strides=(1,))
+
+
 def concat(parts: list[Columns]) -> Columns:
     """Rows of several Columns, in log-time order (ties in file order, then transform order)."""
     if len(parts) == 1:

@@ -204,3 +204,16 @@ def test_compact_layout_values() -> None:
 def test_other_layouts_are_not_compact(odd: bytes) -> None:
     texts = [compact_reading("1", "5", "s0", "1"), odd]
     assert json_bulk._compact("gridmap.RangeReading", raw_of(texts)) is None
+
+
+def test_compact_numbers_are_the_floats_json_gives() -> None:
+    """Every number as ``json.loads`` reads it, to the bit (the sign of zero included)."""
+    spellings = ["0", "-0", "-0.0", "0.1", "1e5", "1E-300", "4.9e-324", "2.2250738585072011e-308",
+                 "1.7976931348623157e308", "0.10000000000000000555", "-12.5e+3",
+                 "123456789012345678901234567890", "17976931348623159e292", "9007199254740993",
+                 "0.30000000000000004", "1e400", "-1e400"]  # fmt: skip
+    texts = [compact_reading("1", "5", "s0", v) for v in spellings]
+    cols = json_bulk._compact("gridmap.RangeReading", raw_of(texts))
+    assert cols is not None
+    want = np.array([float(json.loads(v)) for v in spellings], dtype=np.float64)
+    assert cols.arrays["range"].view(np.int64).tolist() == want.view(np.int64).tolist()

@@ -99,3 +99,26 @@ def test_bad_limits_same_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, 
         messages.append(str(err.value))
     assert messages[0] == messages[1]
     assert "need 0 <= min_range < max_range, got 4.0 and 3.0" in messages[0]
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_indexed_messages_as_the_library_yields_them(tmp_path: Path, ros: int) -> None:
+    """The messages found through the indexes: those the library's reader yields, in its
+    order, for any choice of topics (ties in log time included)."""
+    from mcap.reader import make_reader
+
+    from gridmap_cli.readers.mcap_bulk import indexed_messages
+
+    path = busy_log(tmp_path / "busy.mcap", ros)
+    with open(path, "rb") as handle:
+        reader = make_reader(handle)
+        summary = reader.get_summary()
+        assert summary is not None
+        all_topics = sorted({ch.topic for ch in summary.channels.values()})
+        for topics in [all_topics, all_topics[:1], all_topics[1:]]:
+            found = indexed_messages(path, handle, summary, topics)
+            assert found is not None
+            want = list(reader.iter_messages(topics=topics, log_time_order=True))
+            got = [(c.id, m.log_time, m.data) for _, c, m in found]
+            assert got == [(c.id, m.log_time, bytes(m.data)) for _, c, m in want]
+            assert len(got) > 0

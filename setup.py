@@ -1,0 +1,29 @@
+"""The one thing pyproject.toml cannot say: gridmap's compiled inner loops (issue 10).
+
+Two small C extensions (plain CPython API and the buffer protocol, no numpy headers): the
+mapping kernels of the sonar cone, the error-aware cone and the ray model, and the record walks
+of the MCAP and bag integrity checks. Both are optional: where no C compiler is at hand, the
+install still succeeds and the numpy / Python reference paths do the work
+(gridmap_cli/models/kernels.py and gridmap_cli/readers/walk.py choose).
+"""
+
+from setuptools import Extension, setup
+
+setup(
+    ext_modules=[
+        Extension(
+            "gridmap_cli.models._ckernels",
+            sources=["gridmap_cli/models/_ckernels.c"],
+            # no fused multiply-adds: the kernels must round as the numpy reference does
+            extra_compile_args=["-O2", "-ffp-contract=off"],
+            optional=True,
+        ),
+        # the MCAP and ROS 1 bag integrity checks' per-record walks (gridmap_cli/readers/walk.py)
+        Extension(
+            "gridmap_cli.readers._cwalk",
+            sources=["gridmap_cli/readers/_cwalk.c"],
+            extra_compile_args=["-O2"],
+            optional=True,
+        ),
+    ]
+)
