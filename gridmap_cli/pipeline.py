@@ -31,7 +31,7 @@ from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
 from gridmap_cli.models.ray import RayModel, RayParams
 from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
 from gridmap_cli.odometry_error import travelled
-from gridmap_cli.records import RangeLog, span_text
+from gridmap_cli.records import RangeLog, cut_chunks, span_text
 from gridmap_cli.robot import RangeSensor, RobotDescription
 from gridmap_cli.shards import accumulate_frequencies, accumulate_log_odds
 from gridmap_cli.shards import batch_bounds as batch_bounds  # callers cut batches as build does
@@ -104,6 +104,10 @@ _select = select_readings
 #: the readings let go, a chunk at a time, the synchronised readings never exist for the whole
 #: log at once (the hour log's 576,000 were about 40 MiB, three times over).
 SYNC_CHUNK_READINGS = 100_000
+#: Readings synchronised and bounded at a time in the bounds pass: its minima, maxima and
+#: counts are the same for any cut, and the models' bounds of 100,000 sonar readings took
+#: 24 MiB of temporaries (the mapping pass keeps the chunks above: its sums follow them).
+BOUNDS_CHUNK_READINGS = 25_000
 
 
 @dataclass(frozen=True)
@@ -170,13 +174,14 @@ def plan_build(log: RangeLog, robot: RobotDescription | None, options: BuildOpti
     for chunk in log.reading_chunks(size):
         start = chunks[-1][1] if chunks else 0
         chunks.append((start, start + len(chunk)))
-        readings, chunk_stats = synchronise(log, robot, chunk, driven)
-        totals += dataclasses.astuple(chunk_stats)
-        if len(readings) == 0:
-            continue
-        is_ray = narrow[readings.sensor]
-        kinds |= (bool(is_ray.any()), bool(not is_ray.all()))
-        boxes += [model.bounds(part) for model, part in _split(bounding, narrow, readings)]
+        for piece in cut_chunks([chunk], BOUNDS_CHUNK_READINGS):
+            readings, chunk_stats = synchronise(log, robot, piece, driven)
+            totals += dataclasses.astuple(chunk_stats)
+            if len(readings) == 0:
+                continue
+            is_ray = narrow[readings.sensor]
+            kinds |= (bool(is_ray.any()), bool(not is_ray.all()))
+            boxes += [model.bounds(part) for model, part in _split(bounding, narrow, readings)]
     stats = SyncStats(*(int(v) for v in totals))
     if stats.used == 0:
         raise NoDataError(_why_empty(log, stats))

@@ -89,27 +89,36 @@ def cut_chunks(blocks: Iterable[RangeReadings], size: int) -> Iterator[RangeRead
     the readings at once, whatever the blocks are, provided no block splits one stamp's
     readings: the chunks of a log read again block by block are the held log's, reading for
     reading, so every sum over them is the same to the bit."""
-    rest: RangeReadings | None = None
+    pending: list[RangeReadings] = []  # whole blocks, fewer than ``size`` readings in all
+    held = 0
     for block in blocks:
         if len(block) == 0:
             continue
-        if rest is None:
-            buf = block
-        else:
-            buf = RangeReadings(
-                np.concatenate((rest.stamp_ns, block.stamp_ns)),
-                np.concatenate((rest.sensor, block.sensor)),
-                np.concatenate((rest.range_m, block.range_m)),
-            )
+        pending.append(block)
+        held += len(block)
+        if held < size:
+            continue
+        buf = _joined(pending)
         start = 0
         while len(buf) - start >= size:
             # the stamp at the cut ends in this buffer: no block splits a stamp
             stop = int(np.searchsorted(buf.stamp_ns, buf.stamp_ns[start + size - 1], "right"))
             yield buf.part(slice(start, stop))
             start = stop
-        rest = buf.part(slice(start, None)) if start < len(buf) else None
-    if rest is not None:
-        yield rest
+        pending = [buf.part(slice(start, None))] if start < len(buf) else []
+        held = len(buf) - start
+    if pending:
+        yield _joined(pending)
+
+
+def _joined(parts: list[RangeReadings]) -> RangeReadings:
+    if len(parts) == 1:
+        return parts[0]
+    return RangeReadings(
+        np.concatenate([p.stamp_ns for p in parts]),
+        np.concatenate([p.sensor for p in parts]),
+        np.concatenate([p.range_m for p in parts]),
+    )
 
 
 @dataclass(frozen=True)

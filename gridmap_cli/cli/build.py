@@ -322,6 +322,8 @@ def build(
         data, match = scan_matched_log(data, robot_desc)
     else:
         data = select_poses(data, pose)
+    if preview is None:  # the other tracks are drawn only; let them go (56 bytes a row)
+        whole = data = dataclasses.replace(data, truth=None)
     selected = apply_selection(data, selection, robot_desc)
     warn(selected.notes, quiet)
     data = selected.log

@@ -51,9 +51,9 @@ from gridmap_cli.records import RangeLog, RangeReadings, ReadingStream
 #: peaks about 40 MiB above a streamed one in the reader, and the second parse (0.2 s a MiB of
 #: text less the stamps, which are kept) is worth that.
 STREAM_FROM_BYTES = 8 << 20
-#: Text parsed at a time: about 1,600 rows (26,000 readings) of the bench's log; larger
+#: Text parsed at a time: about 400 rows (6,500 readings) of the bench's log; larger
 #: pieces only hold more at once (1 MiB: 9 MiB more at the peak), no faster.
-PIECE_CHARS = 1 << 18
+PIECE_CHARS = 1 << 16
 
 
 class _NotPlain(Exception):
@@ -164,7 +164,8 @@ def _check(handle: TextIO, path: Path, gz: bool, seen: tuple[int, int]) -> Range
     first_ns = np.zeros(n_sensors, np.int64)
     last_ns = np.zeros(n_sensors, np.int64)
     stamp_parts: list[npt.NDArray[np.int64]] = []
-    tracks: list[npt.NDArray[np.float64]] = []
+    track_idx = pose_idx + truth_idx
+    parts: list[list[npt.NDArray[np.float64]]] = [[] for _ in track_idx]  # per track column
     for rows in blocks:
         if any(row.count(",") != n_fields - 1 for row in rows):
             raise _NotPlain
@@ -190,14 +191,16 @@ def _check(handle: TextIO, path: Path, gz: bool, seen: tuple[int, int]) -> Range
         last_ns[found] = stamps[len(rows) - 1 - np.argmax(has[::-1], axis=0)][found]
         counts += has.sum(axis=0)
         stamp_parts.append(stamps)
-        tracks.append(matrix[:, pose_idx + truth_idx])
+        for column, k in zip(parts, track_idx, strict=True):
+            column.append(matrix[:, k].copy())  # not a view: the block's numbers go
     if not stamp_parts:
         raise _NotPlain
     stamp_arr = np.concatenate(stamp_parts)
-    log = _log(
-        str(path), header, metadata, stamp_arr, np.concatenate(tracks), RangeReadings.empty(),
-        sensor_cols,
-    )  # fmt: skip
+    tracks = []
+    for column in parts:  # one column at a time: never the whole table twice
+        tracks.append(np.concatenate(column))
+        column.clear()
+    log = _log(str(path), header, metadata, stamp_arr, tracks, RangeReadings.empty(), sensor_cols)
     again = partial(_read_again, path, gz, seen, n_fields, sensor_cols, stamp_arr)
     index = np.arange(n_sensors, dtype=np.int32)
     stream = ReadingStream(again, counts, first_ns, last_ns, index)
