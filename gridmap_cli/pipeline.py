@@ -203,13 +203,17 @@ def build_map(
     robot: RobotDescription | None,
     options: BuildOptions,
     progress: Callable[[int], object] | None = None,
+    between_passes: Callable[[], object] | None = None,
 ) -> BuildResult:
     """Build an occupancy map from a canonical log.
 
-    ``progress`` is called with the number of readings just processed (one call per batch).
-    Raises what :func:`plan_build` raises, before any mapping.
+    ``progress`` is called with the number of readings just processed (one call per batch);
+    ``between_passes`` once the bounds pass is done, before any mapping (the CLI returns the
+    freed heap then). Raises what :func:`plan_build` raises, before any mapping.
     """
     plan = plan_build(log, robot, options)
+    if between_passes is not None:
+        between_passes()
     spec, stats = plan.spec, plan.sync
     grid: LogOddsAccumulator | FrequencyAccumulator
     grid = LogOddsAccumulator(spec) if options.mode == "standard" else FrequencyAccumulator(spec)
