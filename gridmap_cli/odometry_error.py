@@ -131,18 +131,30 @@ def travelled(track: PoseTrack) -> tuple[FloatArray, FloatArray]:
 
 
 def travelled_at(
-    track: PoseTrack, stamp_ns: npt.NDArray[np.int64]
+    track: PoseTrack,
+    stamp_ns: npt.NDArray[np.int64],
+    sums: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """:func:`travelled` interpolated linearly in time at ``stamp_ns`` (shape (M,)).
 
     Stamps before the track's first (after its last) stamp get the first (last) values.
+    ``sums``: :func:`travelled` of ``track``, for a caller that asks again and again (build's
+    chunks): the running sums are then not made afresh over the whole track each time, and
+    only the poses around ``stamp_ns`` (sorted) are looked at, which gives the same values.
     """
-    distance, rotation = travelled(track)
     if len(track) == 0:
         raise ValueError("the track holds no pose")
-    t = (track.stamp_ns - track.stamp_ns[0]).astype(np.float64)
-    q = (np.asarray(stamp_ns) - track.stamp_ns[0]).astype(np.float64)
-    return np.interp(q, t, distance), np.interp(q, t, rotation)
+    distance, rotation = travelled(track) if sums is None else sums
+    stamps = np.asarray(stamp_ns)
+    part = slice(None)
+    if sums is not None and stamps.shape[0] > 0:
+        # np.interp takes each value from the two poses around it, and clamps at the ends
+        lo = max(int(np.searchsorted(track.stamp_ns, stamps[0], "right")) - 1, 0)
+        hi = int(np.searchsorted(track.stamp_ns, stamps[-1], "left")) + 1
+        part = slice(lo, hi)
+    t = (track.stamp_ns[part] - track.stamp_ns[0]).astype(np.float64)
+    q = (stamps - track.stamp_ns[0]).astype(np.float64)
+    return np.interp(q, t, distance[part]), np.interp(q, t, rotation[part])
 
 
 _KEYS = tuple(f.name for f in fields(OdometryError))

@@ -7,6 +7,7 @@ callback), no file output (writers do that).
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -14,7 +15,7 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.errors import GridmapError, MapSizeError, NoDataError
+from gridmap_cli.errors import GridmapError, InputFileError, MapSizeError, NoDataError
 from gridmap_cli.grid import (
     DEFAULT_CLAMP_P,
     DEFAULT_MAX_CELLS,
@@ -29,7 +30,8 @@ from gridmap_cli.models.error_aware_mixed import ErrorAwareMixedModel
 from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
 from gridmap_cli.models.ray import RayModel, RayParams
 from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
-from gridmap_cli.records import RangeLog, span_text
+from gridmap_cli.odometry_error import travelled
+from gridmap_cli.records import RangeLog, cut_chunks, span_text
 from gridmap_cli.robot import RangeSensor, RobotDescription
 from gridmap_cli.shards import accumulate_frequencies, accumulate_log_odds
 from gridmap_cli.shards import batch_bounds as batch_bounds  # callers cut batches as build does
@@ -102,6 +104,10 @@ _select = select_readings
 #: the readings let go, a chunk at a time, the synchronised readings never exist for the whole
 #: log at once (the hour log's 576,000 were about 40 MiB, three times over).
 SYNC_CHUNK_READINGS = 100_000
+#: Readings synchronised and bounded at a time in the bounds pass: its minima, maxima and
+#: counts are the same for any cut, and the models' bounds of 100,000 sonar readings took
+#: 24 MiB of temporaries (the mapping pass keeps the chunks above: its sums follow them).
+BOUNDS_CHUNK_READINGS = 25_000
 
 
 @dataclass(frozen=True)
@@ -117,11 +123,18 @@ class BuildPlan:
     robot: RobotDescription | None
     chunks: list[tuple[int, int]]  # [start, stop) of log readings, cut where the stamp changes
     narrow: npt.NDArray[np.bool_]  # per sensor: mapped as a ray
+    chunk_readings: int = SYNC_CHUNK_READINGS  # the size the chunks were cut at
+    #: distance and rotation driven at each pose (:func:`odometry_error.travelled`)
+    travelled: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None = None
 
     def parts(self) -> Iterator[tuple[SensorModel, SensorReadings]]:
-        """Each model with its share of the readings, chunk after chunk, in time order."""
-        for start, stop in self.chunks:
-            readings, _ = synchronise(self.log, self.robot, slice(start, stop))
+        """Each model with its share of the readings, chunk after chunk, in time order: the
+        log's chunks again (read again from the file when the log streams them)."""
+        chunks = self.log.reading_chunks(self.chunk_readings)
+        for (start, stop), chunk in itertools.zip_longest(self.chunks, chunks):
+            if chunk is None or len(chunk) != stop - start:
+                raise InputFileError(self.log.source, "the file changed while gridmap read it")
+            readings, _ = synchronise(self.log, self.robot, chunk, self.travelled)
             yield from _split(self.models, self.narrow, readings)
 
 
@@ -152,18 +165,23 @@ def plan_build(log: RangeLog, robot: RobotDescription | None, options: BuildOpti
     sensors = sensors_for_log(log, robot)
     narrow = np.array([s.kind == "laser" or s.beam_width_rad <= 0.0 for s in sensors], dtype=bool)
     bounding = _bounding_models(sensors, narrow, options)
-    chunks = batch_bounds(log.readings.stamp_ns, SYNC_CHUNK_READINGS)
+    size = SYNC_CHUNK_READINGS
+    driven = travelled(log.poses) if len(log.poses) else None
+    chunks: list[tuple[int, int]] = []
     totals = np.zeros(4, dtype=np.int64)  # total, used, outside odometry, below minimum range
     boxes = []  # (xmin, ymin, xmax, ymax) of each chunk and model
     kinds = np.zeros(2, dtype=bool)  # any ray, any sonar reading kept
-    for start, stop in chunks:
-        readings, chunk_stats = synchronise(log, robot, slice(start, stop))
-        totals += dataclasses.astuple(chunk_stats)
-        if len(readings) == 0:
-            continue
-        is_ray = narrow[readings.sensor]
-        kinds |= (bool(is_ray.any()), bool(not is_ray.all()))
-        boxes += [model.bounds(part) for model, part in _split(bounding, narrow, readings)]
+    for chunk in log.reading_chunks(size):
+        start = chunks[-1][1] if chunks else 0
+        chunks.append((start, start + len(chunk)))
+        for piece in cut_chunks([chunk], BOUNDS_CHUNK_READINGS):
+            readings, chunk_stats = synchronise(log, robot, piece, driven)
+            totals += dataclasses.astuple(chunk_stats)
+            if len(readings) == 0:
+                continue
+            is_ray = narrow[readings.sensor]
+            kinds |= (bool(is_ray.any()), bool(not is_ray.all()))
+            boxes += [model.bounds(part) for model, part in _split(bounding, narrow, readings)]
     stats = SyncStats(*(int(v) for v in totals))
     if stats.used == 0:
         raise NoDataError(_why_empty(log, stats))
@@ -177,7 +195,7 @@ def plan_build(log: RangeLog, robot: RobotDescription | None, options: BuildOpti
     except MapSizeError as exc:
         raise MapSizeError(f"{log.source}: {exc}") from exc
     models = _mapping_models(sensors, narrow, options, bool(kinds[0]), bool(kinds[1]))
-    return BuildPlan(stats, models, spec, log, robot, chunks, narrow)
+    return BuildPlan(stats, models, spec, log, robot, chunks, narrow, size, driven)
 
 
 def build_map(
@@ -185,13 +203,17 @@ def build_map(
     robot: RobotDescription | None,
     options: BuildOptions,
     progress: Callable[[int], object] | None = None,
+    between_passes: Callable[[], object] | None = None,
 ) -> BuildResult:
     """Build an occupancy map from a canonical log.
 
-    ``progress`` is called with the number of readings just processed (one call per batch).
-    Raises what :func:`plan_build` raises, before any mapping.
+    ``progress`` is called with the number of readings just processed (one call per batch);
+    ``between_passes`` once the bounds pass is done, before any mapping (the CLI returns the
+    freed heap then). Raises what :func:`plan_build` raises, before any mapping.
     """
     plan = plan_build(log, robot, options)
+    if between_passes is not None:
+        between_passes()
     spec, stats = plan.spec, plan.sync
     grid: LogOddsAccumulator | FrequencyAccumulator
     grid = LogOddsAccumulator(spec) if options.mode == "standard" else FrequencyAccumulator(spec)
@@ -281,10 +303,10 @@ def _why_empty(log: RangeLog, stats: SyncStats) -> str:
     if stats.total == 0:
         return f"{log.source}: the log holds no range readings"
     if stats.outside_odometry == stats.total:
-        odo, rd = log.poses.stamp_ns, log.readings.stamp_ns
+        odo = log.poses.stamp_ns
         return (
             f"{log.source}: no odometry during the range readings: the {stats.total} readings "
-            f"span {span_text(int(rd.min()), int(rd.max()))}, the odometry "
+            f"span {span_text(*log.reading_span())}, the odometry "
             f"{span_text(int(odo[0]), int(odo[-1]))} (recorded at different times?)"
         )
     parts = []

@@ -7,7 +7,7 @@ nanoseconds; everything else is SI (metres, radians). Arrays are time-ordered.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
@@ -73,6 +73,98 @@ class RangeReadings:
     def __len__(self) -> int:
         return int(self.stamp_ns.shape[0])
 
+    def part(self, sl: slice) -> RangeReadings:
+        """The readings ``sl`` picks (views, not copies)."""
+        return RangeReadings(self.stamp_ns[sl], self.sensor[sl], self.range_m[sl])
+
+    @classmethod
+    def empty(cls) -> RangeReadings:
+        return cls(np.empty(0, np.int64), np.empty(0, np.int32), np.empty(0, np.float64))
+
+
+def cut_chunks(blocks: Iterable[RangeReadings], size: int) -> Iterator[RangeReadings]:
+    """The readings of ``blocks``, in order, in chunks of about ``size``, each cut where the
+    stamp changes (a scan's beams stay in one chunk); a single stamp holding more than ``size``
+    readings is kept whole. The cuts are :func:`gridmap_cli.shards.batch_bounds`' over all
+    the readings at once, whatever the blocks are, provided no block splits one stamp's
+    readings: the chunks of a log read again block by block are the held log's, reading for
+    reading, so every sum over them is the same to the bit."""
+    pending: list[RangeReadings] = []  # whole blocks, fewer than ``size`` readings in all
+    held = 0
+    for block in blocks:
+        if len(block) == 0:
+            continue
+        pending.append(block)
+        held += len(block)
+        if held < size:
+            continue
+        buf = _joined(pending)
+        start = 0
+        while len(buf) - start >= size:
+            # the stamp at the cut ends in this buffer: no block splits a stamp
+            stop = int(np.searchsorted(buf.stamp_ns, buf.stamp_ns[start + size - 1], "right"))
+            yield buf.part(slice(start, stop))
+            start = stop
+        pending = [buf.part(slice(start, None))] if start < len(buf) else []
+        held = len(buf) - start
+    if pending:
+        yield _joined(pending)
+
+
+def _joined(parts: list[RangeReadings]) -> RangeReadings:
+    if len(parts) == 1:
+        return parts[0]
+    return RangeReadings(
+        np.concatenate([p.stamp_ns for p in parts]),
+        np.concatenate([p.sensor for p in parts]),
+        np.concatenate([p.range_m for p in parts]),
+    )
+
+
+@dataclass(frozen=True)
+class ReadingStream:
+    """Range readings not held in memory: read again from their file for every pass.
+
+    ``blocks()`` reads them, in order, as :class:`RangeReadings` whose ``sensor`` indexes the
+    file's own sensors, no block splitting one stamp's readings. The reader's checking pass
+    found, per file sensor (shape (S,)): ``counts``, the readings; ``first_ns`` and
+    ``last_ns``, the stamps of its first and last reading (meaningless where the count is 0).
+    ``index`` maps a file sensor to the log's (-1: left out, :func:`with_sensors`).
+    """
+
+    blocks: Callable[[], Iterator[RangeReadings]]
+    counts: npt.NDArray[np.int64]
+    first_ns: npt.NDArray[np.int64]
+    last_ns: npt.NDArray[np.int64]
+    index: npt.NDArray[np.int32]
+
+    def __len__(self) -> int:
+        return int(self.counts[self.index >= 0].sum())
+
+    def span_ns(self) -> tuple[int, int]:
+        """Stamps of the first and last reading kept (ns); the stream holds at least one."""
+        kept = (self.index >= 0) & (self.counts > 0)
+        return int(self.first_ns[kept].min()), int(self.last_ns[kept].max())
+
+    def with_sensors(self, new_index: npt.NDArray[np.int32]) -> ReadingStream:
+        """The stream with the log's sensor ``i`` re-indexed to ``new_index[i]`` (-1: left
+        out), as :func:`gridmap_cli.selection.keep_sensors` does to held readings."""
+        kept = self.index >= 0
+        index = np.full_like(self.index, -1)
+        index[kept] = new_index[self.index[kept]]
+        return ReadingStream(self.blocks, self.counts, self.first_ns, self.last_ns, index)
+
+    def readings(self) -> Iterator[RangeReadings]:
+        """The readings, block by block, indexed by the log's sensors."""
+        identity = bool((self.index == np.arange(len(self.index))).all())
+        for block in self.blocks():
+            if identity:
+                yield block
+                continue
+            mapped = self.index[block.sensor]
+            rows = mapped >= 0
+            yield RangeReadings(block.stamp_ns[rows], mapped[rows], block.range_m[rows])
+
 
 @dataclass(frozen=True)
 class RangeLog:
@@ -86,6 +178,11 @@ class RangeLog:
     neither the log nor the robot describes may be some other measurement (a battery voltage):
     :func:`gridmap_cli.selection.ignore_other_columns` leaves it out with a note. Elsewhere a
     sensor is a sensor, and one without mounting geometry is an error.
+
+    ``stream``: set when the readings are not held but read again from the file at each pass
+    (a long log, :data:`gridmap_cli.readers.ReadOptions.stream`); ``readings`` is then empty,
+    and :attr:`reading_count`, :meth:`reading_span` and :meth:`reading_chunks` are the ways in.
+    Only a caller that asked for a stream gets one.
     """
 
     source: str
@@ -96,6 +193,25 @@ class RangeLog:
     truth: PoseTrack | None = None
     metadata: dict[str, str] = field(default_factory=dict)
     names_are_columns: bool = False
+    stream: ReadingStream | None = None
+
+    @property
+    def reading_count(self) -> int:
+        """The number of range readings, held or streamed."""
+        return len(self.readings) if self.stream is None else len(self.stream)
+
+    def reading_span(self) -> tuple[int, int]:
+        """Stamps of the earliest and latest range reading (ns); the log holds at least one."""
+        if self.stream is not None:
+            return self.stream.span_ns()
+        return int(self.readings.stamp_ns.min()), int(self.readings.stamp_ns.max())
+
+    def reading_chunks(self, size: int) -> Iterator[RangeReadings]:
+        """The range readings in time order, in :func:`cut_chunks`' chunks of about ``size``:
+        views of the held readings, or read again from the file."""
+        if self.stream is None:
+            return cut_chunks([self.readings], size)
+        return cut_chunks(self.stream.readings(), size)
 
     def require_truth(self, purpose: str) -> PoseTrack:
         """The ground-truth track; :class:`InputFileError` naming the log if it has none.

@@ -233,11 +233,16 @@ def keep_sensors(log: RangeLog, keep: Sequence[str]) -> RangeLog:
     mapped = new_index[r.sensor]
     rows = mapped >= 0
     readings = RangeReadings(r.stamp_ns[rows], mapped[rows], r.range_m[rows])
+    stream = None if log.stream is None else log.stream.with_sensors(new_index)
     sensors = None
     if log.sensors is not None:
         sensors = tuple(s for s in log.sensors if s.name in wanted)
     return dataclasses.replace(
-        log, readings=readings, sensor_names=tuple(old[i] for i in kept), sensors=sensors
+        log,
+        readings=readings,
+        sensor_names=tuple(old[i] for i in kept),
+        sensors=sensors,
+        stream=stream,
     )
 
 
@@ -324,6 +329,8 @@ def select_window(
     works as in the whole log. Raises :class:`UsageError` naming the log's time span when
     ``need_readings`` and no reading is left (``asked``: the flags as given, for that message).
     """
+    if log.stream is not None:  # callers hold a log they cut in time (ReadOptions.stream)
+        raise UsageError(f"{log.source}: a time window needs the log's readings held")
     r = log.readings
     rows = np.ones(len(r), dtype=bool)
     if start_ns is not None:

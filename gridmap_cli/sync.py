@@ -19,7 +19,7 @@ import numpy.typing as npt
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, wrap_angle
 from gridmap_cli.odometry_error import travelled_at
-from gridmap_cli.records import PoseTrack, RangeLog
+from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor, RobotDescription
 
 
@@ -158,19 +158,24 @@ def interpolate_pose(
 
 
 def synchronise(
-    log: RangeLog, robot: RobotDescription | None, chunk: slice = slice(None)
+    log: RangeLog,
+    robot: RobotDescription | None,
+    chunk: slice | RangeReadings = slice(None),
+    travelled: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None = None,
 ) -> tuple[SensorReadings, SyncStats]:
     """Attach the sensor pose (odometry frame) to every usable reading of ``log``, or of the
-    readings ``chunk`` of it: each reading's pose depends on the pose track alone, so chunks
-    synchronised one by one give the whole's readings, bit for bit."""
+    readings ``chunk`` of it (a slice of its held readings, or readings of it as
+    :meth:`RangeLog.reading_chunks` gives them): each reading's pose depends on the pose track
+    alone, so chunks synchronised one by one give the whole's readings, bit for bit.
+    ``travelled``: :func:`~gridmap_cli.odometry_error.travelled` of ``log.poses``, made once by
+    a caller that synchronises many chunks."""
     sensors = sensors_for_log(log, robot)
-    whole = log.readings
-    r = dataclasses.replace(
-        whole,
-        stamp_ns=whole.stamp_ns[chunk],
-        sensor=whole.sensor[chunk],
-        range_m=whole.range_m[chunk],
-    )
+    if isinstance(chunk, RangeReadings):
+        r = chunk
+    elif log.stream is not None:
+        raise GridmapError(f"{log.source}: the readings are streamed; synchronise them by chunk")
+    else:
+        r = log.readings.part(chunk)
     x, y, theta, valid = interpolate_pose(log.poses, r.stamp_ns)
     min_r = np.asarray([s.min_range_m for s in sensors], dtype=np.float64)[r.sensor]
     max_r = np.asarray([s.max_range_m for s in sensors], dtype=np.float64)[r.sensor]
@@ -181,7 +186,7 @@ def synchronise(
     my = np.asarray([s.y_m for s in sensors], dtype=np.float64)[idx]
     myaw = np.asarray([s.yaw_rad for s in sensors], dtype=np.float64)[idx]
     sx, sy, sth = compose(x[keep], y[keep], theta[keep], mx, my, myaw)
-    distance, rotation = travelled_at(log.poses, r.stamp_ns[keep])
+    distance, rotation = travelled_at(log.poses, r.stamp_ns[keep], travelled)
     readings = SensorReadings(
         stamp_ns=r.stamp_ns[keep],
         sensor=idx,

@@ -232,3 +232,17 @@ def test_the_simulators_errors_as_coefficients() -> None:
         one = dataclasses.replace(OdometryErrorModel().scaled(0.0), **{f.name: 0.5})
         coefficients = one.as_odometry_error().as_dict()
         assert sorted(coefficients.values()) == [0.0] * 4 + [0.01, 0.5], f.name
+
+
+def test_travelled_at_with_the_sums_made_once_gives_the_same_bits() -> None:
+    rng = np.random.default_rng(3)
+    n = 400
+    stamps = np.cumsum(rng.integers(1, 10**8, n)).astype(np.int64)
+    track = PoseTrack(stamps, rng.normal(size=n), rng.normal(size=n), rng.uniform(-3, 3, n))
+    sums = travelled(track)
+    for lo, hi in ((-5 * 10**8, stamps[40]), (stamps[10], stamps[200]), (stamps[300], 10**12)):
+        exact = stamps[(stamps >= lo) & (stamps <= hi)]  # readings at a pose's own stamp too
+        q = np.sort(np.concatenate((rng.integers(lo, hi, 500), exact))).astype(np.int64)
+        whole = travelled_at(track, q)
+        part = travelled_at(track, q, sums)
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(whole, part, strict=True))

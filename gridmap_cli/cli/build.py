@@ -29,7 +29,7 @@ from gridmap_cli.cli.common import (
 from gridmap_cli.errors import UsageError
 from gridmap_cli.executors import EXECUTORS, check_dask, fuse_dask, fuse_local
 from gridmap_cli.fuse import FuseJob, Partial, fused_map, parse_initial_pose
-from gridmap_cli.heap import keep_scratch_memory
+from gridmap_cli.heap import keep_scratch_memory, release_free_memory
 from gridmap_cli.models.error_aware import ErrorAwareParams
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
@@ -310,7 +310,10 @@ def build(
                      as_json, len(logs))  # fmt: skip
         return
     keep_scratch_memory()  # every check passed: from here on, the build's own process
-    whole = read_input(logs, log_format, read_options)
+    # a long log's readings stay in its file, read again for each pass, unless scan matching
+    # or a time window needs them held
+    stream = pose != "scan-matched" and selection.start is None and selection.end is None
+    whole = read_input(logs, log_format, dataclasses.replace(read_options, stream=stream))
     data = whole
     if robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
@@ -321,6 +324,8 @@ def build(
         data, match = scan_matched_log(data, robot_desc)
     else:
         data = select_poses(data, pose)
+    if preview is None:  # the other tracks are drawn only; let them go (56 bytes a row)
+        whole = data = dataclasses.replace(data, truth=None)
     selected = apply_selection(data, selection, robot_desc)
     warn(selected.notes, quiet)
     data = selected.log
@@ -332,14 +337,14 @@ def build(
         odometry_error=odometry_error,
         jobs=jobs,
     )
-    with progress_bar(len(data.readings), quiet, "mapping") as bar:
-        result = build_map(data, robot_desc, options, progress=bar.update)
+    with progress_bar(data.reading_count, quiet, "mapping") as bar:
+        result = build_map(data, robot_desc, options, bar.update, release_free_memory)
     if mode == "error-aware" and map_mode == "trinary" and not to_mcap:
         warn(undecided_note(result.map.prob, occupied, free), quiet)
     yaml_path: Path | None
     if to_mcap:
         # stamped at the last reading: the map is what the robot knew then
-        stamp = int(data.readings.stamp_ns[-1]) if len(data.readings) else 0
+        stamp = data.reading_span()[1] if data.reading_count else 0
         from gridmap_cli.writers.map_mcap import write_map_mcap  # the MCAP writer only when asked
 
         image_path = write_map_mcap(output, result.map, stamp_ns=stamp, force=force)

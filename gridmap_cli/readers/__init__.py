@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 from gridmap_cli.errors import InputFileError, UnknownFormatError, UsageError
-from gridmap_cli.readers import compressed, csv_log
+from gridmap_cli.readers import compressed, csv_log, csv_stream
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
 
@@ -51,6 +51,8 @@ class LogFormat:
     text handle (named in errors) in the format's ``encoding``, for gzip-compressed logs.
     ``weak_extensions`` are extensions other tools use too (``.log``): taken only when no
     format's sniff claims the file, so that an ARIA log named ``run.log`` still reads as ARIA.
+    ``streamer`` is set for formats that can leave a long log's readings in the file
+    (:attr:`ReadOptions.stream`): it gives such a log, or None for the reader to read it held.
     """
 
     name: str
@@ -61,10 +63,15 @@ class LogFormat:
     text_reader: Callable[[TextIO, str, ReadOptions], RangeLog] | None = None
     encoding: str = "utf-8"
     weak_extensions: tuple[str, ...] = ()
+    streamer: Callable[[Path, ReadOptions], RangeLog | None] | None = None
 
     def read(self, path: Path, options: ReadOptions | None = None) -> RangeLog:
         """Read ``path`` (gzip-compressed or not) into the canonical record stream."""
         options = options or ReadOptions()
+        if options.stream and self.streamer is not None and not path.is_dir():
+            streamed = self.streamer(path, options)
+            if streamed is not None:
+                return streamed
         if path.is_dir() or not compressed.is_gzip(path):
             return self.reader(path, options)
         if self.text_reader is None:
@@ -75,6 +82,11 @@ class LogFormat:
 def _read_csv(path: Path, options: ReadOptions) -> RangeLog:
     options.refuse_topic_flags("CSV")
     return csv_log.read_csv_log(path)
+
+
+def _stream_csv(path: Path, options: ReadOptions) -> RangeLog | None:
+    options.refuse_topic_flags("CSV")
+    return csv_stream.read_streamed(path, compressed.is_gzip(path))
 
 
 def _reader_module(name: str) -> Any:
@@ -172,7 +184,16 @@ def _sniff_bag(head: bytes) -> bool:
 
 
 FORMATS: tuple[LogFormat, ...] = (
-    LogFormat("csv", (".csv",), csv_log.sniff, _read_csv, None, _text_csv, "utf-8-sig"),
+    LogFormat(
+        "csv",
+        (".csv",),
+        csv_log.sniff,
+        _read_csv,
+        None,
+        _text_csv,
+        "utf-8-sig",
+        streamer=_stream_csv,
+    ),
     LogFormat("aria", (".2d",), _lazy_sniff("aria_log"), _read_aria, None, _text_aria, "latin-1"),
     LogFormat("mcap", (".mcap",), _sniff_mcap, _read_mcap, _mcap_sources),
     LogFormat("bag", (".bag",), _sniff_bag, _read_bag, _bag_sources),

@@ -155,7 +155,9 @@ def _read_bulk(text: str, path: str) -> RangeLog | None:
     found = RangeReadings(stamp_ns[keep], sensor[keep], range_m[keep])
     if filled < most // 2:  # a sparse table: do not hold the empty half
         found = RangeReadings(found.stamp_ns.copy(), found.sensor.copy(), found.range_m.copy())
-    return _log(path, header, metadata, stamp_arr, np.concatenate(tracks), found, sensor_cols)
+    table = np.concatenate(tracks)
+    track_columns = [table[:, k] for k in range(table.shape[1])]
+    return _log(path, header, metadata, stamp_arr, track_columns, found, sensor_cols)
 
 
 #: Rows parsed at a time: the text, its numbers and their readings are never all held at once
@@ -185,19 +187,19 @@ def _log(
     header: list[str],
     metadata: dict[str, str],
     stamp_arr: npt.NDArray[np.int64],
-    tracks: npt.NDArray[np.float64],
+    tracks: list[npt.NDArray[np.float64]],
     readings: RangeReadings,
     sensor_cols: list[int],
 ) -> RangeLog:
-    """The RangeLog of a parsed table: ``tracks`` shape (rows, 3 or 6), the pose columns (x, y,
-    theta, then the truth's)."""
+    """The RangeLog of a parsed table: ``tracks``, 3 or 6 columns of shape (rows,), the pose
+    columns (x, y, theta, then the truth's)."""
 
     def track(first: int) -> PoseTrack:
         return PoseTrack(
             stamp_ns=stamp_arr,
-            x_m=np.ascontiguousarray(tracks[:, first]),
-            y_m=np.ascontiguousarray(tracks[:, first + 1]),
-            theta_rad=np.ascontiguousarray(tracks[:, first + 2]),
+            x_m=np.ascontiguousarray(tracks[first]),
+            y_m=np.ascontiguousarray(tracks[first + 1]),
+            theta_rad=np.ascontiguousarray(tracks[first + 2]),
         )
 
     return RangeLog(
@@ -205,7 +207,7 @@ def _log(
         poses=track(0),
         readings=readings,
         sensor_names=tuple(header[i] for i in sensor_cols),
-        truth=track(3) if tracks.shape[1] == 6 else None,
+        truth=track(3) if len(tracks) == 6 else None,
         metadata=metadata,
         names_are_columns=True,
     )

@@ -23,7 +23,10 @@ class ReadOptions:
     ``pose_topic``: the reference (corrected) pose topic for ``--pose global``; ``map_frame``:
     the frame of the reference track in TF (default ``map``). ``robot``: the robot description
     (``--robot``), for sensor mounting the log does not carry (and the sonar positions RosAria's
-    point clouds need).
+    point clouds need). ``stream``: a long log's readings may be left unheld and read again
+    from the file at each pass (:attr:`gridmap_cli.records.RangeLog.stream`): for a caller that
+    goes through them by :meth:`~gridmap_cli.records.RangeLog.reading_chunks` and cuts no time
+    window. CSV files do it above :data:`gridmap_cli.readers.csv_stream.STREAM_FROM_BYTES`.
     """
 
     odom_topic: str | None = None
@@ -33,6 +36,7 @@ class ReadOptions:
     pose_topic: str | None = None
     map_frame: str | None = None
     robot: RobotDescription | None = None
+    stream: bool = False
 
     def topic_flags(self) -> list[str]:
         """The MCAP-only flags that were given, spelled as on the command line."""
