@@ -157,6 +157,20 @@ def interpolate_pose(
     return x, y, theta, valid
 
 
+def stamp_groups(
+    stamp_ns: npt.NDArray[np.int64],
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """Runs of equal consecutive stamps: the index of each run's first stamp (R,) and each
+    stamp's run (M,), so that ``stamp_ns[first][group] == stamp_ns``."""
+    if stamp_ns.shape[0] == 0:
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty
+    change = stamp_ns[1:] != stamp_ns[:-1]
+    first = np.concatenate([[0], np.flatnonzero(change) + 1]).astype(np.int64)
+    group = np.concatenate([[0], np.cumsum(change)]).astype(np.int64)
+    return first, group
+
+
 def synchronise(
     log: RangeLog,
     robot: RobotDescription | None,
@@ -176,7 +190,11 @@ def synchronise(
         raise GridmapError(f"{log.source}: the readings are streamed; synchronise them by chunk")
     else:
         r = log.readings.part(chunk)
-    x, y, theta, valid = interpolate_pose(log.poses, r.stamp_ns)
+    # the pose (and the distance driven) at each stamp once: a scan's 181 beams or a sonar
+    # ring's 16 readings share one stamp; the same arithmetic per stamp, so the same bits
+    first, group = stamp_groups(r.stamp_ns)
+    xs, ys, ths, valids = interpolate_pose(log.poses, r.stamp_ns[first])
+    x, y, theta, valid = xs[group], ys[group], ths[group], valids[group]
     min_r = np.asarray([s.min_range_m for s in sensors], dtype=np.float64)[r.sensor]
     max_r = np.asarray([s.max_range_m for s in sensors], dtype=np.float64)[r.sensor]
     too_near = valid & (r.range_m < min_r)
@@ -186,7 +204,9 @@ def synchronise(
     my = np.asarray([s.y_m for s in sensors], dtype=np.float64)[idx]
     myaw = np.asarray([s.yaw_rad for s in sensors], dtype=np.float64)[idx]
     sx, sy, sth = compose(x[keep], y[keep], theta[keep], mx, my, myaw)
-    distance, rotation = travelled_at(log.poses, r.stamp_ns[keep], travelled)
+    kept_first, kept_group = stamp_groups(r.stamp_ns[keep])
+    distance, rotation = travelled_at(log.poses, r.stamp_ns[keep][kept_first], travelled)
+    distance, rotation = distance[kept_group], rotation[kept_group]
     readings = SensorReadings(
         stamp_ns=r.stamp_ns[keep],
         sensor=idx,

@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 
 from gridmap_cli.errors import GridmapError
+from gridmap_cli.geometry import compose
+from gridmap_cli.odometry_error import travelled_at
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor, RobotDescription
-from gridmap_cli.sync import interpolate_pose, synchronise
+from gridmap_cli.sync import interpolate_pose, stamp_groups, synchronise
 
 S = 1_000_000_000
 
@@ -75,3 +77,36 @@ def test_unknown_sensor_names_are_an_error() -> None:
 def test_missing_robot_is_an_error() -> None:
     with pytest.raises(GridmapError, match="give --robot"):
         synchronise(make_log(), None)
+
+
+def test_readings_sharing_a_stamp_get_the_pose_interpolated_for_each_alone() -> None:
+    # synchronise interpolates once per run of equal stamps; the poses must be those of
+    # interpolating every reading on its own, bit for bit, including stamps that come back
+    rng = np.random.default_rng(2)
+    t = track(np.arange(0, 20, 0.1), np.cumsum(rng.uniform(0, 0.1, 200)),
+              np.cumsum(rng.uniform(-0.05, 0.05, 200)), rng.uniform(-3.1, 3.1, 200))  # fmt: skip
+    stamps = np.sort(rng.integers(-S, 21 * S, 300))
+    stamps = np.concatenate([np.repeat(stamps, rng.integers(1, 5, 300)), stamps[:3]])
+    first, group = stamp_groups(stamps)
+    assert np.array_equal(stamps[first][group], stamps)
+    assert len(first) < len(stamps)
+    n = len(stamps)
+    log = RangeLog(
+        "mem", t, RangeReadings(stamps, (np.arange(n) % 2).astype(np.int32), np.full(n, 1.0)),
+        ("a", "b"),
+    )  # fmt: skip
+    readings, stats = synchronise(log, ROBOT)
+    x, y, th, valid = interpolate_pose(t, stamps)
+    assert stats.used == int(valid.sum()) > 0
+    mount = np.array([0.0, math.pi / 2])[log.readings.sensor[valid]]
+    assert np.array_equal(readings.theta_rad, compose(x[valid], y[valid], th[valid],
+                          np.array([0.2, 0.0])[log.readings.sensor[valid]],
+                          np.array([0.0, 0.1])[log.readings.sensor[valid]], mount)[2])  # fmt: skip
+    d, r = travelled_at(t, stamps[valid])
+    assert np.array_equal(readings.distance_m, d)
+    assert np.array_equal(readings.rotation_rad, r)
+
+
+def test_stamp_groups_of_nothing() -> None:
+    first, group = stamp_groups(np.zeros(0, dtype=np.int64))
+    assert first.shape == group.shape == (0,)
