@@ -11,9 +11,8 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from gridmap_cli.batch import Job, JobResult, run_job
 from gridmap_cli.errors import GridmapError, UsageError
 from gridmap_cli.fuse import (
     FuseJob,
@@ -26,17 +25,22 @@ from gridmap_cli.fuse import (
     tree_pairs,
 )
 
+if TYPE_CHECKING:  # batch (hashlib, its job bookkeeping) loads only when a batch runs
+    from gridmap_cli.batch import Job, JobResult
+
 EXECUTORS = ("local", "dask")
 DASK_INSTALL = "pip install 'gridmap-cli[dask]'"
 #: How long to wait for the Dask scheduler before giving up (a Dask duration).
 DASK_CONNECT_TIMEOUT = "10s"
 
-Submit = Callable[[Sequence[Job]], Iterator[JobResult]]
+Submit = Callable[[Sequence["Job"]], Iterator["JobResult"]]
 
 
 def lost(job: Job, exc: BaseException) -> JobResult:
     """The result of a job whose process died before it could report (run_job never raises):
     failed, so the batch goes on and the report says so."""
+    from gridmap_cli.batch import JobResult
+
     return JobResult(
         log=str(job.log),
         map=str(job.output),
@@ -48,6 +52,8 @@ def lost(job: Job, exc: BaseException) -> JobResult:
 
 def inline(jobs: Sequence[Job]) -> Iterator[JobResult]:
     """Run the jobs one after the other in this process."""
+    from gridmap_cli.batch import run_job
+
     for job in jobs:
         yield run_job(job)
 
@@ -59,6 +65,8 @@ def local_processes(workers: int) -> Submit:
         if workers <= 1 or len(jobs) <= 1:
             yield from inline(jobs)
             return
+        from gridmap_cli.batch import run_job
+
         with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
             futures = {pool.submit(run_job, job): job for job in jobs}
             for future in as_completed(futures):
@@ -105,6 +113,8 @@ def dask_cluster(address: str) -> Submit:
 
     def submit(jobs: Sequence[Job]) -> Iterator[JobResult]:
         from distributed import as_completed as dask_completed
+
+        from gridmap_cli.batch import run_job
 
         client = dask_client(address)
         try:

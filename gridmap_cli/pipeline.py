@@ -26,8 +26,6 @@ from gridmap_cli.grid import (
     OccupancyMap,
 )
 from gridmap_cli.models.error_aware import ErrorAwareParams, ErrorAwareSonarModel, OdometrySpread
-from gridmap_cli.models.error_aware_mixed import ErrorAwareMixedModel
-from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
 from gridmap_cli.models.ray import RayModel, RayParams
 from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
 from gridmap_cli.odometry_error import travelled
@@ -288,6 +286,9 @@ def _error_aware_model(
     )
     if not any_ray:
         return sonar
+    from gridmap_cli.models.error_aware_mixed import ErrorAwareMixedModel
+    from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
+
     ray = ErrorAwareRayModel(
         options.error_aware,
         options.odometry_error,

@@ -211,7 +211,7 @@ def _dies_on_hall(job: Job) -> JobResult:
 def test_a_worker_that_dies_fails_its_log_and_the_batch_goes_on(
     logs: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("gridmap_cli.executors.run_job", _dies_on_hall)
+    monkeypatch.setattr("gridmap_cli.batch.run_job", _dies_on_hall)  # executors look it up there
     out = tmp_path / "maps"
     code, _, _ = run("batch", str(logs / "hall.csv"), str(logs / "corridor_loop.csv"),
                      "-o", str(out), "--jobs", "2")  # fmt: skip

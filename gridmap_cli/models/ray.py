@@ -255,7 +255,8 @@ def accumulate_rays(grid: LogOddsAccumulator, seg: RaySegments, l_free: float, l
     _, v1 = _grid_units(grid.spec, seg.x1_m, seg.y1_m)
     cum_rows = np.cumsum(np.abs(np.floor(v1) - np.floor(v0)) + 1.0)
     marks = np.arange(1, int(cum_rows[-1]) // _ROWS_PER_CHUNK + 1) * float(_ROWS_PER_CHUNK)
-    cuts = np.unique(np.searchsorted(cum_rows, marks)).tolist()
+    at = np.searchsorted(cum_rows, marks)  # sorted: drop repeats without np.unique (numpy.ma)
+    cuts = at[np.concatenate([[True], at[1:] != at[:-1]])].tolist() if at.size else []
     updates = 0
     for lo, hi in itertools.pairwise([0, *cuts, n]):
         if hi > lo:
