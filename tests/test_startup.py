@@ -39,6 +39,13 @@ def test_a_csv_build_imports_no_decoder_plotting_or_scipy(tmp_path: Path) -> Non
     loaded = {m.split(".")[0] for m in modules} & set(HEAVY)
     assert not loaded
     assert not {m for m in modules if m.startswith(("gridmap_cli.readers.ros", "gridmap_cli.sim"))}
+    # nor what only batch runs, error-aware lasers or --draw-path use, nor numpy.ma (np.unique
+    # loads it); the compiled kernels are there
+    assert not modules & {
+        "gridmap_cli.batch", "gridmap_cli.models.error_aware_ray", "gridmap_cli.scan_match",
+        "gridmap_cli.writers.preview", "numpy.ma",
+    }  # fmt: skip
+    assert "gridmap_cli.models._ckernels" in modules
 
 
 def test_version_imports_no_command() -> None:

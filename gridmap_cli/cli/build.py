@@ -48,18 +48,10 @@ from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, MAP_MODES, check_map_outputs, write_map
-from gridmap_cli.writers.preview import (
-    ODOMETRY_RGB,
-    REFERENCE_RGB,
-    SCAN_MATCHED_RGB,
-    DrawnTrack,
-    drawn,
-    placed_at,
-    write_preview,
-)
 
 if TYPE_CHECKING:
     from gridmap_cli.scan_match import ScanMatch
+    from gridmap_cli.writers.preview import DrawnTrack
 
 
 @click.command()
@@ -359,6 +351,8 @@ def build(
             force=force,
         )  # fmt: skip
     if preview is not None:
+        from gridmap_cli.writers.preview import write_preview  # only --draw-path draws
+
         write_preview(preview, result.map, _tracks(whole, data, pose))
     elapsed = time.perf_counter() - started
     summary = _summary(result, image_path, yaml_path, elapsed, occupied, free)
@@ -375,6 +369,14 @@ def build(
 def _tracks(whole: RangeLog, mapped: RangeLog, pose: str) -> list[DrawnTrack]:
     """The track the map was built with, where it is, and the log's other tracks (odometry,
     reference) placed on it by their first common pose."""
+    from gridmap_cli.writers.preview import (
+        ODOMETRY_RGB,
+        REFERENCE_RGB,
+        SCAN_MATCHED_RGB,
+        drawn,
+        placed_at,
+    )
+
     if pose == "odometry":
         others = [(whole.truth, REFERENCE_RGB)]
         colour = ODOMETRY_RGB
