@@ -19,8 +19,6 @@ from typing import Any
 from mcap.decoder import DecoderFactory as McapDecoderFactory
 from mcap.records import Channel, Schema
 from mcap.records import Message as McapMessage
-from mcap_ros1.decoder import DecoderFactory as Ros1DecoderFactory
-from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.readers.mcap_bulk import Batch, bulk_enabled, indexed_messages, read_bulk
@@ -73,11 +71,11 @@ class McapSource:
         """The topics whose messages can be decoded in bulk (:mod:`~gridmap_cli.readers.
         mcap_bulk`), decoded; and the topics left for :meth:`messages`."""
         path = self.path
-        factories = _factories()
         decoders: dict[int, Callable[[bytes], Any]] = {}
 
         def decoder_for(channel: Channel, schema: Schema | None) -> Callable[[bytes], Any]:
             if channel.id not in decoders:
+                factories = _factories(channel.message_encoding)
                 decoders[channel.id] = _decoder(path, factories, channel, schema)
             return decoders[channel.id]
 
@@ -101,7 +99,6 @@ class McapSource:
             return  # every topic read in bulk: nothing to walk the chunks for
         path = self.path
         wanted = set(topics)
-        factories = _factories()
         decoders: dict[int, Callable[[bytes], Any]] = {}
         seen: Counter[str] = Counter()  # messages of each topic so far: names a bad one
         name = str(path)
@@ -126,6 +123,7 @@ class McapSource:
                         continue
                     decoder = decoders.get(channel.id)
                     if decoder is None:
+                        factories = _factories(channel.message_encoding)
                         decoder = decoders[channel.id] = _decoder(path, factories, channel, schema)
                     decoded = _decode(path, decoder, channel, type_name, index, message.log_time,
                                       message.data)  # fmt: skip
@@ -161,7 +159,22 @@ def read_mcap(
     return read_recording([McapSource(Path(source))], options, strict, every_topic)
 
 
-def _factories() -> list[McapDecoderFactory]:
+def _factories(encoding: str | None = None) -> list[McapDecoderFactory]:
+    """The decoder factories, or only the one for a channel's ``encoding`` (a JSON recording
+    then loads no ROS decoder, a ROS 2 one no ROS 1 decoder)."""
+    if encoding == "json":
+        return [JsonDecoderFactory()]
+    if encoding == "ros1":
+        from mcap_ros1.decoder import DecoderFactory as Ros1DecoderFactory
+
+        return [Ros1DecoderFactory()]
+    if encoding == "cdr":
+        from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
+
+        return [Ros2DecoderFactory()]
+    from mcap_ros1.decoder import DecoderFactory as Ros1DecoderFactory
+    from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
+
     return [Ros1DecoderFactory(), Ros2DecoderFactory(), JsonDecoderFactory()]
 
 
