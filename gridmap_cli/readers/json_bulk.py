@@ -140,8 +140,10 @@ def _window(at: Arr, word: npt.NDArray[np.uint64], width: int) -> npt.NDArray[np
 
 
 def _stop(window: npt.NDArray[np.uint8]) -> Arr:
-    """The place of the first " , or } in each row of ``window`` (-1 if none), (N,)."""
-    stop = (window == 0x22) | (window == 0x2C) | (window == 0x7D)
+    """The place of the first " , } or NUL in each row of ``window`` (-1 if none), (N,). A NUL
+    ends a field so that the text after it must be the next literal: the automaton would take
+    it for the zeros after a number."""
+    stop = (window == 0x22) | (window == 0x2C) | (window == 0x7D) | (window == 0)
     first = stop.argmax(axis=1)
     return np.where(stop[np.arange(len(first)), first], first, -1)
 

@@ -194,6 +194,7 @@ def test_compact_layout_values() -> None:
         compact_reading("1", "5", "s0", "+1"),
         compact_reading("1", "5", "s0", "1e"),
         compact_reading("1", "5", "s0", "nan"),
+        compact_reading("1", "5", "s0", "1.5\x00"),  # json stops at a NUL
         compact_reading("1", "5", "s\\u0030", "1"),  # an escape
         compact_reading("1", "5", "s,0", "1"),
         compact_reading("1234567890", "5", "s0", "1"),  # beyond 9 digits
