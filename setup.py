@@ -1,9 +1,10 @@
 """The one thing pyproject.toml cannot say: gridmap's compiled inner loops (issue 10).
 
 Two small C extensions (plain CPython API and the buffer protocol, no numpy headers): the
-mapping kernels of the sonar cone, the error-aware cone and the ray model, and the record walks
-of the MCAP and bag integrity checks. Both are optional: where no C compiler is at hand, the
-install still succeeds and the numpy / Python reference paths do the work
+mapping kernels of the sonar cone, the error-aware cone and the ray model; the record walks of
+the MCAP and bag integrity checks and the matcher of gridmap's compact JSON messages. Both are
+optional: where no C compiler is at hand, the install still succeeds and the numpy / Python
+reference paths do the work
 (gridmap_cli/models/kernels.py and gridmap_cli/readers/walk.py choose).
 """
 
@@ -19,9 +20,11 @@ setup(
             optional=True,
         ),
         # the MCAP and ROS 1 bag integrity checks' per-record walks (gridmap_cli/readers/walk.py)
+        # and the matcher of gridmap's compact JSON messages (gridmap_cli/readers/json_bulk.py)
         Extension(
             "gridmap_cli.readers._cwalk",
-            sources=["gridmap_cli/readers/_cwalk.c"],
+            sources=["gridmap_cli/readers/_cwalk.c", "gridmap_cli/readers/_cjson.c"],
+            depends=["gridmap_cli/readers/_cjson.h"],
             extra_compile_args=["-O2"],
             optional=True,
         ),

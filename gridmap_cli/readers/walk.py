@@ -5,6 +5,9 @@ whether a chunk is sound and where its first unsound record is; the Python walks
 reference, then word the error, so messages are the same with or without the extension. Like
 the mapping kernels (:mod:`gridmap_cli.models.kernels`), the extension is optional at install
 time, and ``GRIDMAP_KERNELS=numpy`` makes the Python reference do every walk.
+
+The extension also matches gridmap's compact JSON messages (``_cjson.c``, for
+:mod:`~gridmap_cli.readers.json_bulk`), where the numpy matcher stays the reference.
 """
 
 from __future__ import annotations

@@ -22,6 +22,14 @@ from tests.readers.test_mcap_bulk import ROOT, assert_same, both
 TOPICS = ["/sensors", "/odom", "/ground_truth", "/range"]
 
 
+@pytest.fixture(params=["numpy", "compiled"])
+def kernels(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
+    """The compact layout matched by the numpy matcher (the reference), or by the compiled one
+    (gridmap_cli/readers/_cjson.c, built by the dev install)."""
+    monkeypatch.setenv("GRIDMAP_KERNELS", request.param)
+    return str(request.param)
+
+
 def write_log(path: Path, odom: list[bytes], ranges: list[bytes], chunk_size: int = 1024) -> Path:
     """A gridmap JSON log (schemas/mcap-log.md) with the given message texts, stamped 0.1 s
     apart; small chunks, so a channel spans several."""
@@ -104,7 +112,7 @@ def test_bundled_json_sample(monkeypatch: pytest.MonkeyPatch) -> None:
 
 @pytest.mark.parametrize("compact", [True, False])
 def test_bulk_equals_message_by_message(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, compact: bool
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, compact: bool, kernels: str
 ) -> None:
     path = busy(tmp_path / "busy.mcap", compact)
     _, left = McapSource(path).bulk(TOPICS)
@@ -170,7 +178,7 @@ def compact_reading(sec: str, nsec: str, sensor: str, value: str) -> bytes:
     return f'{stamp},"sensor":"{sensor}","range":{value}}}'.encode()
 
 
-def test_compact_layout_values() -> None:
+def test_compact_layout_values(kernels: str) -> None:
     texts = [
         compact_reading("1", "5", "s0", "NaN"),
         compact_reading("-12", "999999999", "a-b", "2"),
@@ -194,6 +202,7 @@ def test_compact_layout_values() -> None:
         compact_reading("1", "5", "s0", "+1"),
         compact_reading("1", "5", "s0", "1e"),
         compact_reading("1", "5", "s0", "nan"),
+        compact_reading("1", "5", "s0", "1.5\x00"),  # json stops at a NUL
         compact_reading("1", "5", "s\\u0030", "1"),  # an escape
         compact_reading("1", "5", "s,0", "1"),
         compact_reading("1234567890", "5", "s0", "1"),  # beyond 9 digits
@@ -201,12 +210,12 @@ def test_compact_layout_values() -> None:
         b'{"timestamp":{"nsec":5,"sec":1},"sensor":"s0","range":1}',
     ],
 )
-def test_other_layouts_are_not_compact(odd: bytes) -> None:
+def test_other_layouts_are_not_compact(odd: bytes, kernels: str) -> None:
     texts = [compact_reading("1", "5", "s0", "1"), odd]
     assert json_bulk._compact("gridmap.RangeReading", raw_of(texts)) is None
 
 
-def test_compact_numbers_are_the_floats_json_gives() -> None:
+def test_compact_numbers_are_the_floats_json_gives(kernels: str) -> None:
     """Every number as ``json.loads`` reads it, to the bit (the sign of zero included)."""
     spellings = ["0", "-0", "-0.0", "0.1", "1e5", "1E-300", "4.9e-324", "2.2250738585072011e-308",
                  "1.7976931348623157e308", "0.10000000000000000555", "-12.5e+3",
