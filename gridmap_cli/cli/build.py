@@ -29,7 +29,7 @@ from gridmap_cli.cli.common import (
 from gridmap_cli.errors import UsageError
 from gridmap_cli.executors import EXECUTORS, check_dask, fuse_dask, fuse_local
 from gridmap_cli.fuse import FuseJob, Partial, fused_map, parse_initial_pose
-from gridmap_cli.heap import keep_scratch_memory, release_free_memory
+from gridmap_cli.heap import TRIM_EVERY_BATCHES, TrimEvery, keep_scratch_memory, release_free_memory
 from gridmap_cli.models.error_aware import ErrorAwareParams
 from gridmap_cli.models.standard import StandardSonarParams
 from gridmap_cli.odometry_error import OdometryError, load_odometry_error
@@ -330,7 +330,13 @@ def build(
         jobs=jobs,
     )
     with progress_bar(data.reading_count, quiet, "mapping") as bar:
-        result = build_map(data, robot_desc, options, bar.update, release_free_memory)
+        trim = TrimEvery(TRIM_EVERY_BATCHES)
+
+        def mapped(readings: int) -> None:
+            bar.update(readings)
+            trim()
+
+        result = build_map(data, robot_desc, options, mapped, release_free_memory)
     if mode == "error-aware" and map_mode == "trinary" and not to_mcap:
         warn(undecided_note(result.map.prob, occupied, free), quiet)
     yaml_path: Path | None
