@@ -309,105 +309,6 @@ done:
     return result;
 }
 
-/* ---- the error-aware sonar cone (error_aware.py ErrorAwareSonarModel.runs, add_runs) -- */
-
-/* One trust class's readings: the echo ring (free_m, look_m] of the wide wedge (the wide disk
- * of look_m, +1, less that of free_m, -1, over the ring's rows), looked at with the reading's
- * weight and hit with weight * hit; and the narrow wedge up to free_m (+1), looked through.
- * The runs go in the reference's order: every part's starts, part by part, then the ends. */
-static PyObject *spread_batch(PyObject *self, PyObject *args)
-{
-    (void)self;
-    double ox, oy, res;
-    int64_t width, height;
-    PyObject *o[21];
-    if (!PyArg_ParseTuple(args, "dddLLOOOOOOOOOOOOOOOOOOOOO", &ox, &oy, &res, &width, &height,
-                          &o[0], &o[1], &o[2], &o[3], &o[4], &o[5], &o[6], &o[7], &o[8], &o[9],
-                          &o[10], &o[11], &o[12], &o[13], &o[14], &o[15], &o[16], &o[17],
-                          &o[18], &o[19], &o[20]))
-        return NULL;
-    Buf b[21] = {0};
-    PyObject *result = NULL;
-    Delta looks = {0}, hits = {0};
-    int64_t stride = width + 1;
-    if (take(o[0], &b[0], -1, 0, "x") != 0)
-        goto done;
-    Py_ssize_t m = b[0].view.len / 8;
-    static const char *names[] = {"x",       "y",       "wide_sin_r", "wide_cos_r",
-                                  "wide_sin_l", "wide_cos_l", "wide_j0", "wide_counts",
-                                  "narrow_sin_r", "narrow_cos_r", "narrow_sin_l",
-                                  "narrow_cos_l", "narrow_j0", "narrow_counts", "look_m",
-                                  "free_m",  "weight",  "hit"};
-    for (int i = 1; i < 18; i++)
-        if (take(o[i], &b[i], m, 0, names[i]) != 0)
-            goto done;
-    if (take(o[18], &b[18], height * stride, 1, "look_sums") != 0 ||
-        take(o[19], &b[19], height * stride, 1, "hit_sums") != 0 ||
-        take(o[20], &b[20], height * stride, 1, "seen_sums") != 0)
-        goto done;
-    const double *x = F64(b[0]), *y = F64(b[1]);
-    const double *trig[2][4] = {{F64(b[2]), F64(b[3]), F64(b[4]), F64(b[5])},
-                                {F64(b[8]), F64(b[9]), F64(b[10]), F64(b[11])}};
-    const int64_t *j0[2] = {I64(b[6]), I64(b[12])}, *counts[2] = {I64(b[7]), I64(b[13])};
-    const double *look_m = F64(b[14]), *free_m = F64(b[15]), *weight = F64(b[16]),
-                 *hit = F64(b[17]);
-    double *look_sums = (double *)b[18].view.buf, *hit_sums = (double *)b[19].view.buf;
-    int64_t *seen_sums = (int64_t *)b[20].view.buf;
-
-    int64_t base[2], size[2], rows[2];
-    for (int w = 0; w < 2; w++)
-        row_range(j0[w], counts[w], m, stride, &base[w], &size[w], &rows[w]);
-    int64_t lo_at = base[0], hi_at = base[0] + size[0];
-    if (size[0] == 0 || (size[1] > 0 && base[1] < lo_at))
-        lo_at = base[1];
-    if (size[0] == 0 || (size[1] > 0 && base[1] + size[1] > hi_at))
-        hi_at = base[1] + size[1];
-    if (size[0] == 0 && size[1] == 0)
-        lo_at = hi_at = 0;
-    int64_t max_runs = 2 * rows[0] + rows[1];
-    if (delta_open(&looks, 0, lo_at, hi_at - lo_at, max_runs) != 0 ||
-        delta_open(&hits, 1, lo_at, hi_at - lo_at, max_runs) != 0)
-        goto done;
-
-    /* part: (wedge, radius, sign, in the ring) */
-    static const int part_wedge[3] = {0, 0, 1}, part_sign[3] = {1, -1, 1};
-    static const int part_ring[3] = {1, 1, 0};
-    long long cells = 0;
-    for (int p = 0; p < 3; p++) {
-        int w = part_wedge[p];
-        const double *radius = p == 0 ? look_m : free_m;
-        for (Py_ssize_t i = 0; i < m; i++) {
-            if (counts[w][i] <= 0)
-                continue;
-            double look = part_sign[p] * weight[i];
-            double hit_mass = look * hit[i];
-            for (int64_t k = 0; k < counts[w][i]; k++) {
-                int64_t row = j0[w][i] + k;
-                double dy = oy + ((double)row + 0.5) * res - y[i];
-                double lo, hi;
-                int64_t c0, c1;
-                wedge(trig[w][0][i], trig[w][1][i], trig[w][2][i], trig[w][3][i], dy, &lo, &hi);
-                if (!span(lo, hi, dy, radius[i], x[i], ox, res, width, &c0, &c1))
-                    continue;
-                int64_t at = row * stride;
-                seen_sums[at + c0] += part_sign[p];
-                seen_sums[at + c1 + 1] -= part_sign[p];
-                delta_run(&looks, at + c0, at + c1 + 1, look);
-                if (part_ring[p])
-                    delta_run(&hits, at + c0, at + c1 + 1, hit_mass);
-                if (p == 0)
-                    cells += c1 - c0 + 1;
-            }
-        }
-    }
-    delta_close(&looks, look_sums);
-    delta_close(&hits, hit_sums);
-    result = PyLong_FromLongLong(cells);
-done:
-    release(b, 21);
-    return result;
-}
-
 /* ---- the ray model's free runs (ray.py row_runs) ------------------------------------- */
 
 /* What ray.py's RayRows holds, per segment. */
@@ -518,109 +419,256 @@ done:
     return result;
 }
 
-/* ---- the error-aware laser (error_aware_ray.py ErrorAwareRayModel.runs, add_runs) ----- */
+/* ---- error-aware evidence (error_aware.py, error_aware_ray.py, error_aware_mixed.py) --- */
 
-/* One trust class's laser readings: the free segment along each beam (looked through with
- * the reading's weight), then the hit ring of each echo (free_m < r <= look_m of the wedge:
- * the disk of look_m, +1, less that of ring_in_m, -1), looked at with ring_look and hit with
- * ring_hit. The reference's order: every part's starts, part by part, then the ends. */
-static PyObject *spread_ray_batch(PyObject *self, PyObject *args)
-{
-    (void)self;
+/* One trust class's readings go into the looks, hits and seen difference arrays, as the
+ * reference's runs for that class: the sonar readings' parts, then the laser readings' parts
+ * (error_aware_mixed.py concatenates the two models' runs in that order), every part's starts,
+ * part by part, then the ends, in one delta per array. */
+
+typedef struct {
     double ox, oy, res;
-    int64_t width, height;
+    int64_t width, height, stride;
+} Grid;
+
+enum { SONAR_ARRAYS = 18, LASER_ARRAYS = 21 };
+
+/* The sonar readings: the echo ring (free_m, look_m] of the wide wedge (the disk of look_m,
+ * +1, less that of free_m, -1, over the ring's rows), looked at with the reading's weight and
+ * hit with weight * hit; and the narrow wedge up to free_m (+1), looked through. */
+typedef struct {
+    Buf b[SONAR_ARRAYS];
+    Py_ssize_t m;
+} Sonar;
+
+static const char *const SONAR_NAMES[SONAR_ARRAYS] = {
+    "x", "y", "wide_sin_r", "wide_cos_r", "wide_sin_l", "wide_cos_l", "wide_j0", "wide_counts",
+    "narrow_sin_r", "narrow_cos_r", "narrow_sin_l", "narrow_cos_l", "narrow_j0",
+    "narrow_counts", "look_m", "free_m", "weight", "hit"};
+
+/* The laser readings: the free segment along each beam (looked through with the reading's
+ * weight), then the hit ring of each echo (the disk of look_m, +1, less that of ring_in_m,
+ * -1), looked at with ring_look and hit with ring_hit. */
+typedef struct {
+    Buf b[LASER_ARRAYS];
+    Py_ssize_t m;
     int clip;
-    PyObject *o[24];
-    if (!PyArg_ParseTuple(args, "dddLLOOOOOOOOpOOOOOOOOOOOOOOOO", &ox, &oy, &res, &width,
-                          &height, &o[0], &o[1], &o[2], &o[3], &o[4], &o[5], &o[6], &o[7],
-                          &clip, &o[8], &o[9], &o[10], &o[11], &o[12], &o[13], &o[14], &o[15],
-                          &o[16], &o[17], &o[18], &o[19], &o[20], &o[21], &o[22], &o[23]))
-        return NULL;
-    Buf b[24] = {0};
-    PyObject *result = NULL;
-    Delta looks = {0}, hits = {0};
-    int64_t stride = width + 1;
-    if (take(o[0], &b[0], -1, 0, "ra") != 0)
-        goto done;
-    Py_ssize_t m = b[0].view.len / 8;
-    static const char *names[] = {
-        "ra",    "rb",    "p_lo", "counts",      "off",    "slope",     "ua",        "ub",
-        "free_look", "x", "y",    "sin_r",       "cos_r",  "sin_l",     "cos_l",     "j0",
-        "ring_counts", "look_m",  "ring_in_m",   "ring_look", "ring_hit"};
-    for (int i = 1; i < 21; i++)
-        if (take(o[i], &b[i], m, 0, names[i]) != 0)
-            goto done;
-    if (take(o[21], &b[21], height * stride, 1, "look_sums") != 0 ||
-        take(o[22], &b[22], height * stride, 1, "hit_sums") != 0 ||
-        take(o[23], &b[23], height * stride, 1, "seen_sums") != 0)
-        goto done;
-    RayRows r = {I64(b[0]), I64(b[1]), I64(b[2]), I64(b[3]),
-                 F64(b[4]), F64(b[5]), F64(b[6]), F64(b[7])};
-    const double *free_look = F64(b[8]), *x = F64(b[9]), *y = F64(b[10]), *sin_r = F64(b[11]),
-                 *cos_r = F64(b[12]), *sin_l = F64(b[13]), *cos_l = F64(b[14]),
-                 *look_m = F64(b[17]), *ring_in_m = F64(b[18]), *ring_look = F64(b[19]),
-                 *ring_hit = F64(b[20]);
-    const int64_t *j0 = I64(b[15]), *ring_counts = I64(b[16]);
-    double *look_sums = (double *)b[21].view.buf, *hit_sums = (double *)b[22].view.buf;
-    int64_t *seen_sums = (int64_t *)b[23].view.buf;
+} Laser;
 
-    int64_t free_base, free_size, free_runs, ring_base, ring_size, ring_rows;
-    ray_range(&r, m, stride, &free_base, &free_size, &free_runs);
-    row_range(j0, ring_counts, m, stride, &ring_base, &ring_size, &ring_rows);
-    int64_t lo_at = free_base, hi_at = free_base + free_size;
-    if (free_size == 0 || (ring_size > 0 && ring_base < lo_at))
-        lo_at = ring_base;
-    if (free_size == 0 || (ring_size > 0 && ring_base + ring_size > hi_at))
-        hi_at = ring_base + ring_size;
-    if (free_size == 0 && ring_size == 0)
-        lo_at = hi_at = 0;
-    if (delta_open(&looks, 0, lo_at, hi_at - lo_at, free_runs + 2 * ring_rows) != 0 ||
-        delta_open(&hits, 1, lo_at, hi_at - lo_at, 2 * ring_rows) != 0)
-        goto done;
+static const char *const LASER_NAMES[LASER_ARRAYS] = {
+    "ra", "rb", "p_lo", "counts", "off", "slope", "ua", "ub", "free_look", "x", "y", "sin_r",
+    "cos_r", "sin_l", "cos_l", "j0", "ring_counts", "look_m", "ring_in_m", "ring_look",
+    "ring_hit"};
 
+/* Take a tuple of `count` arrays of one length (the first's). */
+static int take_set(PyObject *tuple, Buf *b, int count, const char *const *names,
+                    Py_ssize_t *m)
+{
+    if (!PyTuple_Check(tuple) || PyTuple_GET_SIZE(tuple) != count) {
+        PyErr_Format(PyExc_ValueError, "expected a tuple of %d arrays", count);
+        return -1;
+    }
+    if (take(PyTuple_GET_ITEM(tuple, 0), &b[0], -1, 0, names[0]) != 0)
+        return -1;
+    *m = b[0].view.len / 8;
+    for (int i = 1; i < count; i++)
+        if (take(PyTuple_GET_ITEM(tuple, i), &b[i], *m, 0, names[i]) != 0)
+            return -1;
+    return 0;
+}
+
+/* Widen [lo, hi) to hold [base, base + size). */
+static void widen(int64_t *lo, int64_t *hi, int64_t base, int64_t size)
+{
+    if (size <= 0)
+        return;
+    if (*hi <= *lo) {
+        *lo = base;
+        *hi = base + size;
+        return;
+    }
+    if (base < *lo)
+        *lo = base;
+    if (base + size > *hi)
+        *hi = base + size;
+}
+
+static void sonar_extent(const Sonar *s, const Grid *g, int64_t *lo, int64_t *hi,
+                         int64_t *look_runs, int64_t *hit_runs)
+{
+    for (int w = 0; w < 2; w++) {
+        int64_t base, size, rows;
+        row_range(I64(s->b[6 + 6 * w]), I64(s->b[7 + 6 * w]), s->m, g->stride, &base, &size,
+                  &rows);
+        widen(lo, hi, base, size);
+        *look_runs += w == 0 ? 2 * rows : rows;
+        *hit_runs += w == 0 ? 2 * rows : 0;
+    }
+}
+
+static long long sonar_add(const Sonar *s, const Grid *g, Delta *looks, Delta *hits,
+                           int64_t *seen_sums)
+{
+    const double *x = F64(s->b[0]), *y = F64(s->b[1]);
+    const double *trig[2][4] = {{F64(s->b[2]), F64(s->b[3]), F64(s->b[4]), F64(s->b[5])},
+                                {F64(s->b[8]), F64(s->b[9]), F64(s->b[10]), F64(s->b[11])}};
+    const int64_t *j0[2] = {I64(s->b[6]), I64(s->b[12])};
+    const int64_t *counts[2] = {I64(s->b[7]), I64(s->b[13])};
+    const double *look_m = F64(s->b[14]), *free_m = F64(s->b[15]), *weight = F64(s->b[16]),
+                 *hit = F64(s->b[17]);
+    /* part: (wedge, radius, sign, in the ring) */
+    static const int part_wedge[3] = {0, 0, 1}, part_sign[3] = {1, -1, 1};
+    static const int part_ring[3] = {1, 1, 0};
     long long cells = 0;
-    for (Py_ssize_t i = 0; i < m; i++) {
+    for (int p = 0; p < 3; p++) {
+        int w = part_wedge[p];
+        const double *radius = p == 0 ? look_m : free_m;
+        for (Py_ssize_t i = 0; i < s->m; i++) {
+            if (counts[w][i] <= 0)
+                continue;
+            double look = part_sign[p] * weight[i];
+            double hit_mass = look * hit[i];
+            for (int64_t k = 0; k < counts[w][i]; k++) {
+                int64_t row = j0[w][i] + k;
+                double dy = g->oy + ((double)row + 0.5) * g->res - y[i];
+                double lo, hi;
+                int64_t c0, c1;
+                wedge(trig[w][0][i], trig[w][1][i], trig[w][2][i], trig[w][3][i], dy, &lo, &hi);
+                if (!span(lo, hi, dy, radius[i], x[i], g->ox, g->res, g->width, &c0, &c1))
+                    continue;
+                int64_t at = row * g->stride;
+                seen_sums[at + c0] += part_sign[p];
+                seen_sums[at + c1 + 1] -= part_sign[p];
+                delta_run(looks, at + c0, at + c1 + 1, look);
+                if (part_ring[p])
+                    delta_run(hits, at + c0, at + c1 + 1, hit_mass);
+                if (p == 0)
+                    cells += c1 - c0 + 1;
+            }
+        }
+    }
+    return cells;
+}
+
+static RayRows laser_rows(const Laser *l)
+{
+    RayRows r = {I64(l->b[0]), I64(l->b[1]), I64(l->b[2]), I64(l->b[3]),
+                 F64(l->b[4]), F64(l->b[5]), F64(l->b[6]), F64(l->b[7])};
+    return r;
+}
+
+static void laser_extent(const Laser *l, const Grid *g, int64_t *lo, int64_t *hi,
+                         int64_t *look_runs, int64_t *hit_runs)
+{
+    RayRows r = laser_rows(l);
+    int64_t base, size, runs;
+    ray_range(&r, l->m, g->stride, &base, &size, &runs);
+    widen(lo, hi, base, size);
+    *look_runs += runs;
+    row_range(I64(l->b[15]), I64(l->b[16]), l->m, g->stride, &base, &size, &runs);
+    widen(lo, hi, base, size);
+    *look_runs += 2 * runs;
+    *hit_runs += 2 * runs;
+}
+
+static long long laser_add(const Laser *l, const Grid *g, Delta *looks, Delta *hits,
+                           int64_t *seen_sums)
+{
+    RayRows r = laser_rows(l);
+    const double *free_look = F64(l->b[8]), *x = F64(l->b[9]), *y = F64(l->b[10]),
+                 *sin_r = F64(l->b[11]), *cos_r = F64(l->b[12]), *sin_l = F64(l->b[13]),
+                 *cos_l = F64(l->b[14]), *look_m = F64(l->b[17]), *ring_in_m = F64(l->b[18]),
+                 *ring_look = F64(l->b[19]), *ring_hit = F64(l->b[20]);
+    const int64_t *j0 = I64(l->b[15]), *ring_counts = I64(l->b[16]);
+    long long cells = 0;
+    for (Py_ssize_t i = 0; i < l->m; i++) {
         for (int64_t p = r.p_lo[i]; p < r.p_lo[i] + r.counts[i]; p++) {
             int64_t col0, col1;
-            if (!ray_run(&r, i, p, clip, width, &col0, &col1))
+            if (!ray_run(&r, i, p, l->clip, g->width, &col0, &col1))
                 continue;
-            int64_t at = (r.ra[i] + p) * stride;
+            int64_t at = (r.ra[i] + p) * g->stride;
             seen_sums[at + col0] += 1;
             seen_sums[at + col1 + 1] -= 1;
             cells += col1 - col0 + 1;
-            delta_run(&looks, at + col0, at + col1 + 1, free_look[i]);
+            delta_run(looks, at + col0, at + col1 + 1, free_look[i]);
         }
     }
     for (int part = 0; part < 2; part++) {
         const double *radius = part == 0 ? look_m : ring_in_m;
         int sign = part == 0 ? 1 : -1;
-        for (Py_ssize_t i = 0; i < m; i++) {
+        for (Py_ssize_t i = 0; i < l->m; i++) {
             if (ring_counts[i] <= 0)
                 continue;
             double look = part == 0 ? ring_look[i] : -ring_look[i];
             double hit = part == 0 ? ring_hit[i] : -ring_hit[i];
             for (int64_t k = 0; k < ring_counts[i]; k++) {
                 int64_t row = j0[i] + k;
-                double dy = oy + ((double)row + 0.5) * res - y[i];
+                double dy = g->oy + ((double)row + 0.5) * g->res - y[i];
                 double lo, hi;
                 int64_t c0, c1;
                 wedge(sin_r[i], cos_r[i], sin_l[i], cos_l[i], dy, &lo, &hi);
-                if (!span(lo, hi, dy, radius[i], x[i], ox, res, width, &c0, &c1))
+                if (!span(lo, hi, dy, radius[i], x[i], g->ox, g->res, g->width, &c0, &c1))
                     continue;
-                int64_t at = row * stride;
+                int64_t at = row * g->stride;
                 seen_sums[at + c0] += sign;
                 seen_sums[at + c1 + 1] -= sign;
                 cells += sign * (c1 - c0 + 1);
-                delta_run(&looks, at + c0, at + c1 + 1, look);
-                delta_run(&hits, at + c0, at + c1 + 1, hit);
+                delta_run(looks, at + c0, at + c1 + 1, look);
+                delta_run(hits, at + c0, at + c1 + 1, hit);
             }
         }
     }
-    delta_close(&looks, look_sums);
-    delta_close(&hits, hit_sums);
+    return cells;
+}
+
+/* spread_batch(ox, oy, res, width, height, sonar, laser, clip, looks, hits, seen): sonar and
+ * laser are tuples of their arrays (SONAR_NAMES, LASER_NAMES) or None; returns the cell
+ * updates. */
+static PyObject *spread_batch(PyObject *self, PyObject *args)
+{
+    (void)self;
+    Grid g;
+    PyObject *sonar_arrays, *laser_arrays, *o[3];
+    int clip;
+    if (!PyArg_ParseTuple(args, "dddLLOOpOOO", &g.ox, &g.oy, &g.res, &g.width, &g.height,
+                          &sonar_arrays, &laser_arrays, &clip, &o[0], &o[1], &o[2]))
+        return NULL;
+    g.stride = g.width + 1;
+    Sonar sonar = {0};
+    Laser laser = {0};
+    Buf sums[3] = {0};
+    PyObject *result = NULL;
+    Delta looks = {0}, hits = {0};
+    int has_sonar = sonar_arrays != Py_None, has_laser = laser_arrays != Py_None;
+    laser.clip = clip;
+    if ((has_sonar && take_set(sonar_arrays, sonar.b, SONAR_ARRAYS, SONAR_NAMES, &sonar.m)) ||
+        (has_laser && take_set(laser_arrays, laser.b, LASER_ARRAYS, LASER_NAMES, &laser.m)))
+        goto done;
+    static const char *const sum_names[3] = {"look_sums", "hit_sums", "seen_sums"};
+    for (int i = 0; i < 3; i++)
+        if (take(o[i], &sums[i], g.height * g.stride, 1, sum_names[i]) != 0)
+            goto done;
+    int64_t lo = 0, hi = 0, look_runs = 0, hit_runs = 0;
+    if (has_sonar)
+        sonar_extent(&sonar, &g, &lo, &hi, &look_runs, &hit_runs);
+    if (has_laser)
+        laser_extent(&laser, &g, &lo, &hi, &look_runs, &hit_runs);
+    if (delta_open(&looks, 0, lo, hi - lo, look_runs) != 0 ||
+        delta_open(&hits, 1, lo, hi - lo, hit_runs) != 0)
+        goto done;
+    int64_t *seen = (int64_t *)sums[2].view.buf;
+    long long cells = 0;
+    if (has_sonar)
+        cells += sonar_add(&sonar, &g, &looks, &hits, seen);
+    if (has_laser)
+        cells += laser_add(&laser, &g, &looks, &hits, seen);
+    delta_close(&looks, (double *)sums[0].view.buf);
+    delta_close(&hits, (double *)sums[1].view.buf);
     result = PyLong_FromLongLong(cells);
 done:
-    release(b, 24);
+    release(sonar.b, SONAR_ARRAYS);
+    release(laser.b, LASER_ARRAYS);
+    release(sums, 3);
     return result;
 }
 
@@ -629,13 +677,10 @@ static PyMethodDef methods[] = {
      "One batch of nested sonar sectors into the running difference arrays; returns the "
      "outer sectors' cells."},
     {"spread_batch", spread_batch, METH_VARARGS,
-     "One trust class's error-aware sonar readings into the looks, hits and seen difference "
-     "arrays; returns the echo rings' cells."},
+     "One trust class's error-aware readings, sonar and laser, into the looks, hits and seen "
+     "difference arrays; returns the cell updates."},
     {"ray_batch", ray_batch, METH_VARARGS,
      "One chunk of rays' free runs into the running difference arrays; returns the cells."},
-    {"spread_ray_batch", spread_ray_batch, METH_VARARGS,
-     "One trust class's error-aware laser readings (free segments, hit rings) into the looks, "
-     "hits and seen difference arrays; returns the cell updates."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -21,6 +21,7 @@ from dataclasses import dataclass, fields
 from typing import Any, Protocol
 
 import numpy as np
+import numpy.typing as npt
 
 from gridmap_cli.grid import FrequencyAccumulator, GridSpec
 from gridmap_cli.models.kernels import compiled
@@ -180,35 +181,26 @@ class ErrorAwareSonarModel:
     def _accumulate_compiled(
         self, kernels: Any, grid: FrequencyAccumulator, readings: SensorReadings
     ) -> int:
-        """:meth:`runs` and :func:`add_runs` in one kernel call per trust class, in class
-        order; the same runs in the same order, so the same sums to the bit."""
+        """:meth:`runs` and :func:`add_runs` in one kernel call per trust class."""
+        return accumulate_sets(kernels, grid, self.params.redundant_looks, sonar=self.kernel_set(
+            grid.spec, readings))  # fmt: skip
+
+    def kernel_set(self, spec: GridSpec, readings: SensorReadings) -> KernelSet | None:
+        """The readings as the compiled kernel takes them (its ``SONAR_NAMES``), with their
+        trust classes; None when no reading is within the spread limit."""
         readings = within_spread(readings, self.odometry, self.params.max_heading_spread_rad)
         if len(readings) == 0:
-            return 0
+            return None
         ev = self.evidence(readings)
-        spec = grid.spec
         wide = sector_row_range(
             spec, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m, inner_m=ev.free_m
         )
         narrow = sector_row_range(spec, ev.y_m, ev.theta_rad, ev.free_half_width_rad, ev.free_m)
-        per_reading: list[F64 | I64] = [ev.x_m, ev.y_m]
+        arrays: list[F64 | I64] = [ev.x_m, ev.y_m]
         for j0, counts, right, left in (wide, narrow):
-            per_reading += [np.sin(right), np.cos(right), np.sin(left), np.cos(left), j0, counts]
-        per_reading += [ev.look_m, ev.free_m, ev.weight, ev.hit]
-        reading_class = trust_class(ev.weight)
-        classes = np.unique(reading_class)
-        updates = 0
-        for k in classes:
-            keep = slice(None) if len(classes) == 1 else reading_class == k
-            sums = grid.difference_arrays(cap=self.params.redundant_looks * 4.0 ** -float(k))
-            arrays = [np.ascontiguousarray(a[keep]) for a in per_reading]
-            updates += int(
-                kernels.spread_batch(
-                    spec.origin_x_m, spec.origin_y_m, spec.resolution_m, spec.width,
-                    spec.height, *arrays, *sums,
-                )
-            )  # fmt: skip
-        return updates
+            arrays += [np.sin(right), np.cos(right), np.sin(left), np.cos(left), j0, counts]
+        arrays += [ev.look_m, ev.free_m, ev.weight, ev.hit]
+        return KernelSet(trust_class(ev.weight), arrays)
 
     def runs(self, spec: GridSpec, readings: SensorReadings) -> tuple[WeightedRuns, int]:
         """The readings' weighted runs of cells, and the number of cell updates."""
@@ -238,6 +230,58 @@ class ErrorAwareSonarModel:
             ev.hit,
         )
         return runs, outer.cells()
+
+
+@dataclass(frozen=True)
+class KernelSet:
+    """One model's share of a batch as the compiled ``spread_batch`` takes it: per-reading
+    arrays in the kernel's order, each reading's trust class (M,), and for lasers whether runs
+    must be cut to the grid's columns."""
+
+    trust_class: I64
+    arrays: list[F64 | I64]
+    clip: bool = False
+
+    def of_class(self, k: int, only: bool) -> tuple[npt.NDArray[Any], ...] | None:
+        """The arrays of the readings of class ``k`` (all when ``only``), or None if none."""
+        if only:
+            return tuple(np.ascontiguousarray(a) for a in self.arrays)
+        keep = self.trust_class == k
+        if not keep.any():
+            return None
+        return tuple(np.ascontiguousarray(a[keep]) for a in self.arrays)
+
+
+def accumulate_sets(
+    kernels: Any,
+    grid: FrequencyAccumulator,
+    redundant_looks: float,
+    sonar: KernelSet | None = None,
+    laser: KernelSet | None = None,
+) -> int:
+    """Sonar and laser readings of one batch into ``grid``, one kernel call per trust class in
+    class order, class k capped at C * 4^-k looks (:func:`add_runs`): the reference's runs in
+    the reference's order (each class's sonar runs, then its laser runs, as
+    :class:`~gridmap_cli.models.error_aware_mixed.ErrorAwareMixedModel` concatenates them),
+    so the same sums to the bit. Returns the cell updates."""
+    sets = [x for x in (sonar, laser) if x is not None]
+    if not sets:
+        return 0
+    classes = np.unique(np.concatenate([x.trust_class for x in sets]))
+    only = len(classes) == 1
+    spec = grid.spec
+    updates = 0
+    for k in classes.tolist():
+        sums = grid.difference_arrays(cap=redundant_looks * 4.0 ** -float(k))
+        updates += int(
+            kernels.spread_batch(
+                spec.origin_x_m, spec.origin_y_m, spec.resolution_m, spec.width, spec.height,
+                None if sonar is None else sonar.of_class(k, only),
+                None if laser is None else laser.of_class(k, only),
+                laser is not None and laser.clip, *sums,
+            )
+        )  # fmt: skip
+    return updates
 
 
 @dataclass(frozen=True)

@@ -35,8 +35,10 @@ import numpy.typing as npt
 from gridmap_cli.grid import FrequencyAccumulator, GridSpec
 from gridmap_cli.models.error_aware import (
     ErrorAwareParams,
+    KernelSet,
     OdometrySpread,
     WeightedRuns,
+    accumulate_sets,
     add_runs,
     trust_class,
     trust_weight,
@@ -224,12 +226,16 @@ class ErrorAwareRayModel:
     def _accumulate_compiled(
         self, kernels: Any, grid: FrequencyAccumulator, readings: SensorReadings
     ) -> int:
-        """:meth:`runs` and :func:`add_runs` in one kernel call per trust class, in class
-        order; the same runs in the same order, so the same sums to the bit."""
+        """:meth:`runs` and :func:`add_runs` in one kernel call per trust class."""
+        return accumulate_sets(kernels, grid, self.params.redundant_looks, laser=self.kernel_set(
+            grid.spec, readings))  # fmt: skip
+
+    def kernel_set(self, spec: GridSpec, readings: SensorReadings) -> KernelSet | None:
+        """The readings as the compiled kernel takes them (its ``LASER_NAMES``), with their
+        trust classes; None when no reading is within the spread limit."""
         readings = within_spread(readings, self.odometry, self.params.max_heading_spread_rad)
         if len(readings) == 0:
-            return 0
-        spec = grid.spec
+            return None
         ev = self.evidence(readings)
         rows = ray_rows(spec, self._segments(ev))
         # readings without echo have no ring: look_m == 0 gives them no rows
@@ -237,27 +243,13 @@ class ErrorAwareRayModel:
             spec, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m, inner_m=ev.ring_in_m
         )
         ring_look = ev.weight * ev.ring_look
-        free_part: list[F64 | I64] = [rows.ra, rows.rb, rows.p_lo, rows.counts, rows.off,
-                                      rows.slope, rows.ua, rows.ub]  # fmt: skip
-        ring_part: list[F64 | I64] = [
+        arrays: list[F64 | I64] = [
+            rows.ra, rows.rb, rows.p_lo, rows.counts, rows.off, rows.slope, rows.ua, rows.ub,
             ev.weight, ev.x_m, ev.y_m, np.sin(right), np.cos(right), np.sin(left),
             np.cos(left), j0, counts, ev.look_m, ev.ring_in_m, ring_look, ring_look * ev.hit,
         ]  # fmt: skip
-        reading_class = trust_class(ev.weight)
-        classes = np.unique(reading_class)
-        updates = 0
-        for k in classes:
-            keep = slice(None) if len(classes) == 1 else reading_class == k
-            sums = grid.difference_arrays(cap=self.params.redundant_looks * 4.0 ** -float(k))
-            free = [np.ascontiguousarray(a[keep]) for a in free_part]
-            ring = [np.ascontiguousarray(a[keep]) for a in ring_part]
-            updates += int(
-                kernels.spread_ray_batch(
-                    spec.origin_x_m, spec.origin_y_m, spec.resolution_m, spec.width,
-                    spec.height, *free, not rows.inside, *ring, *sums,
-                )
-            )  # fmt: skip
-        return updates
+        # cut to the grid's columns unless every segment lies within them (as row_runs)
+        return KernelSet(trust_class(ev.weight), arrays, clip=not rows.inside)
 
     @staticmethod
     def _segments(ev: RayEvidence) -> RaySegments:
