@@ -106,23 +106,9 @@ def read_bulk(
             found[channel_id] += len(index)
             if channel_id in failed or len(index) == 0:
                 continue
-            ch, schema, type_name, cdr = channels[channel_id]
-            offset = index["offset"].astype(np.int64)
+            ch, schema, type_name, _ = channels[channel_id]
             try:
-                raw = _raw(buf, offset, ordinal)
-                if ch.message_encoding == "json":
-                    cols = json_bulk.decode(type_name, raw)
-                else:
-                    cols = ros_bulk.decode(type_name, raw, cdr)
-                first = bytes(buf[raw.offset[0] : raw.offset[0] + raw.length[0]])
-                try:
-                    msg = decoder_for(ch, schema)(first)
-                except InputFileError:
-                    raise
-                except Exception as exc:  # the message-by-message read names the bad message
-                    raise Layout("the library cannot decode the first message") from exc
-                if not matches(type_name, cols, int(raw.pos[0]), msg):
-                    raise Layout("the library decodes the first message differently")
+                cols = decode_piece(buf, index, ordinal, ch, schema, type_name, decoder_for)
             except Layout:
                 failed.add(channel_id)
                 continue
@@ -141,6 +127,35 @@ def read_bulk(
         batches.append(Batch(str(path), topic, type_name, ros_bulk.concat(pieces)))
         done.add(topic)
     return batches, [t for t in topics if t not in done]
+
+
+def decode_piece(
+    buf: npt.NDArray[np.uint8],
+    index: npt.NDArray[np.void],
+    ordinal: int,
+    ch: Channel,
+    schema: Schema | None,
+    type_name: str,
+    decoder_for: Callable[[Channel, Schema | None], Callable[[bytes], Any]],
+) -> Columns:
+    """One channel's messages in the decompressed chunk ``buf`` (number ``ordinal`` in file
+    order), at the message ``index`` entries, decoded in bulk; the first is decoded by the
+    library too and compared. Raises :class:`Layout` when the bulk decoder cannot take them."""
+    raw = _raw(buf, index["offset"].astype(np.int64), ordinal)
+    if ch.message_encoding == "json":
+        cols = json_bulk.decode(type_name, raw)
+    else:
+        cols = ros_bulk.decode(type_name, raw, ch.message_encoding == "cdr")
+    first = bytes(buf[raw.offset[0] : raw.offset[0] + raw.length[0]])
+    try:
+        msg = decoder_for(ch, schema)(first)
+    except InputFileError:
+        raise
+    except Exception as exc:  # the message-by-message read names the bad message
+        raise Layout("the library cannot decode the first message") from exc
+    if not matches(type_name, cols, int(raw.pos[0]), msg):
+        raise Layout("the library decodes the first message differently")
+    return cols
 
 
 def indexed_messages(

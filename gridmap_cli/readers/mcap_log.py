@@ -71,14 +71,7 @@ class McapSource:
         """The topics whose messages can be decoded in bulk (:mod:`~gridmap_cli.readers.
         mcap_bulk`), decoded; and the topics left for :meth:`messages`."""
         path = self.path
-        decoders: dict[int, Callable[[bytes], Any]] = {}
-
-        def decoder_for(channel: Channel, schema: Schema | None) -> Callable[[bytes], Any]:
-            if channel.id not in decoders:
-                factories = _factories(channel.message_encoding)
-                decoders[channel.id] = _decoder(path, factories, channel, schema)
-            return decoders[channel.id]
-
+        decoder_for = library_decoders(path)
         try:
             with open(path, "rb") as handle:
                 reader = open_reader(path, handle)
@@ -157,6 +150,19 @@ def read_mcap(
     """:func:`read_mcap_log`, also returning what was chosen (for ``inspect``); see
     :func:`~gridmap_cli.readers.ros_recording.read_recording`."""
     return read_recording([McapSource(Path(source))], options, strict, every_topic)
+
+
+def library_decoders(path: Path) -> Callable[[Channel, Schema | None], Callable[[bytes], Any]]:
+    """A channel's library decoder (ROS 1, ROS 2 or JSON), made once per channel."""
+    decoders: dict[int, Callable[[bytes], Any]] = {}
+
+    def decoder_for(channel: Channel, schema: Schema | None) -> Callable[[bytes], Any]:
+        if channel.id not in decoders:
+            factories = _factories(channel.message_encoding)
+            decoders[channel.id] = _decoder(path, factories, channel, schema)
+        return decoders[channel.id]
+
+    return decoder_for
 
 
 def _factories(encoding: str | None = None) -> list[McapDecoderFactory]:

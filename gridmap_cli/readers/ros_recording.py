@@ -10,7 +10,7 @@ accumulator see one recording whatever the containers were.
 from __future__ import annotations
 
 import heapq
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -120,6 +120,7 @@ def read_recording(
     options: ReadOptions | None = None,
     strict: bool = True,
     every_topic: bool = False,
+    ranges_apart: Callable[[MessageAccumulator, Plan], None] | None = None,
 ) -> RecordingRead:
     """Read one or several recording files as one recording.
 
@@ -128,6 +129,8 @@ def read_recording(
     :attr:`RecordingRead.problem` is the error the strict read raises. Damaged data, malformed
     messages and bad topic flags raise in both modes. ``every_topic`` also goes through the
     messages of the topics gridmap does not use (without decoding them), for their time spans.
+    ``ranges_apart`` reads the plan's range topics into the accumulator itself, first (a
+    streamed read, :mod:`~gridmap_cli.readers.mcap_stream`); the read leaves them alone.
     """
     opts = options or ReadOptions()
     refusals = Refusals(strict)
@@ -136,6 +139,9 @@ def read_recording(
     acc = MessageAccumulator(survey.path, plan, opts.robot, refusals)
     spans: dict[str, list[int]] = {}
     topics = plan.topics()
+    if ranges_apart is not None:
+        ranges_apart(acc, plan)  # range state is the range topics' alone: order does not matter
+        topics = [t for t in topics if t not in plan.range_topics]
     batches: list[tuple[int, int, int, Batch]] = []
     rest: list[Sequence[str]] = []
     for i, source in enumerate(sources):
