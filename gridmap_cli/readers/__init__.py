@@ -165,6 +165,12 @@ def _read_mcap(path: Path, options: ReadOptions) -> RangeLog:
     return _read_sources(_mcap_sources(path), options)
 
 
+def _stream_mcap(path: Path, options: ReadOptions) -> RangeLog | None:
+    from gridmap_cli.readers import mcap_stream
+
+    return mcap_stream.read_streamed(path, options)
+
+
 def _bag_sources(path: Path) -> list[RecordingSource]:
     from gridmap_cli.readers import bag_log
 
@@ -195,7 +201,7 @@ FORMATS: tuple[LogFormat, ...] = (
         streamer=_stream_csv,
     ),
     LogFormat("aria", (".2d",), _lazy_sniff("aria_log"), _read_aria, None, _text_aria, "latin-1"),
-    LogFormat("mcap", (".mcap",), _sniff_mcap, _read_mcap, _mcap_sources),
+    LogFormat("mcap", (".mcap",), _sniff_mcap, _read_mcap, _mcap_sources, streamer=_stream_mcap),
     LogFormat("bag", (".bag",), _sniff_bag, _read_bag, _bag_sources),
     LogFormat("rosbag2", (".db3",), _never, _read_rosbag2, _rosbag2_sources),
     LogFormat(
@@ -336,6 +342,8 @@ def read_logs(
     paths: Sequence[Path], format_name: str | None = None, options: ReadOptions | None = None
 ) -> RangeLog:
     """Read one log, or several ROS recordings merged by log time, into one record stream."""
+    if len(paths) == 1 and options is not None and options.stream:
+        return read_log(paths[0], format_name, options)  # its streamer, if any, first
     sources = recording_sources(paths, format_name)
     if sources is None:
         return read_log(paths[0], format_name, options)

@@ -1,0 +1,286 @@
+"""Long MCAP recordings read without holding their range readings: checked once, read per pass.
+
+As for long CSV logs (:mod:`~gridmap_cli.readers.csv_stream`): a build goes through the readings
+twice and never needs them all at once. A single MCAP file of :data:`STREAM_FROM_BYTES` or more
+gets a checking pass that reads it as the held reader does (:func:`~gridmap_cli.readers.
+ros_recording.read_recording`: pose tracks, TF, sensors, every check), except that its range
+topic is decoded here chunk by chunk through the message indexes (:mod:`~gridmap_cli.readers.
+mcap_bulk`), each chunk's readings counted and let go. Each later pass decodes the range topic's
+messages again, chunk by chunk, and gives the readings the held reader's
+:meth:`~gridmap_cli.readers.ros_messages.MessageAccumulator.finish` gives: by stamp, ties by
+sensor, the same sensor indexes and values, bit for bit.
+
+That order comes chunk by chunk only when no chunk holds a reading stamped before one of an
+earlier chunk (header stamps can disagree with log time); the checking pass makes sure of it.
+Anything else unusual leaves the recording to the held reader, which reads it (and reports what
+is wrong) as it always has: several range topics or channels, a range type other than
+``sensor_msgs/Range``, gridmap's JSON channels, a channel the bulk decoder cannot take, an
+unindexed file, an error anywhere.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Iterator
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from gridmap_cli.errors import GridmapError, InputFileError
+from gridmap_cli.readers.mcap_bulk import (
+    _chunk_data,
+    _message_index,
+    _raw,
+    bulk_enabled,
+    decode_piece,
+)
+from gridmap_cli.readers.mcap_channels import DAMAGED, message_type, open_reader, read_summary
+from gridmap_cli.readers.mcap_log import McapSource, library_decoders
+from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.ros_batches import _frames, _stamps, add_columns
+from gridmap_cli.readers.ros_bulk import Columns, Layout, decode
+from gridmap_cli.readers.ros_messages import MessageAccumulator, float32_decimal
+from gridmap_cli.readers.ros_recording import read_recording
+from gridmap_cli.readers.ros_topics import Plan
+from gridmap_cli.records import RangeLog, RangeReadings, ReadingStream
+
+#: Files of this size or more stream their range readings. The bench's hour of 16 sonars as ROS 2
+#: MCAP is 18 MB (576,000 readings); held, its readings cost about 40 bytes each at the peak
+#: (the decoded columns, the accumulator's arrays, the sorted log): 64 MiB of MCAP is about 3.5
+#: hours of that ring, some 80 MiB of readings, where the second decode of the range topic
+#: (about 0.3 s an hour) is worth the memory; below it a held read is as fast as ever.
+STREAM_FROM_BYTES = 64 << 20
+#: Tests and the bench lower the threshold through this variable (bytes).
+STREAM_ENV = "GRIDMAP_MCAP_STREAM_FROM"
+RANGE_TYPE = "sensor_msgs/Range"
+
+
+class _Unusual(Exception):
+    """The recording is not one this reader streams: the held reader reads it."""
+
+
+def stream_from_bytes() -> int:
+    return int(os.environ.get(STREAM_ENV, STREAM_FROM_BYTES))
+
+
+def read_streamed(path: Path, options: ReadOptions) -> RangeLog | None:
+    """The MCAP recording at ``path`` with its readings streamed (:attr:`RangeLog.stream`);
+    None when it is small or anything is unusual, for the held reader to read (and report)."""
+    try:
+        if path.stat().st_size < stream_from_bytes() or not bulk_enabled():
+            return None
+        seen = _stat(path)
+        check = _Check(path)
+        read = read_recording([McapSource(path)], options, ranges_apart=check.read)
+        return check.log(read.log, seen)
+    except (_Unusual, GridmapError, OSError):
+        return None
+
+
+def _stat(path: Path) -> tuple[int, int]:
+    st = path.stat()
+    return st.st_size, st.st_mtime_ns
+
+
+@dataclasses.dataclass
+class _Chunk:
+    """A chunk holding range messages: its offset and the channel's message index record's."""
+
+    start: int
+    index_at: int
+
+
+class _Check:
+    """The checking pass over the range topic: state for :meth:`log` afterwards."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.acc: MessageAccumulator | None = None
+        self.chunks: list[_Chunk] = []
+        self.channel_id = 0
+        self.cdr = True
+        # per accumulator key (sensor frame): readings, first and last stamp
+        self.counts = np.zeros(0, np.int64)
+        self.first_ns = np.zeros(0, np.int64)
+        self.last_ns = np.zeros(0, np.int64)
+
+    def read(self, acc: MessageAccumulator, plan: Plan) -> None:
+        """Read the plan's one ``sensor_msgs/Range`` topic into ``acc`` chunk by chunk, keeping
+        the counts and stamps of its readings, not the readings."""
+        self.acc = acc
+        if len(plan.range_topics) != 1 or plan.sensors_topic is not None:
+            raise _Unusual
+        topic = plan.range_topics[0]
+        path = self.path
+        decoder_for = library_decoders(path)
+        try:
+            with open(path, "rb") as handle:
+                reader = open_reader(path, handle)
+                summary = read_summary(path, reader)
+                if summary is None or not summary.chunk_indexes or summary.statistics is None:
+                    raise _Unusual
+                ids = [i for i, ch in summary.channels.items() if ch.topic == topic]
+                if len(ids) != 1:
+                    raise _Unusual
+                ch = summary.channels[ids[0]]
+                schema = summary.schemas.get(ch.schema_id)
+                type_name = message_type(schema)
+                if type_name != RANGE_TYPE or ch.message_encoding not in ("cdr", "ros1"):
+                    raise _Unusual
+                self.channel_id, self.cdr = ch.id, ch.message_encoding == "cdr"
+                found = 0
+                latest: int | None = None
+                chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+                for ordinal, ci in enumerate(chunks):
+                    if ch.id not in ci.message_index_offsets:
+                        continue
+                    entries = _message_index(path, handle, ci.message_index_offsets, [ch.id])
+                    if entries is None:
+                        raise _Unusual
+                    index = entries[ch.id]
+                    if len(index) == 0:
+                        continue
+                    found += len(index)
+                    buf = np.frombuffer(_chunk_data(path, handle, ci.chunk_start_offset), np.uint8)
+                    cols = decode_piece(buf, index, ordinal, ch, schema, type_name, decoder_for)
+                    del buf
+                    add_columns(acc, str(path), topic, type_name, cols)
+                    stamp, key, _, _ = acc.r_chunks.pop()
+                    if acc.r_chunks or acc.r_stamp:
+                        raise _Unusual
+                    if len(stamp):
+                        # each chunk's readings after every earlier chunk's: sorted chunk by chunk
+                        if latest is not None and int(stamp.min()) < latest:
+                            raise _Unusual
+                        latest = int(stamp.max())
+                        self._count(stamp, key, len(acc.keys))
+                    self.chunks.append(
+                        _Chunk(ci.chunk_start_offset, ci.message_index_offsets[ch.id])
+                    )
+                if found != summary.statistics.channel_message_counts.get(ch.id, 0):
+                    raise _Unusual
+        except Layout:
+            raise _Unusual from None
+        except DAMAGED:
+            raise _Unusual from None
+
+    def _count(self, stamp: npt.NDArray[np.int64], key: npt.NDArray[np.int64], n_keys: int) -> None:
+        grow = n_keys - len(self.counts)
+        if grow > 0:
+            self.counts = np.concatenate((self.counts, np.zeros(grow, np.int64)))
+            self.first_ns = np.concatenate((self.first_ns, np.full(grow, np.iinfo(np.int64).max)))
+            self.last_ns = np.concatenate((self.last_ns, np.full(grow, np.iinfo(np.int64).min)))
+        self.counts += np.bincount(key, minlength=n_keys)
+        np.minimum.at(self.first_ns, key, stamp)
+        np.maximum.at(self.last_ns, key, stamp)
+
+    def log(self, held: RangeLog, seen: tuple[int, int]) -> RangeLog:
+        """The checked log with its readings streamed."""
+        acc = self.acc
+        if acc is None or len(held.readings) or not self.chunks:
+            raise _Unusual
+        names = {name: i for i, name in enumerate(held.sensor_names)}
+        n_sensors = len(held.sensor_names)
+        sensor_of_key = np.array([names[k] for k in acc.keys], dtype=np.int32)
+        counts = np.zeros(n_sensors, np.int64)
+        first_ns = np.zeros(n_sensors, np.int64)
+        last_ns = np.zeros(n_sensors, np.int64)
+        n = len(self.counts)
+        counts[sensor_of_key[:n]] = self.counts
+        first_ns[sensor_of_key[:n]] = self.first_ns
+        last_ns[sensor_of_key[:n]] = self.last_ns
+        if not counts.sum():
+            raise _Unusual
+        max_r = None
+        if held.sensors:
+            by_name = {s.name: s.max_range_m for s in held.sensors}
+            max_r = np.array([by_name.get(name, np.inf) for name in held.sensor_names])
+        sensor_of_frame = {k: int(sensor_of_key[i]) for i, k in enumerate(acc.keys)}
+        again = partial(
+            _read_again,
+            self.path,
+            seen,
+            self.channel_id,
+            self.cdr,
+            [(c.start, c.index_at) for c in self.chunks],
+            sensor_of_frame,
+            max_r,
+        )
+        index = np.arange(n_sensors, dtype=np.int32)
+        stream = ReadingStream(again, counts, first_ns, last_ns, index)
+        return dataclasses.replace(held, stream=stream)
+
+
+def _read_again(
+    path: Path,
+    seen: tuple[int, int],
+    channel_id: int,
+    cdr: bool,
+    chunks: list[tuple[int, int]],
+    sensor_of_frame: dict[str, int],
+    max_r: npt.NDArray[np.float64] | None,
+) -> Iterator[RangeReadings]:
+    """The checked recording's readings, decoded again chunk by chunk and sorted as
+    :meth:`MessageAccumulator.finish` sorts them; a chunk's readings of its last stamp wait for
+    the next chunk's (a block never splits one stamp's readings)."""
+    changed = InputFileError(path, "the file changed while gridmap read it")
+    if _stat(path) != seen:
+        raise changed
+    tail = RangeReadings.empty()
+    try:
+        with open(path, "rb") as handle:
+            for ordinal, (start, index_at) in enumerate(chunks):
+                entries = _message_index(path, handle, {channel_id: index_at}, [channel_id])
+                if entries is None:
+                    raise changed
+                buf = np.frombuffer(_chunk_data(path, handle, start), np.uint8)
+                cols = _decode(buf, entries[channel_id], ordinal, cdr)
+                del buf
+                block = _readings(cols, sensor_of_frame, max_r)
+                if len(block) == 0:
+                    continue
+                if len(tail) and int(block.stamp_ns.min()) < int(tail.stamp_ns[0]):
+                    raise changed
+                both = RangeReadings(
+                    np.concatenate((tail.stamp_ns, block.stamp_ns)),
+                    np.concatenate((tail.sensor, block.sensor)),
+                    np.concatenate((tail.range_m, block.range_m)),
+                )
+                order = np.lexsort((both.sensor, both.stamp_ns))  # stable: ties as held
+                both = RangeReadings(both.stamp_ns[order], both.sensor[order], both.range_m[order])
+                cut = int(np.searchsorted(both.stamp_ns, both.stamp_ns[-1], "left"))
+                if cut:
+                    yield both.part(slice(0, cut))
+                tail = both.part(slice(cut, None))
+    except (Layout, *DAMAGED):
+        raise changed from None
+    if len(tail):
+        yield tail
+
+
+def _decode(buf: npt.NDArray[np.uint8], index: Any, ordinal: int, cdr: bool) -> Columns:
+    return decode(RANGE_TYPE, _raw(buf, index["offset"].astype(np.int64), ordinal), cdr)
+
+
+def _readings(
+    cols: Columns, sensor_of_frame: dict[str, int], max_r: npt.NDArray[np.float64] | None
+) -> RangeReadings:
+    """One chunk's readings as ``ros_batches._ranges`` keeps them and ``finish`` turns them
+    into the log's: float32 decimals, no echo at the sensor's maximum range."""
+    a = cols.arrays
+    index, frames = _frames(cols)
+    sensor = np.array([sensor_of_frame[f] for f in frames], dtype=np.int32)[index]
+    rmax = a["max"].astype(np.float64)
+    value = a["range"].astype(np.float64)
+    with np.errstate(invalid="ignore"):
+        keep = ~np.isnan(value) & (value >= 0.0)
+        value = np.where(value >= rmax, np.inf, value)
+    rng = float32_decimal(value[keep])
+    sensor = sensor[keep]
+    if max_r is not None and len(rng):
+        rng = np.where(np.isinf(rng), max_r[sensor], rng)
+    return RangeReadings(_stamps(cols)[keep], sensor, rng)
