@@ -212,15 +212,15 @@ def _json_readings(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
 
 def _poses(acc: MessageAccumulator, track: _Track, topic: str, cols: Columns) -> None:
     a = cols.arrays
-    stamps = _stamps(cols).tolist()
-    xs, ys = a["x"].astype(np.float64).tolist(), a["y"].astype(np.float64).tolist()
+    stamps = _stamps(cols)
+    xs, ys = a["x"].astype(np.float64), a["y"].astype(np.float64)
     if "theta" in a:  # gridmap.Pose2D
-        thetas = a["theta"].astype(np.float64).tolist()
+        thetas = a["theta"].astype(np.float64)
     else:
         quats = zip(a["qx"].tolist(), a["qy"].tolist(), a["qz"].tolist(), a["qw"].tolist(),
                     strict=True)  # fmt: skip
-        thetas = [yaw_of(q) for q in quats]
-    finite = np.isfinite(a["x"]) & np.isfinite(a["y"]) & np.isfinite(np.asarray(thetas))
+        thetas = np.fromiter((yaw_of(q) for q in quats), np.float64, len(stamps))
+    finite = np.isfinite(a["x"]) & np.isfinite(a["y"]) & np.isfinite(thetas)
     n = len(stamps) if finite.all() else int(np.argmax(~finite))
     if track is acc.odom:
         index, children = _frames(cols, "child")
@@ -231,10 +231,10 @@ def _poses(acc: MessageAccumulator, track: _Track, topic: str, cols: Columns) ->
     if n < len(stamps):
         raise InputFileError(
             acc.message_path,
-            f"{_where(acc, topic, cols, n)}: pose is not finite ({xs[n]}, {ys[n]}, {thetas[n]})",
+            f"{_where(acc, topic, cols, n)}: pose is not finite ({float(xs[n])}, "
+            f"{float(ys[n])}, {float(thetas[n])})",
         )
-    track.stamps.extend(stamps)
-    track.rows.extend(zip(xs, ys, thetas, strict=True))
+    track.extend(stamps, np.column_stack((xs, ys, thetas)))
 
 
 def _tf(acc: MessageAccumulator, cols: Columns, static: bool) -> None:
