@@ -120,7 +120,7 @@ def read_bulk(
         ids = by_topic[topic]
         if any(i in failed or found[i] != counts.get(i, 0) for i in ids):
             continue
-        pieces = [c for i in ids for c in parts[i]]
+        pieces = [c for i in ids for c in parts.pop(i)]  # the parts go once joined
         if not pieces:
             continue
         type_name = channels[ids[0]][2]

@@ -23,6 +23,9 @@ from gridmap_cli.readers.ros_messages import (
     _Track,
 )
 
+#: Poses whose headings are computed at a time (yaw_of is per pose, on Python floats).
+_YAW_ROWS = 1 << 14
+
 
 def add_columns(
     acc: MessageAccumulator, source: str, topic: str, type_name: str, cols: Columns
@@ -217,9 +220,12 @@ def _poses(acc: MessageAccumulator, track: _Track, topic: str, cols: Columns) ->
     if "theta" in a:  # gridmap.Pose2D
         thetas = a["theta"].astype(np.float64)
     else:
-        quats = zip(a["qx"].tolist(), a["qy"].tolist(), a["qz"].tolist(), a["qw"].tolist(),
-                    strict=True)  # fmt: skip
-        thetas = np.fromiter((yaw_of(q) for q in quats), np.float64, len(stamps))
+        thetas = np.empty(len(stamps))
+        for start in range(0, len(stamps), _YAW_ROWS):  # a slice at a time: no 4 whole lists
+            part = slice(start, start + _YAW_ROWS)
+            quats = zip(a["qx"][part].tolist(), a["qy"][part].tolist(),
+                        a["qz"][part].tolist(), a["qw"][part].tolist(), strict=True)  # fmt: skip
+            thetas[part] = [yaw_of(q) for q in quats]
     finite = np.isfinite(a["x"]) & np.isfinite(a["y"]) & np.isfinite(thetas)
     n = len(stamps) if finite.all() else int(np.argmax(~finite))
     if track is acc.odom:
