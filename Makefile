@@ -36,13 +36,13 @@ test: dev
 	$(BIN)/python -m pytest
 
 lint: dev
-	$(BIN)/ruff check gridmap_cli tests bench
-	$(BIN)/ruff format --check gridmap_cli tests bench
+	$(BIN)/ruff check gridmap_cli tests bench samples
+	$(BIN)/ruff format --check gridmap_cli tests bench samples
 	$(BIN)/mypy
 
 format: dev
-	$(BIN)/ruff format gridmap_cli tests bench
-	$(BIN)/ruff check --fix gridmap_cli tests bench
+	$(BIN)/ruff format gridmap_cli tests bench samples
+	$(BIN)/ruff check --fix gridmap_cli tests bench samples
 
 bench: install
 	$(BIN)/python bench/bench_build.py

@@ -137,9 +137,7 @@ def write_path(name: str, waypoints: list[tuple[float, float]], laps: int = 1) -
     return path
 
 
-def simulate(
-    gridmap: Path, world: Path, path: Path, out: Path, seed: int, *extra: str
-) -> None:
+def simulate(gridmap: Path, world: Path, path: Path, out: Path, seed: int, *extra: str) -> None:
     """Run `gridmap simulate` from the repository root with relative paths, so that the logs'
     metadata is the same on every machine."""
     root = HERE.parent
