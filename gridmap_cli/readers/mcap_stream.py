@@ -4,8 +4,9 @@ As for long CSV logs (:mod:`~gridmap_cli.readers.csv_stream`): a build goes thro
 twice and never needs them all at once. A single MCAP file of :data:`STREAM_FROM_BYTES` or more
 gets a checking pass that reads it as the held reader does (:func:`~gridmap_cli.readers.
 ros_recording.read_recording`: pose tracks, TF, sensors, every check), except that its range
-topic is decoded here chunk by chunk through the message indexes (:mod:`~gridmap_cli.readers.
-mcap_bulk`), each chunk's readings counted and let go. Each later pass decodes the range topic's
+topic (``sensor_msgs/Range``, or ``sensor_msgs/LaserScan``: a sensor a beam) is decoded here
+chunk by chunk through the message indexes (:mod:`~gridmap_cli.readers.mcap_bulk`), each
+chunk's readings counted and let go. Each later pass decodes the range topic's
 messages again, chunk by chunk, and gives the readings the held reader's
 :meth:`~gridmap_cli.readers.ros_messages.MessageAccumulator.finish` gives: by stamp, ties by
 sensor, the same sensor indexes and values, bit for bit.
@@ -14,15 +15,16 @@ That order comes chunk by chunk only when no chunk holds a reading stamped befor
 earlier chunk (header stamps can disagree with log time); the checking pass makes sure of it.
 Anything else unusual leaves the recording to the held reader, which reads it (and reports what
 is wrong) as it always has: several range topics or channels, a range type other than
-``sensor_msgs/Range``, gridmap's JSON channels, a channel the bulk decoder cannot take, an
-unindexed file, an error anywhere.
+``sensor_msgs/Range`` and ``LaserScan``, several laser frames (or beams whose sensors are not
+consecutive), gridmap's JSON channels, a channel the bulk decoder cannot take, an unindexed
+file, an error anywhere (a scan changing its beams among them).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -57,6 +59,7 @@ STREAM_FROM_BYTES = 64 << 20
 #: Tests and the bench lower the threshold through this variable (bytes).
 STREAM_ENV = "GRIDMAP_MCAP_STREAM_FROM"
 RANGE_TYPE = "sensor_msgs/Range"
+SCAN_TYPE = "sensor_msgs/LaserScan"
 
 
 class _Unusual(Exception):
@@ -103,14 +106,16 @@ class _Check:
         self.chunks: list[_Chunk] = []
         self.channel_id = 0
         self.cdr = True
+        self.type_name = RANGE_TYPE
         # per accumulator key (sensor frame): readings, first and last stamp
         self.counts = np.zeros(0, np.int64)
         self.first_ns = np.zeros(0, np.int64)
         self.last_ns = np.zeros(0, np.int64)
 
     def read(self, acc: MessageAccumulator, plan: Plan) -> None:
-        """Read the plan's one ``sensor_msgs/Range`` topic into ``acc`` chunk by chunk, keeping
-        the counts and stamps of its readings, not the readings."""
+        """Read the plan's one ``sensor_msgs/Range`` or ``sensor_msgs/LaserScan`` topic into
+        ``acc`` chunk by chunk, keeping the counts and stamps of its readings, not the readings
+        (a scan changing its beams raises the held reader's error here)."""
         self.acc = acc
         if len(plan.range_topics) != 1 or plan.sensors_topic is not None:
             raise _Unusual
@@ -129,9 +134,13 @@ class _Check:
                 ch = summary.channels[ids[0]]
                 schema = summary.schemas.get(ch.schema_id)
                 type_name = message_type(schema)
-                if type_name != RANGE_TYPE or ch.message_encoding not in ("cdr", "ros1"):
+                if type_name not in (RANGE_TYPE, SCAN_TYPE) or ch.message_encoding not in (
+                    "cdr",
+                    "ros1",
+                ):
                     raise _Unusual
                 self.channel_id, self.cdr = ch.id, ch.message_encoding == "cdr"
+                self.type_name = type_name
                 found = 0
                 latest: int | None = None
                 chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
@@ -199,20 +208,40 @@ class _Check:
         if held.sensors:
             by_name = {s.name: s.max_range_m for s in held.sensors}
             max_r = np.array([by_name.get(name, np.inf) for name in held.sensor_names])
-        sensor_of_frame = {k: int(sensor_of_key[i]) for i, k in enumerate(acc.keys)}
+        readings_of: Callable[[Columns], RangeReadings]
+        if self.type_name == SCAN_TYPE:
+            readings_of = partial(_scan_readings, *self._beams(names), max_r)
+        else:
+            sensor_of_frame = {k: int(sensor_of_key[i]) for i, k in enumerate(acc.keys)}
+            readings_of = partial(_readings, sensor_of_frame=sensor_of_frame, max_r=max_r)
         again = partial(
             _read_again,
             self.path,
             seen,
             self.channel_id,
             self.cdr,
+            self.type_name,
             [(c.start, c.index_at) for c in self.chunks],
-            sensor_of_frame,
-            max_r,
+            readings_of,
         )
         index = np.arange(n_sensors, dtype=np.int32)
         stream = ReadingStream(again, counts, first_ns, last_ns, index)
         return dataclasses.replace(held, stream=stream)
+
+    def _beams(self, names: dict[str, int]) -> tuple[dict[str, int], dict[str, int]]:
+        """The one laser frame's first beam sensor index and beam count; several laser frames,
+        or beams whose sensors are not consecutive, are left to the held reader."""
+        assert self.acc is not None
+        scans = self.acc.scans
+        if len(scans) != 1 or self.acc.sonars:
+            raise _Unusual
+        ((frame, scan),) = scans.items()
+        first = names.get(f"{frame}_0")
+        if first is None or [names.get(f"{frame}_{j}") for j in range(scan.count)] != list(
+            range(first, first + scan.count)
+        ):
+            raise _Unusual
+        return {frame: first}, {frame: scan.count}
 
 
 def _read_again(
@@ -220,9 +249,9 @@ def _read_again(
     seen: tuple[int, int],
     channel_id: int,
     cdr: bool,
+    type_name: str,
     chunks: list[tuple[int, int]],
-    sensor_of_frame: dict[str, int],
-    max_r: npt.NDArray[np.float64] | None,
+    readings_of: Callable[[Columns], RangeReadings],
 ) -> Iterator[RangeReadings]:
     """The checked recording's readings, decoded again chunk by chunk and sorted as
     :meth:`MessageAccumulator.finish` sorts them; a chunk's readings of its last stamp wait for
@@ -238,9 +267,10 @@ def _read_again(
                 if entries is None:
                     raise changed
                 buf = np.frombuffer(_chunk_data(path, handle, start), np.uint8)
-                cols = _decode(buf, entries[channel_id], ordinal, cdr)
+                cols = _decode(buf, entries[channel_id], ordinal, cdr, type_name)
                 del buf
-                block = _readings(cols, sensor_of_frame, max_r)
+                block = readings_of(cols)
+                del cols
                 if len(block) == 0:
                     continue
                 if len(tail) and int(block.stamp_ns.min()) < int(tail.stamp_ns[0]):
@@ -262,12 +292,14 @@ def _read_again(
         yield tail
 
 
-def _decode(buf: npt.NDArray[np.uint8], index: Any, ordinal: int, cdr: bool) -> Columns:
-    return decode(RANGE_TYPE, _raw(buf, index["offset"].astype(np.int64), ordinal), cdr)
+def _decode(
+    buf: npt.NDArray[np.uint8], index: Any, ordinal: int, cdr: bool, type_name: str
+) -> Columns:
+    return decode(type_name, _raw(buf, index["offset"].astype(np.int64), ordinal), cdr)
 
 
 def _readings(
-    cols: Columns, sensor_of_frame: dict[str, int], max_r: npt.NDArray[np.float64] | None
+    cols: Columns, *, sensor_of_frame: dict[str, int], max_r: npt.NDArray[np.float64] | None
 ) -> RangeReadings:
     """One chunk's readings as ``ros_batches._ranges`` keeps them and ``finish`` turns them
     into the log's: float32 decimals, no echo at the sensor's maximum range."""
@@ -284,3 +316,39 @@ def _readings(
     if max_r is not None and len(rng):
         rng = np.where(np.isinf(rng), max_r[sensor], rng)
     return RangeReadings(_stamps(cols)[keep], sensor, rng)
+
+
+def _scan_readings(
+    first_sensor: dict[str, int],
+    beams: dict[str, int],
+    max_r: npt.NDArray[np.float64] | None,
+    cols: Columns,
+) -> RangeReadings:
+    """One chunk's scans as ``ros_batches._scans`` keeps their beams and ``finish`` turns them
+    into the log's: beam ``j`` of a frame is sensor ``first_sensor[frame] + j``; float32
+    decimals; no echo (at or beyond the scan's ``range_max``) at the beam's maximum range (the
+    first scan's). A scan of another frame or beam count than the checking pass saw raises
+    :class:`Layout` (the file changed)."""
+    a = cols.arrays
+    n = len(cols)
+    index, frames = _frames(cols)
+    count = a["count"].astype(np.int64)
+    if any(f not in beams for f in frames):
+        raise Layout("a laser frame the checking pass did not see")
+    if n and not np.array_equal(count, np.array([beams[f] for f in frames])[index]):
+        raise Layout("a scan with another beam count than the checking pass saw")
+    base = np.array([first_sensor[f] for f in frames], dtype=np.int64)[index]
+    assert cols.ranges is not None
+    with np.errstate(invalid="ignore"):  # NaN payloads
+        ranges = cols.ranges.astype(np.float64)
+    row_of = np.repeat(np.arange(n), count)
+    beam = np.arange(len(ranges), dtype=np.int64) - np.repeat(np.cumsum(count) - count, count)
+    range_max = a["range_max"].astype(np.float64)[row_of]
+    with np.errstate(invalid="ignore"):
+        valid = ~np.isnan(ranges) & (ranges >= 0.0)  # NaN: no reading; -inf: too close
+        no_echo = valid & (ranges >= range_max)
+    rng = float32_decimal(np.where(no_echo, np.inf, ranges)[valid])
+    sensor = (base[row_of] + beam)[valid].astype(np.int32)
+    if max_r is not None and len(rng):
+        rng = np.where(np.isinf(rng), max_r[sensor], rng)
+    return RangeReadings(_stamps(cols)[row_of][valid], sensor, rng)

@@ -3,13 +3,16 @@ map, bit for bit; recordings the streamed read cannot reproduce cheaply are read
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 from mcap_ros2.writer import Writer as Ros2Writer
 
 from gridmap_cli import pipeline
+from gridmap_cli.errors import InputFileError
 from gridmap_cli.readers import mcap_stream, read_log
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeReadings
@@ -154,3 +157,110 @@ def test_several_range_topics_read_held(tmp_path: Path) -> None:
 def test_message_by_message_decoding_reads_held(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("GRIDMAP_ROS_DECODE", "messages")
     assert read_log(LOG, None, STREAM).stream is None
+
+
+SCAN = ReadOptions(range_topics=("/scan",))
+SCAN_STREAM = ReadOptions(range_topics=("/scan",), stream=True)
+
+
+@pytest.fixture(scope="module")
+def laser_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A simulated p3at-lms200 run as ROS 2 MCAP: odometry, sonars and a 181-beam LaserScan."""
+    out = tmp_path_factory.mktemp("laser") / "laser.mcap"
+    world, route = SAMPLES / "worlds" / "office.yaml", SAMPLES / "paths" / "office.yaml"
+    code, _, stderr = run("simulate", str(world), str(route), "--robot", "p3at-lms200",
+                          "--encoding", "ros2", "--duration", "60",
+                          "-o", str(out), "-q")  # fmt: skip
+    assert code == 0, stderr
+    return out
+
+
+@pytest.mark.usefixtures("streaming")
+def test_a_streamed_laser_recording_reads_as_the_held_one(laser_log: Path) -> None:
+    held = read_log(laser_log, None, SCAN)
+    streamed = read_log(laser_log, None, SCAN_STREAM)
+    assert held.stream is None and streamed.stream is not None
+    assert len(held.sensor_names) == 181 and held.readings.range_m.max() == 8.0  # no echo kept
+    assert streamed.reading_count == len(held.readings)
+    assert streamed.reading_span() == held.reading_span()
+    counts = np.bincount(held.readings.sensor, minlength=len(held.sensor_names))
+    assert np.array_equal(streamed.stream.counts, counts)
+    blocks = list(streamed.stream.readings())
+    assert len(blocks) > 1 and same_readings(joined(blocks), held.readings)
+    assert (held.sensor_names, held.sensors) == (streamed.sensor_names, streamed.sensors)
+
+
+def test_a_laser_recording_above_the_threshold_maps_as_the_held_one_byte_for_byte(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, laser_log: Path
+) -> None:
+    monkeypatch.setattr(pipeline, "SYNC_CHUNK_READINGS", 5000)
+    flags = (str(laser_log), "--range-topic", "/scan")
+    held = built(tmp_path, "held", *flags)
+    monkeypatch.setenv(mcap_stream.STREAM_ENV, "0")
+    calls: list[bool] = []
+    read_streamed = mcap_stream.read_streamed
+
+    def counted(path: Path, options: ReadOptions):  # type: ignore[no-untyped-def]
+        log = read_streamed(path, options)
+        calls.append(log is not None and log.stream is not None)
+        return log
+
+    monkeypatch.setattr(mcap_stream, "read_streamed", counted)
+    assert built(tmp_path, "streamed", *flags) == held
+    assert calls == [True]
+
+
+def scan(rec: Recording, ns: int, ranges: list[float], frame: str = "laser",
+         angle_min: float = -0.5, range_max: float = 4.0) -> dict[str, Any]:  # fmt: skip
+    """A 0.5 rad a beam sensor_msgs/LaserScan message as nested dicts."""
+    return {"header": rec.header(ns, frame), "angle_min": angle_min, "angle_max": 0.5,
+            "angle_increment": 0.5, "range_min": 0.1, "range_max": range_max,
+            "ranges": ranges}  # fmt: skip
+
+
+def laser_recording(path: Path, changes: dict[int, dict[str, Any]] | None = None) -> Path:
+    """ROS 2, small chunks: odometry, mounted lasers and 40 three-beam scans at log times 1 s,
+    1.01 s, ..., two a stamp, with NaN, -inf, +inf and ranges at or past a ``range_max`` that
+    changes from scan to scan; ``changes`` (scan number -> keyword arguments of :func:`scan`)
+    alter some."""
+    values = [[1.0, math.nan, 2.5], [math.inf, -math.inf, 3.0], [4.0, 5.0, 0.5]]
+    with SmallChunks(path) as rec:
+        static_tf(rec, rec.transform(0, "base_link", "laser", 0.1, 0.0, 0.0),
+                  rec.transform(0, "base_link", "laser2", 0.0, 0.0, 1.0))  # fmt: skip
+        drive(rec)
+        for k in range(40):
+            stamp = S + (k // 2) * S // 50
+            kwargs: dict[str, Any] = {"range_max": 3.0 + (k % 3)}
+            kwargs.update((changes or {}).get(k, {}))
+            message = scan(rec, stamp, values[k % 3], **kwargs)
+            rec.write("/scan", "sensor_msgs/LaserScan", S + k * S // 100, message)
+    return path
+
+
+@pytest.mark.usefixtures("streaming")
+def test_scans_stream_with_their_no_echo_and_dropped_beams_as_held(tmp_path: Path) -> None:
+    path = laser_recording(tmp_path / "scans.mcap")
+    held, streamed = read_log(path), read_log(path, None, STREAM)
+    assert streamed.stream is not None
+    blocks = list(streamed.stream.readings())
+    assert len(blocks) > 1 and same_readings(joined(blocks), held.readings)
+    assert held.sensor_names == ("laser_0", "laser_1", "laser_2")
+    assert 3.0 in held.readings.range_m.tolist()  # no echo: the first scan's range_max
+
+
+@pytest.mark.usefixtures("streaming")
+def test_a_scan_changing_its_beams_reads_held_and_fails_as_held(tmp_path: Path) -> None:
+    path = laser_recording(tmp_path / "changed.mcap", {30: {"angle_min": -1.0}})
+    with pytest.raises(InputFileError, match=r"laser 'laser' changed its beams") as held:
+        read_log(path)
+    with pytest.raises(InputFileError) as streamed:
+        read_log(path, None, STREAM)
+    assert str(streamed.value) == str(held.value)
+
+
+@pytest.mark.usefixtures("streaming")
+def test_several_laser_frames_read_held(tmp_path: Path) -> None:
+    path = laser_recording(tmp_path / "two.mcap", {k: {"frame": "laser2"} for k in range(20, 40)})
+    held, streamed = read_log(path), read_log(path, None, STREAM)
+    assert streamed.stream is None and len(held.sensor_names) == 6
+    assert same_readings(streamed.readings, held.readings)
