@@ -56,6 +56,11 @@ from gridmap_cli.records import RangeLog, RangeReadings, ReadingStream
 #: hours of that ring, some 80 MiB of readings, where the second decode of the range topic
 #: (about 0.3 s an hour) is worth the memory; below it a held read is as fast as ever.
 STREAM_FROM_BYTES = 64 << 20
+#: A laser's beams cost about 5 bytes of MCAP each (float32 ranges) against the same 40 held:
+#: 8 MiB of scans is some 1.6 million beams, about 200 MiB of peak held (a simulated half hour
+#: of a 181-beam laser at 10 Hz, 18 MB, peaked at 445 MiB held, 126 MiB streamed, for no more
+#: CPU), so a recording with a LaserScan channel streams from here.
+SCAN_STREAM_FROM_BYTES = 8 << 20
 #: Tests and the bench lower the threshold through this variable (bytes).
 STREAM_ENV = "GRIDMAP_MCAP_STREAM_FROM"
 RANGE_TYPE = "sensor_msgs/Range"
@@ -66,15 +71,38 @@ class _Unusual(Exception):
     """The recording is not one this reader streams: the held reader reads it."""
 
 
-def stream_from_bytes() -> int:
-    return int(os.environ.get(STREAM_ENV, STREAM_FROM_BYTES))
+def stream_from_bytes(scans: bool = False) -> int:
+    """The size from which a recording streams: lower when it holds laser scans."""
+    default = SCAN_STREAM_FROM_BYTES if scans else STREAM_FROM_BYTES
+    return int(os.environ.get(STREAM_ENV, default))
+
+
+def _has_scans(path: Path) -> bool:
+    """Whether the recording's summary names a ``sensor_msgs/LaserScan`` channel (False for
+    a file that does not say: the held reader reads it, and reports any damage)."""
+    try:
+        with open(path, "rb") as handle:
+            summary = read_summary(path, open_reader(path, handle))
+    except (GridmapError, *DAMAGED):
+        return False
+    if summary is None:
+        return False
+    return any(
+        message_type(summary.schemas.get(ch.schema_id)) == SCAN_TYPE
+        for ch in summary.channels.values()
+    )
 
 
 def read_streamed(path: Path, options: ReadOptions) -> RangeLog | None:
     """The MCAP recording at ``path`` with its readings streamed (:attr:`RangeLog.stream`);
     None when it is small or anything is unusual, for the held reader to read (and report)."""
     try:
-        if path.stat().st_size < stream_from_bytes() or not bulk_enabled():
+        size = path.stat().st_size
+        if not bulk_enabled():
+            return None
+        if size < stream_from_bytes() and (
+            size < stream_from_bytes(scans=True) or not _has_scans(path)
+        ):
             return None
         seen = _stat(path)
         check = _Check(path)

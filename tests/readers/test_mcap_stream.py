@@ -264,3 +264,17 @@ def test_several_laser_frames_read_held(tmp_path: Path) -> None:
     held, streamed = read_log(path), read_log(path, None, STREAM)
     assert streamed.stream is None and len(held.sensor_names) == 6
     assert same_readings(streamed.readings, held.readings)
+
+
+def test_laser_recordings_stream_from_a_smaller_size(
+    monkeypatch: pytest.MonkeyPatch, laser_log: Path
+) -> None:
+    # a laser's beams are about 5 bytes of MCAP each against 40 held: scans stream from
+    # SCAN_STREAM_FROM_BYTES, range readings only from STREAM_FROM_BYTES
+    size = max(laser_log.stat().st_size, LOG.stat().st_size)
+    monkeypatch.setattr(mcap_stream, "SCAN_STREAM_FROM_BYTES", 0)
+    monkeypatch.setattr(mcap_stream, "STREAM_FROM_BYTES", size + 1)
+    assert read_log(laser_log, None, SCAN_STREAM).stream is not None
+    assert read_log(LOG, None, STREAM).stream is None  # sonar ranges only: held
+    monkeypatch.setattr(mcap_stream, "SCAN_STREAM_FROM_BYTES", size + 1)
+    assert read_log(laser_log, None, SCAN_STREAM).stream is None
