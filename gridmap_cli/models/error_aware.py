@@ -167,23 +167,14 @@ class ErrorAwareSonarModel:
         return sector_bounds(ev.x_m, ev.y_m, ev.theta_rad, ev.half_width_rad, ev.look_m)
 
     def accumulate(self, grid: FrequencyAccumulator, readings: SensorReadings) -> int:
-        """Add the readings' counts to ``grid``; returns the number of cell updates.
+        """Add the readings' counts to ``grid``; returns the number of cell updates."""
+        return accumulate_counts(self, grid, readings)
 
-        The compiled kernel when it is built (:mod:`gridmap_cli.models.kernels`), else the
-        numpy reference, :meth:`runs` and :func:`add_runs`: the same grid bit for bit."""
-        kernels = compiled()
-        if kernels is not None:
-            return self._accumulate_compiled(kernels, grid, readings)
-        runs, updates = self.runs(grid.spec, readings)
-        add_runs(grid, runs, self.params.redundant_looks)
-        return updates
-
-    def _accumulate_compiled(
-        self, kernels: Any, grid: FrequencyAccumulator, readings: SensorReadings
-    ) -> int:
-        """:meth:`runs` and :func:`add_runs` in one kernel call per trust class."""
-        return accumulate_sets(kernels, grid, self.params.redundant_looks, sonar=self.kernel_set(
-            grid.spec, readings))  # fmt: skip
+    def kernel_sets(
+        self, spec: GridSpec, readings: SensorReadings
+    ) -> tuple[KernelSet | None, KernelSet | None]:
+        """(sonar, laser) as :func:`accumulate_counts` hands them to the kernel."""
+        return self.kernel_set(spec, readings), None
 
     def kernel_set(self, spec: GridSpec, readings: SensorReadings) -> KernelSet | None:
         """The readings as the compiled kernel takes them (its ``SONAR_NAMES``), with their
@@ -250,6 +241,33 @@ class KernelSet:
         if not keep.any():
             return None
         return tuple(np.ascontiguousarray(a[keep]) for a in self.arrays)
+
+
+class CountingModel(Protocol):
+    """What :func:`accumulate_counts` needs of an error-aware model (sonar, laser or both)."""
+
+    params: ErrorAwareParams
+
+    def runs(self, spec: GridSpec, readings: SensorReadings) -> tuple[WeightedRuns, int]: ...
+
+    def kernel_sets(
+        self, spec: GridSpec, readings: SensorReadings
+    ) -> tuple[KernelSet | None, KernelSet | None]: ...
+
+
+def accumulate_counts(
+    model: CountingModel, grid: FrequencyAccumulator, readings: SensorReadings
+) -> int:
+    """Add a batch's counts to ``grid``; returns the cell updates. The compiled kernel when it
+    is built (:mod:`gridmap_cli.models.kernels`), else the numpy reference, the model's runs
+    and :func:`add_runs`: the same grid bit for bit."""
+    kernels = compiled()
+    if kernels is None:
+        runs, updates = model.runs(grid.spec, readings)
+        add_runs(grid, runs, model.params.redundant_looks)
+        return updates
+    sonar, laser = model.kernel_sets(grid.spec, readings)
+    return accumulate_sets(kernels, grid, model.params.redundant_looks, sonar, laser)
 
 
 def accumulate_sets(

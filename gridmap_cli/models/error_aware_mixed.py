@@ -14,12 +14,11 @@ import numpy.typing as npt
 from gridmap_cli.grid import FrequencyAccumulator, GridSpec
 from gridmap_cli.models.error_aware import (
     ErrorAwareSonarModel,
+    KernelSet,
     WeightedRuns,
-    accumulate_sets,
-    add_runs,
+    accumulate_counts,
 )
 from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel
-from gridmap_cli.models.kernels import compiled
 from gridmap_cli.models.sector import F64
 from gridmap_cli.sync import SensorReadings, select_readings
 
@@ -65,21 +64,19 @@ class ErrorAwareMixedModel:
         )
 
     def accumulate(self, grid: FrequencyAccumulator, readings: SensorReadings) -> int:
-        """Add both kinds' counts to ``grid``, trust class by class; returns cell updates.
+        """Add both kinds' counts to ``grid``, trust class by class; returns cell updates."""
+        return accumulate_counts(self, grid, readings)
 
-        The compiled kernel when it is built (:mod:`gridmap_cli.models.kernels`), both kinds
-        of a class in one call, else the numpy reference: the same grid bit for bit."""
-        kernels = compiled()
-        if kernels is not None:
-            sonar, ray = self._split(readings)
-            return accumulate_sets(
-                kernels, grid, self.params.redundant_looks,
-                sonar=self.sonar.kernel_set(grid.spec, sonar) if len(sonar) else None,
-                laser=self.ray.kernel_set(grid.spec, ray) if len(ray) else None,
-            )  # fmt: skip
-        runs, updates = self.runs(grid.spec, readings)
-        add_runs(grid, runs, self.params.redundant_looks)
-        return updates
+    def kernel_sets(
+        self, spec: GridSpec, readings: SensorReadings
+    ) -> tuple[KernelSet | None, KernelSet | None]:
+        """Both kinds as :func:`accumulate_counts` hands them to the kernel: a class's sonar
+        and laser readings go in one call, in the order :meth:`runs` concatenates them."""
+        sonar, ray = self._split(readings)
+        return (
+            self.sonar.kernel_set(spec, sonar) if len(sonar) else None,
+            self.ray.kernel_set(spec, ray) if len(ray) else None,
+        )
 
     def runs(self, spec: GridSpec, readings: SensorReadings) -> tuple[WeightedRuns, int]:
         """Both kinds' weighted runs of cells, and the number of cell updates."""

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -38,14 +37,12 @@ from gridmap_cli.models.error_aware import (
     KernelSet,
     OdometrySpread,
     WeightedRuns,
-    accumulate_sets,
-    add_runs,
+    accumulate_counts,
     trust_class,
     trust_weight,
     weighted_runs,
     within_spread,
 )
-from gridmap_cli.models.kernels import compiled
 from gridmap_cli.models.ray import RaySegments, ray_rows, row_runs
 from gridmap_cli.models.sector import F64, I64, sector_bounds, sector_row_range, sector_rows
 from gridmap_cli.robot import RangeSensor
@@ -212,23 +209,14 @@ class ErrorAwareRayModel:
         return sector_bounds(ev.x_m, ev.y_m, ev.theta_rad, ev.half_width_rad, reach)
 
     def accumulate(self, grid: FrequencyAccumulator, readings: SensorReadings) -> int:
-        """Add the readings' counts to ``grid``; returns the number of cell updates.
+        """Add the readings' counts to ``grid``; returns the number of cell updates."""
+        return accumulate_counts(self, grid, readings)
 
-        The compiled kernel when it is built (:mod:`gridmap_cli.models.kernels`), else the
-        numpy reference, :meth:`runs` and :func:`add_runs`: the same grid bit for bit."""
-        kernels = compiled()
-        if kernels is not None:
-            return self._accumulate_compiled(kernels, grid, readings)
-        runs, updates = self.runs(grid.spec, readings)
-        add_runs(grid, runs, self.params.redundant_looks)
-        return updates
-
-    def _accumulate_compiled(
-        self, kernels: Any, grid: FrequencyAccumulator, readings: SensorReadings
-    ) -> int:
-        """:meth:`runs` and :func:`add_runs` in one kernel call per trust class."""
-        return accumulate_sets(kernels, grid, self.params.redundant_looks, laser=self.kernel_set(
-            grid.spec, readings))  # fmt: skip
+    def kernel_sets(
+        self, spec: GridSpec, readings: SensorReadings
+    ) -> tuple[KernelSet | None, KernelSet | None]:
+        """(sonar, laser) as :func:`accumulate_counts` hands them to the kernel."""
+        return None, self.kernel_set(spec, readings)
 
     def kernel_set(self, spec: GridSpec, readings: SensorReadings) -> KernelSet | None:
         """The readings as the compiled kernel takes them (its ``LASER_NAMES``), with their
