@@ -1,0 +1,31 @@
+"""gridmap's optional C extensions (``setup.py``), loaded once, or None for the reference path.
+
+The extensions are optional at install time: where no C compiler was at hand, importing one
+fails and the numpy / Python reference does the work, with the same results.
+``GRIDMAP_KERNELS=numpy`` makes every caller take the reference (tests, ``make bench``);
+``GRIDMAP_KERNELS=compiled`` makes a missing extension an error instead of a silent fallback
+(tests, so that a broken build is seen).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from types import ModuleType
+
+_loaded: dict[str, ModuleType | None] = {}
+
+
+def optional(name: str) -> ModuleType | None:
+    """The extension module ``name``, or None when the reference path should do the work."""
+    choice = os.environ.get("GRIDMAP_KERNELS", "auto")
+    if choice == "numpy":
+        return None
+    if _loaded.get(name) is None and (name not in _loaded or choice == "compiled"):
+        try:
+            _loaded[name] = importlib.import_module(name)
+        except ImportError:
+            if choice == "compiled":
+                raise
+            _loaded[name] = None
+    return _loaded[name]
