@@ -194,18 +194,18 @@ def synchronise(
     # ring's 16 readings share one stamp; the same arithmetic per stamp, so the same bits
     first, group = stamp_groups(r.stamp_ns)
     xs, ys, ths, valids = interpolate_pose(log.poses, r.stamp_ns[first])
-    x, y, theta, valid = xs[group], ys[group], ths[group], valids[group]
+    valid = valids[group]
     min_r = np.asarray([s.min_range_m for s in sensors], dtype=np.float64)[r.sensor]
     max_r = np.asarray([s.max_range_m for s in sensors], dtype=np.float64)[r.sensor]
     too_near = valid & (r.range_m < min_r)
     keep = valid & ~too_near
     idx = r.sensor[keep]
+    kept_group = group[keep]  # each kept reading's stamp among the ``first`` ones
     mx = np.asarray([s.x_m for s in sensors], dtype=np.float64)[idx]
     my = np.asarray([s.y_m for s in sensors], dtype=np.float64)[idx]
     myaw = np.asarray([s.yaw_rad for s in sensors], dtype=np.float64)[idx]
-    sx, sy, sth = compose(x[keep], y[keep], theta[keep], mx, my, myaw)
-    kept_first, kept_group = stamp_groups(r.stamp_ns[keep])
-    distance, rotation = travelled_at(log.poses, r.stamp_ns[keep][kept_first], travelled)
+    sx, sy, sth = compose(xs[kept_group], ys[kept_group], ths[kept_group], mx, my, myaw)
+    distance, rotation = travelled_at(log.poses, r.stamp_ns[first], travelled)
     distance, rotation = distance[kept_group], rotation[kept_group]
     readings = SensorReadings(
         stamp_ns=r.stamp_ns[keep],
