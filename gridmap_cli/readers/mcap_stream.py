@@ -43,7 +43,7 @@ from gridmap_cli.readers.mcap_bulk import (
 from gridmap_cli.readers.mcap_channels import DAMAGED, message_type, open_reader, read_summary
 from gridmap_cli.readers.mcap_log import McapSource, library_decoders
 from gridmap_cli.readers.options import ReadOptions
-from gridmap_cli.readers.ros_batches import _frames, _stamps, add_columns
+from gridmap_cli.readers.ros_batches import _frames, _stamps, add_columns, scan_beams
 from gridmap_cli.readers.ros_bulk import Columns, Layout, decode
 from gridmap_cli.readers.ros_messages import MessageAccumulator, float32_decimal
 from gridmap_cli.readers.ros_recording import read_recording
@@ -366,17 +366,9 @@ def _scan_readings(
     if n and not np.array_equal(count, np.array([beams[f] for f in frames])[index]):
         raise Layout("a scan with another beam count than the checking pass saw")
     base = np.array([first_sensor[f] for f in frames], dtype=np.int64)[index]
-    assert cols.ranges is not None
-    with np.errstate(invalid="ignore"):  # NaN payloads
-        ranges = cols.ranges.astype(np.float64)
-    row_of = np.repeat(np.arange(n), count)
-    beam = np.arange(len(ranges), dtype=np.int64) - np.repeat(np.cumsum(count) - count, count)
-    range_max = a["range_max"].astype(np.float64)[row_of]
-    with np.errstate(invalid="ignore"):
-        valid = ~np.isnan(ranges) & (ranges >= 0.0)  # NaN: no reading; -inf: too close
-        no_echo = valid & (ranges >= range_max)
-    rng = float32_decimal(np.where(no_echo, np.inf, ranges)[valid])
-    sensor = (base[row_of] + beam)[valid].astype(np.int32)
+    row, beam, value = scan_beams(cols, count)
+    rng = float32_decimal(value)
+    sensor = (base[row] + beam).astype(np.int32)
     if max_r is not None and len(rng):
         rng = np.where(np.isinf(rng), max_r[sensor], rng)
-    return RangeReadings(_stamps(cols)[row_of][valid], sensor, rng)
+    return RangeReadings(_stamps(cols)[row], sensor, rng)

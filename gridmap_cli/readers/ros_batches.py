@@ -176,18 +176,26 @@ def _scans(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
         if first_key + k.count > len(acc.keys):
             for j in range(1, k.count):
                 acc._key(f"{frame}_{j}")
+    scan, beam, out = scan_beams(cols, count)
+    acc.r_chunks.append((_stamps(cols)[scan], base[index][scan] + beam, out, True))
+
+
+def scan_beams(
+    cols: Columns, count: npt.NDArray[np.int64]
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+    """The beams of a batch of scans (``count`` beams each) that hold a reading: each one's
+    scan (row of ``cols``), its index in the scan, and its range, +inf for no echo (at or
+    beyond the scan's ``range_max``). NaN (no reading) and -inf (too close) are left out."""
     assert cols.ranges is not None
     with np.errstate(invalid="ignore"):  # NaN payloads
         ranges = cols.ranges.astype(np.float64)
-    row_of = np.repeat(np.arange(n), count)
+    row_of = np.repeat(np.arange(len(cols)), count)
     beam = np.arange(len(ranges), dtype=np.int64) - np.repeat(np.cumsum(count) - count, count)
-    range_max = a["range_max"].astype(np.float64)[row_of]
+    range_max = cols.arrays["range_max"].astype(np.float64)[row_of]
     with np.errstate(invalid="ignore"):
         valid = ~np.isnan(ranges) & (ranges >= 0.0)  # NaN: no reading; -inf: too close
         no_echo = valid & (ranges >= range_max)
-    out = np.where(no_echo, np.inf, ranges)[valid]
-    keys = (base[index][row_of] + beam)[valid]
-    acc.r_chunks.append((_stamps(cols)[row_of][valid], keys, out, True))
+    return row_of[valid], beam[valid], np.where(no_echo, np.inf, ranges)[valid]
 
 
 def _json_readings(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
