@@ -80,11 +80,7 @@ class McapSource:
         except InputFileError:
             raise
         except DAMAGED as exc:
-            if isinstance(exc, OSError) and not isinstance(exc, EOFError):
-                raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
-            raise InputFileError(
-                path, f"truncated or damaged MCAP data ({type(exc).__name__}: {exc})"
-            ) from exc
+            raise damage_error(path, exc) from exc
 
     def messages(self, topics: Sequence[str], every_topic: bool) -> Iterator[Message]:
         self._verify()
@@ -92,7 +88,7 @@ class McapSource:
             return  # every topic read in bulk: nothing to walk the chunks for
         path = self.path
         wanted = set(topics)
-        decoders: dict[int, Callable[[bytes], Any]] = {}
+        decoder_for = library_decoders(path)
         seen: Counter[str] = Counter()  # messages of each topic so far: names a bad one
         name = str(path)
         try:
@@ -114,21 +110,14 @@ class McapSource:
                     if channel.topic not in wanted:
                         yield name, channel.topic, type_name, message.log_time, None
                         continue
-                    decoder = decoders.get(channel.id)
-                    if decoder is None:
-                        factories = _factories(channel.message_encoding)
-                        decoder = decoders[channel.id] = _decoder(path, factories, channel, schema)
+                    decoder = decoder_for(channel, schema)
                     decoded = _decode(path, decoder, channel, type_name, index, message.log_time,
                                       message.data)  # fmt: skip
                     yield name, channel.topic, type_name, message.log_time, decoded
         except InputFileError:
             raise
         except DAMAGED as exc:
-            if isinstance(exc, OSError) and not isinstance(exc, EOFError):
-                raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
-            raise InputFileError(
-                path, f"truncated or damaged MCAP data ({type(exc).__name__}: {exc})"
-            ) from exc
+            raise damage_error(path, exc) from exc
 
 
 def read_mcap_log(source: str | Path, options: ReadOptions | None = None) -> RangeLog:
@@ -150,6 +139,13 @@ def read_mcap(
     """:func:`read_mcap_log`, also returning what was chosen (for ``inspect``); see
     :func:`~gridmap_cli.readers.ros_recording.read_recording`."""
     return read_recording([McapSource(Path(source))], options, strict, every_topic)
+
+
+def damage_error(path: Path, exc: BaseException) -> InputFileError:
+    """The one-line error for what the mcap library raised reading ``path`` (:data:`DAMAGED`)."""
+    if isinstance(exc, OSError) and not isinstance(exc, EOFError):
+        return InputFileError(path, f"cannot read: {exc.strerror or exc}")
+    return InputFileError(path, f"truncated or damaged MCAP data ({type(exc).__name__}: {exc})")
 
 
 def library_decoders(path: Path) -> Callable[[Channel, Schema | None], Callable[[bytes], Any]]:
