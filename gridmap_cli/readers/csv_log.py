@@ -98,12 +98,7 @@ def _read_bulk(text: str, path: str) -> RangeLog | None:
     start = 0
     for number, line in enumerate(lines):
         stripped = line.lstrip("\ufeff").strip()
-        if not stripped:
-            continue
-        if stripped.startswith("#"):
-            key, sep, value = stripped[1:].partition(":")
-            if sep and key.strip():
-                metadata[key.strip()] = value.strip()
+        if before_header(stripped, metadata):
             continue
         header = [h.strip() for h in stripped.split(",")]
         start = number + 1
@@ -221,12 +216,7 @@ def _read_rows(handle: TextIO, path: str) -> RangeLog:
     for number, line in lines:
         # a BOM survives when the caller opened the file without utf-8-sig
         stripped = line.lstrip("\ufeff").strip()
-        if not stripped:
-            continue
-        if stripped.startswith("#"):
-            key, sep, value = stripped[1:].partition(":")
-            if sep and key.strip():
-                metadata[key.strip()] = value.strip()
+        if before_header(stripped, metadata):
             continue
         try:
             header = next(csv.reader(io.StringIO(stripped)))
@@ -305,6 +295,17 @@ def _read_rows(handle: TextIO, path: str) -> RangeLog:
         metadata=metadata,
         names_are_columns=True,
     )
+
+
+def before_header(stripped: str, metadata: dict[str, str]) -> bool:
+    """Whether a stripped line before the header row is blank or a ``# key: value`` comment
+    (kept in ``metadata``): the readers skip these until the header."""
+    if stripped.startswith("#"):
+        key, sep, value = stripped[1:].partition(":")
+        if sep and key.strip():
+            metadata[key.strip()] = value.strip()
+        return True
+    return not stripped
 
 
 def _csv_rows(rows: Any, path: str, header_line: int) -> Iterator[list[str]]:

@@ -42,6 +42,7 @@ from gridmap_cli.readers.csv_log import (
     _check_header,
     _log,
     _parse_block,
+    before_header,
     seconds_to_ns,
 )
 from gridmap_cli.records import RangeLog, RangeReadings, ReadingStream
@@ -127,12 +128,7 @@ def _table(handle: TextIO) -> tuple[dict[str, str], list[str], Iterator[list[str
     for lines in pieces:
         for number, line in enumerate(lines):
             stripped = line.lstrip("\ufeff").strip()
-            if not stripped:
-                continue
-            if stripped.startswith("#"):
-                key, sep, value = stripped[1:].partition(":")
-                if sep and key.strip():
-                    metadata[key.strip()] = value.strip()
+            if before_header(stripped, metadata):
                 continue
             header = [h.strip() for h in stripped.split(",")]
             return metadata, header, _rows(itertools.chain([lines[number + 1 :]], pieces))
