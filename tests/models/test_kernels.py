@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -43,6 +44,26 @@ def _sectors(rng: np.random.Generator, n: int) -> SectorEvidence:
         outer_m=reach,
         outer_value=outer_value,
     )  # fmt: skip
+
+
+def assert_counts_equal_the_reference(
+    monkeypatch: pytest.MonkeyPatch, model: Any, batches: list[SensorReadings], spec: GridSpec
+) -> tuple[FrequencyAccumulator, FrequencyAccumulator]:
+    """Map ``batches`` with an error-aware model on numpy and compiled kernels; the counts
+    must be equal bit for bit, across at least two trust classes. Returns (numpy, compiled)."""
+    grids, updates = [], []
+    for choice in ("numpy", "compiled"):
+        monkeypatch.setenv("GRIDMAP_KERNELS", choice)
+        grid = FrequencyAccumulator(spec)
+        updates.append(sum(model.accumulate(grid, b) for b in batches))
+        grids.append(grid)
+    ref, fast = grids
+    assert updates[0] == updates[1] > 0
+    assert len(ref._closed) >= 2  # several trust classes did arrive
+    assert np.array_equal(ref.observations(), fast.observations())
+    assert np.array_equal(ref.looks(), fast.looks())
+    assert np.array_equal(ref.hits(), fast.hits())
+    return ref, fast
 
 
 def _both(monkeypatch: pytest.MonkeyPatch, add: object) -> tuple[LogOddsAccumulator, ...]:
@@ -180,20 +201,8 @@ def test_error_aware_kernel_equals_the_numpy_reference(monkeypatch: pytest.Monke
         assert b.distance_m is not None
         b.distance_m[:] += offset
         offset = float(b.distance_m[-1])
-    grids = []
-    updates = []
-    for choice in ("numpy", "compiled"):
-        monkeypatch.setenv("GRIDMAP_KERNELS", choice)
-        grid = FrequencyAccumulator(SPEC)
-        updates.append(sum(model.accumulate(grid, b) for b in batches))
-        grids.append(grid)
-    ref, fast = grids
-    assert updates[0] == updates[1] > 0
-    assert len(ref._closed) >= 2  # several trust classes did arrive
-    assert np.array_equal(ref.observations(), fast.observations())
+    ref, fast = assert_counts_equal_the_reference(monkeypatch, model, batches, SPEC)
     assert np.abs(ref.looks() - fast.looks()).max() <= 1e-9
-    assert np.array_equal(ref.looks(), fast.looks())
-    assert np.array_equal(ref.hits(), fast.hits())
     assert np.array_equal(ref.occupancy_map().prob, fast.occupancy_map().prob, equal_nan=True)
 
 
@@ -238,19 +247,7 @@ def test_error_aware_laser_kernel_equals_the_numpy_reference(
                 distance_m=d, rotation_rad=d * 0.3,
             )
         )  # fmt: skip
-    grids = []
-    updates = []
-    for choice in ("numpy", "compiled"):
-        monkeypatch.setenv("GRIDMAP_KERNELS", choice)
-        grid = FrequencyAccumulator(spec)
-        updates.append(sum(model.accumulate(grid, b) for b in batches))
-        grids.append(grid)
-    ref, fast = grids
-    assert updates[0] == updates[1] > 0
-    assert len(ref._closed) >= 2
-    assert np.array_equal(ref.observations(), fast.observations())
-    assert np.array_equal(ref.looks(), fast.looks())
-    assert np.array_equal(ref.hits(), fast.hits())
+    assert_counts_equal_the_reference(monkeypatch, model, batches, spec)
 
 
 def test_a_small_batch_on_a_large_grid_moves_only_what_it_touched(
@@ -322,15 +319,6 @@ def test_error_aware_sonar_and_laser_in_one_batch_equal_the_numpy_reference(
                 distance_m=d, rotation_rad=d * 0.3,
             )
         )  # fmt: skip
-    grids, updates = [], []
-    for choice in ("numpy", "compiled"):
-        monkeypatch.setenv("GRIDMAP_KERNELS", choice)
-        grid = FrequencyAccumulator(GridSpec(-4.0, -4.5, 0.05, 170, 160))
-        updates.append(sum(model.accumulate(grid, b) for b in batches))
-        grids.append(grid)
-    ref, fast = grids
-    assert updates[0] == updates[1] > 0
-    assert len(ref._closed) >= 2
-    assert np.array_equal(ref.observations(), fast.observations())
-    assert np.array_equal(ref.looks(), fast.looks())
-    assert np.array_equal(ref.hits(), fast.hits())
+    assert_counts_equal_the_reference(
+        monkeypatch, model, batches, GridSpec(-4.0, -4.5, 0.05, 170, 160)
+    )
