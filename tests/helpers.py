@@ -23,6 +23,16 @@ def run(*args: str) -> tuple[int, str, str]:
     return result.exit_code, result.stdout, result.stderr
 
 
+def built(tmp_path: Path, name: str, *args: str) -> tuple[bytes, bytes]:
+    """``gridmap build ARGS`` into ``tmp_path/name/map.png`` (one file name for every build,
+    as the YAML names its image): the PNG and YAML bytes, for byte-for-byte comparisons."""
+    (tmp_path / name).mkdir()
+    out = tmp_path / name / "map.png"
+    code, _, stderr = run("build", *args, "-o", str(out), "-q")
+    assert code == 0, stderr
+    return out.read_bytes(), out.with_suffix(".yaml").read_bytes()
+
+
 def names(folder: Path) -> set[str]:
     """Names of the entries of ``folder``: what a command left behind."""
     return {p.name for p in folder.iterdir()}

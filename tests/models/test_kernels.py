@@ -227,7 +227,7 @@ def test_error_aware_laser_kernel_equals_the_numpy_reference(
     )  # fmt: skip
     model = ErrorAwareRayModel(ErrorAwareParams(), odometry, layout, 0.05)
     rng = np.random.default_rng(4)
-    batches = []
+    batches: list[SensorReadings] = []
     travelled = 0.0
     for scans in (20, 1, 40):
         n = scans * len(sensors)
@@ -299,7 +299,7 @@ def test_error_aware_sonar_and_laser_in_one_batch_equal_the_numpy_reference(
         narrow,
     )
     rng = np.random.default_rng(8)
-    batches = []
+    batches: list[SensorReadings] = []
     travelled = 0.0
     for scans in (15, 1, 30):
         n = scans * len(sensors)

@@ -14,7 +14,7 @@ from gridmap_cli.errors import InputFileError
 from gridmap_cli.readers import csv_stream, read_log
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeReadings
-from tests.helpers import names, run
+from tests.helpers import built, names, run
 
 SAMPLES = Path(__file__).resolve().parents[2] / "samples"
 LOG = SAMPLES / "corridor_loop.csv"
@@ -66,14 +66,6 @@ def test_a_streamed_log_reads_as_the_held_one(tmp_path: Path, gz: bool) -> None:
 
 def test_a_small_log_is_held() -> None:
     assert read_log(LOG, None, STREAM).stream is None  # below STREAM_FROM_BYTES
-
-
-def built(tmp_path: Path, name: str, *args: str) -> tuple[bytes, bytes]:
-    (tmp_path / name).mkdir()
-    out = tmp_path / name / "map.png"  # one name: the YAML names its image
-    code, _, stderr = run("build", *args, "-o", str(out), "-q")
-    assert code == 0, stderr
-    return out.read_bytes(), out.with_suffix(".yaml").read_bytes()
 
 
 @pytest.mark.parametrize(

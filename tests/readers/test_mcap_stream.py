@@ -16,7 +16,7 @@ from gridmap_cli.errors import InputFileError
 from gridmap_cli.readers import mcap_stream, read_log
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeReadings
-from tests.helpers import run
+from tests.helpers import built, run
 from tests.readers.mcap_helpers import Recording, S, drive, sonar_range, static_tf
 from tests.readers.test_csv_stream import joined, same_readings
 
@@ -60,14 +60,6 @@ def test_a_small_recording_is_held() -> None:
 def test_the_threshold_variable_lowers_it(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(mcap_stream.STREAM_ENV, "0")
     assert read_log(LOG, None, STREAM).stream is not None
-
-
-def built(tmp_path: Path, name: str, *args: str) -> tuple[bytes, bytes]:
-    (tmp_path / name).mkdir()
-    out = tmp_path / name / "map.png"  # one name: the YAML names its image
-    code, _, stderr = run("build", *args, "-o", str(out), "-q")
-    assert code == 0, stderr
-    return out.read_bytes(), out.with_suffix(".yaml").read_bytes()
 
 
 @pytest.mark.parametrize(
