@@ -4,8 +4,8 @@ VENV := .venv
 BIN := $(VENV)/bin
 DEMO_OUT := out/demo
 # the compiled mapping kernels: pip builds them, so a change to them reinstalls
-KERNELS := setup.py gridmap_cli/models/_ckernels.c gridmap_cli/readers/_cwalk.c \
-	gridmap_cli/readers/_cjson.c gridmap_cli/readers/_cjson.h
+KERNELS := setup.py gridmap_cli/mapping/models/_ckernels.c gridmap_cli/readers/ros/_cwalk.c \
+	gridmap_cli/readers/ros/_cjson.c gridmap_cli/readers/ros/_cjson.h
 
 .PHONY: install dev demo test lint format bench samples goldens experiment corpus clean
 

@@ -5,7 +5,7 @@ mapping kernels of the sonar cone, the error-aware cone and the ray model; the r
 the MCAP and bag integrity checks and the matcher of gridmap's compact JSON messages. Both are
 optional: where no C compiler is at hand, the install still succeeds and the numpy / Python
 reference paths do the work
-(gridmap_cli/models/kernels.py and gridmap_cli/readers/walk.py choose).
+(gridmap_cli/mapping/models/kernels.py and gridmap_cli/readers/ros/walk.py choose).
 """
 
 from setuptools import Extension, setup
@@ -13,18 +13,18 @@ from setuptools import Extension, setup
 setup(
     ext_modules=[
         Extension(
-            "gridmap_cli.models._ckernels",
-            sources=["gridmap_cli/models/_ckernels.c"],
+            "gridmap_cli.mapping.models._ckernels",
+            sources=["gridmap_cli/mapping/models/_ckernels.c"],
             # no fused multiply-adds: the kernels must round as the numpy reference does
             extra_compile_args=["-O2", "-ffp-contract=off"],
             optional=True,
         ),
-        # the MCAP and ROS 1 bag integrity checks' per-record walks (gridmap_cli/readers/walk.py)
-        # and the matcher of gridmap's compact JSON messages (gridmap_cli/readers/json_bulk.py)
+        # the MCAP and ROS 1 bag integrity checks' per-record walks (gridmap_cli/readers/ros/walk.py)
+        # and the matcher of gridmap's compact JSON messages (gridmap_cli/readers/ros/mcap/json_bulk.py)
         Extension(
-            "gridmap_cli.readers._cwalk",
-            sources=["gridmap_cli/readers/_cwalk.c", "gridmap_cli/readers/_cjson.c"],
-            depends=["gridmap_cli/readers/_cjson.h"],
+            "gridmap_cli.readers.ros._cwalk",
+            sources=["gridmap_cli/readers/ros/_cwalk.c", "gridmap_cli/readers/ros/_cjson.c"],
+            depends=["gridmap_cli/readers/ros/_cjson.h"],
             extra_compile_args=["-O2"],
             optional=True,
         ),

@@ -211,7 +211,7 @@ def octomap_rays(log: Path) -> float | None:
         "import sys, time, numpy as np, octomap\n"
         "from gridmap_cli.readers import read_log\n"
         "from gridmap_cli.robot import load_robot\n"
-        "from gridmap_cli.sync import synchronise\n"
+        "from gridmap_cli.poses.sync import synchronise\n"
         "log = read_log(__import__('pathlib').Path(sys.argv[1]))\n"
         "r, _ = synchronise(log, load_robot(sys.argv[2]))\n"
         "end_x = r.x_m + r.range_m * np.cos(r.theta_rad)\n"

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gridmap_cli.cli import cli
-from gridmap_cli.evaluate import (
+from gridmap_cli.evaluation.evaluate import (
     Evaluation,
     Pose,
     Truth,
@@ -38,12 +38,12 @@ from gridmap_cli.evaluate import (
     odometry_frame_in_world,
     sensed_region,
 )
-from gridmap_cli.odometry_error import OdometryError, load_odometry_error
+from gridmap_cli.mapping.selection import Selection, apply_selection
+from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
+from gridmap_cli.poses.sync import sensors_for_log
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import robot_from_log
-from gridmap_cli.selection import Selection, apply_selection
-from gridmap_cli.sync import sensors_for_log
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "carmen"

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from gridmap_cli.cli import cli
-from gridmap_cli.evaluate import (
+from gridmap_cli.evaluation.evaluate import (
     Evaluation,
     Pose,
     Truth,
@@ -48,12 +48,12 @@ from gridmap_cli.evaluate import (
     odometry_frame_in_world,
     sensed_region,
 )
-from gridmap_cli.evaluate_plot import map_rgb
-from gridmap_cli.odometry_error import load_odometry_error
+from gridmap_cli.evaluation.plot import map_rgb
+from gridmap_cli.poses.odometry_error import load_odometry_error
+from gridmap_cli.poses.sync import sensors_for_log
 from gridmap_cli.readers import read_log
 from gridmap_cli.robot import load_robot
 from gridmap_cli.sim.odometry import OdometryErrorModel
-from gridmap_cli.sync import sensors_for_log
 
 # the real part lives beside this script, which runs as a file (make experiment) or is loaded
 # from its path (tests), never as a package

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gridmap_cli.mapfile import load_map
-from gridmap_cli.metrics import WallScores, wall_scores
-from gridmap_cli.models.standard import StandardSonarParams
-from gridmap_cli.pipeline import BuildOptions, build_map
+from gridmap_cli.evaluation.metrics import WallScores, wall_scores
+from gridmap_cli.mapping.mapfile import load_map
+from gridmap_cli.mapping.models.standard import StandardSonarParams
+from gridmap_cli.mapping.pipeline import BuildOptions, build_map
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import load_robot
 from gridmap_cli.sim.path import load_path

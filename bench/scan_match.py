@@ -4,7 +4,7 @@ For each CARMEN corrected log in ../shared/data/carmen (their corrected poses ar
 reference) it matches the laser scans (``gridmap build --pose scan-matched``'s matcher), then
 reports at the scans' stamps:
 
-- track errors against the reference, as evo computes them (``gridmap_cli.track_error``):
+- track errors against the reference, as evo computes them (``gridmap_cli.poses.track_error``):
   absolute after a rigid alignment (evo_ape -a) and relative per metre over 5 m of travel
   (evo_rpe --delta 5 --delta_unit m, divided by the distance);
 - map scores against the reference map (the map built with the reference poses): every map is
@@ -34,15 +34,15 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from gridmap_cli.evaluate import NLL_CLIP, ProbabilityMap, map_in_world
-from gridmap_cli.grid import OccupancyMap
-from gridmap_cli.pipeline import BuildOptions, build_map
+from gridmap_cli.evaluation.evaluate import NLL_CLIP, ProbabilityMap, map_in_world
+from gridmap_cli.mapping.grid import OccupancyMap
+from gridmap_cli.mapping.pipeline import BuildOptions, build_map
+from gridmap_cli.poses.scan_match import ScanMatch, corrected_track, match_log
+from gridmap_cli.poses.sync import interpolate_pose
+from gridmap_cli.poses.track_error import TrackError, track_error
 from gridmap_cli.readers import read_logs
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import PoseTrack, RangeLog
-from gridmap_cli.scan_match import ScanMatch, corrected_track, match_log
-from gridmap_cli.sync import interpolate_pose
-from gridmap_cli.track_error import TrackError, track_error
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "carmen"
@@ -201,7 +201,7 @@ COEFFICIENTS = (
 def residual_drift(results: list[LogResult]) -> list[str]:
     """``gridmap calibrate --pose scan-matched``'s coefficients per log, and the largest of each
     (the documented default when no reference exists)."""
-    from gridmap_cli.calibrate import calibrate
+    from gridmap_cli.poses.calibrate import calibrate
 
     lines = ["| log | " + " | ".join(COEFFICIENTS) + " |", "|---" * (len(COEFFICIENTS) + 1) + "|"]
     values = []
@@ -222,7 +222,7 @@ def figure(results: list[LogResult], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from gridmap_cli.track_error import transformed
+    from gridmap_cli.poses.track_error import transformed
 
     fig, axes = plt.subplots(len(results), 3, figsize=(13, 4.2 * len(results)), squeeze=False)
     colours = {"odometry": "tab:red", "scan-matched": "tab:blue", "reference": "black"}

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.evaluate import (
+from gridmap_cli.evaluation.evaluate import (
     NLL_CLIP,
     ProbabilityMap,
     load_truth,
@@ -30,14 +30,14 @@ from gridmap_cli.evaluate import (
     odometry_frame_in_world,
     sensed_region,
 )
-from gridmap_cli.grid import LogOddsAccumulator, logodds
-from gridmap_cli.models.ray import RayModel
-from gridmap_cli.models.standard import StandardSonarModel
-from gridmap_cli.pipeline import BuildOptions, batch_bounds, plan_build
+from gridmap_cli.mapping.grid import LogOddsAccumulator, logodds
+from gridmap_cli.mapping.models.ray import RayModel
+from gridmap_cli.mapping.models.standard import StandardSonarModel
+from gridmap_cli.mapping.pipeline import BuildOptions, batch_bounds, plan_build
+from gridmap_cli.poses.sync import select_readings, sensors_for_log
 from gridmap_cli.robot import load_robot
 from gridmap_cli.sim.path import load_path
 from gridmap_cli.sim.simulate import simulate
-from gridmap_cli.sync import select_readings, sensors_for_log
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLES = ROOT / "samples"

@@ -4,7 +4,8 @@
 into the text a person reads. Nothing here prints.
 
 The verdict (``build.ready``, ``build.problem``) is build's own: the description runs the checks
-build runs (read, robot, :func:`~gridmap_cli.pipeline.plan_build`, with build's default options)
+build runs (read, robot, :func:`~gridmap_cli.mapping.pipeline.plan_build`, with build's default
+options)
 and reports the first error build would stop at, word for word, not a parallel set of rules.
 """
 
@@ -19,17 +20,17 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError, InputFileError
-from gridmap_cli.odometry_error import travelled
-from gridmap_cli.pipeline import BuildOptions, plan_build
+from gridmap_cli.mapping.pipeline import BuildOptions, plan_build
+from gridmap_cli.mapping.selection import Selected, Selection, apply_selection, names_text
+from gridmap_cli.poses.odometry_error import travelled
+from gridmap_cli.poses.sync import interpolate_pose
 from gridmap_cli.readers import LogFormat, recording_sources
-from gridmap_cli.readers.aria_log import LASER_MAX_RANGE_M
 from gridmap_cli.readers.options import ReadOptions
-from gridmap_cli.readers.ros_recording import RecordingRead, read_recording
-from gridmap_cli.readers.ros_topics import TF_TYPES
+from gridmap_cli.readers.ros.recording import RecordingRead, read_recording
+from gridmap_cli.readers.ros.topics import TF_TYPES
+from gridmap_cli.readers.text.aria_log import LASER_MAX_RANGE_M
 from gridmap_cli.records import EPOCH_FROM_NS, PoseTrack, RangeLog, span_text, stamp_text
 from gridmap_cli.robot import RangeSensor, RobotDescription, robot_from_log
-from gridmap_cli.selection import Selected, Selection, apply_selection, names_text
-from gridmap_cli.sync import interpolate_pose
 
 
 def describe_log(
@@ -42,7 +43,8 @@ def describe_log(
     part of it ``selection`` chooses. ``fmt`` is the format of the first.
 
     Raises what the reader raises for a broken CSV/ARIA file, and what
-    :func:`~gridmap_cli.selection.apply_selection` raises for a selection the log cannot meet.
+    :func:`~gridmap_cli.mapping.selection.apply_selection` raises for a selection the log cannot
+    meet.
     """
     path = paths[0]
     size = sum(_bytes(p) for p in paths)

@@ -85,7 +85,7 @@ class RangeReadings:
 def cut_chunks(blocks: Iterable[RangeReadings], size: int) -> Iterator[RangeReadings]:
     """The readings of ``blocks``, in order, in chunks of about ``size``, each cut where the
     stamp changes (a scan's beams stay in one chunk); a single stamp holding more than ``size``
-    readings is kept whole. The cuts are :func:`gridmap_cli.shards.batch_bounds`' over all
+    readings is kept whole. The cuts are :func:`gridmap_cli.mapping.shards.batch_bounds`' over all
     the readings at once, whatever the blocks are, provided no block splits one stamp's
     readings: the chunks of a log read again block by block are the held log's, reading for
     reading, so every sum over them is the same to the bit."""
@@ -148,7 +148,7 @@ class ReadingStream:
 
     def with_sensors(self, new_index: npt.NDArray[np.int32]) -> ReadingStream:
         """The stream with the log's sensor ``i`` re-indexed to ``new_index[i]`` (-1: left
-        out), as :func:`gridmap_cli.selection.keep_sensors` does to held readings."""
+        out), as :func:`gridmap_cli.mapping.selection.keep_sensors` does to held readings."""
         kept = self.index >= 0
         index = np.full_like(self.index, -1)
         index[kept] = new_index[self.index[kept]]
@@ -176,7 +176,8 @@ class RangeLog:
     ``build`` ignores it. ``metadata`` holds the log's own key/value header.
     ``names_are_columns``: the sensor names are free-form table columns (CSV), so a name that
     neither the log nor the robot describes may be some other measurement (a battery voltage):
-    :func:`gridmap_cli.selection.ignore_other_columns` leaves it out with a note. Elsewhere a
+    :func:`gridmap_cli.mapping.selection.ignore_other_columns` leaves it out with a note. Elsewhere
+    a
     sensor is a sensor, and one without mounting geometry is an error.
 
     ``stream``: set when the readings are not held but read again from the file at each pass

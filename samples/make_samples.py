@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gridmap_cli.grid import GridSpec, OccupancyMap
+from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
 from gridmap_cli.writers.map_image import write_map
 
 HERE = Path(__file__).resolve().parent

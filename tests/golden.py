@@ -24,11 +24,11 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.pipeline import BuildOptions, build_map
+from gridmap_cli.mapping.pipeline import BuildOptions, build_map
+from gridmap_cli.poses.sync import synchronise
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RobotDescription, load_robot
-from gridmap_cli.sync import synchronise
 from gridmap_cli.writers.map_image import write_map
 from gridmap_cli.writers.map_mcap import write_map_mcap
 

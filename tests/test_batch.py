@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from gridmap_cli.batch import (
+from gridmap_cli.errors import GridmapError, UsageError
+from gridmap_cli.runs.batch import (
     LOCK_NAME,
     REPORT_NAME,
     BatchLock,
@@ -22,7 +23,6 @@ from gridmap_cli.batch import (
     plan_jobs,
     run_job,
 )
-from gridmap_cli.errors import GridmapError, UsageError
 from tests.helpers import names, run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
@@ -142,7 +142,7 @@ def test_the_lock_of_a_killed_run_is_free(tmp_path: Path) -> None:
     import subprocess
 
     code = (
-        "import os, sys; from pathlib import Path; from gridmap_cli.batch import BatchLock; "
+        "import os, sys; from pathlib import Path; from gridmap_cli.runs.batch import BatchLock; "
         "lock = BatchLock(Path(sys.argv[1])).__enter__(); os._exit(9)"
     )
     subprocess.run([sys.executable, "-c", code, str(tmp_path)], check=False)
@@ -211,7 +211,9 @@ def _dies_on_hall(job: Job) -> JobResult:
 def test_a_worker_that_dies_fails_its_log_and_the_batch_goes_on(
     logs: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("gridmap_cli.batch.run_job", _dies_on_hall)  # executors look it up there
+    monkeypatch.setattr(
+        "gridmap_cli.runs.batch.run_job", _dies_on_hall
+    )  # executors look it up there
     out = tmp_path / "maps"
     code, _, _ = run("batch", str(logs / "hall.csv"), str(logs / "corridor_loop.csv"),
                      "-o", str(out), "--jobs", "2")  # fmt: skip

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli.calibrate import CalibrationError, calibrate
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.odometry_error import OdometryError, load_odometry_error
+from gridmap_cli.poses.calibrate import CalibrationError, calibrate
+from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import load_robot

@@ -50,7 +50,7 @@ def test_build_json_summary(room_csv: Path, tmp_path: Path) -> None:
 
 
 def test_walls_land_where_the_room_is(room_csv: Path, tmp_path: Path) -> None:
-    from gridmap_cli.mapfile import load_map
+    from gridmap_cli.mapping.mapfile import load_map
 
     out = tmp_path / "room.png"
     assert run("build", str(room_csv), "-o", str(out), "--quiet")[0] == 0
@@ -219,8 +219,8 @@ def test_unknown_robot_in_the_log_is_bad_data(room_csv: Path, tmp_path: Path) ->
 def test_pose_global_maps_with_the_logs_reference_track(tmp_path: Path) -> None:
     from scipy import ndimage
 
-    from gridmap_cli.mapfile import load_map
-    from gridmap_cli.metrics import walls_in_map_frame
+    from gridmap_cli.evaluation.metrics import walls_in_map_frame
+    from gridmap_cli.mapping.mapfile import load_map
 
     samples = Path(__file__).resolve().parents[1] / "samples"
     world = load_map(samples / "worlds" / "corridor_loop.yaml")

@@ -14,15 +14,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli.mapfile import load_map
-from gridmap_cli.pipeline import BuildOptions, build_map
+from gridmap_cli.mapping.mapfile import load_map
+from gridmap_cli.mapping.pipeline import BuildOptions, build_map
+from gridmap_cli.poses.sync import synchronise
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RobotDescription, load_robot
 from gridmap_cli.sim.path import parse_path_yaml
 from gridmap_cli.sim.simulate import simulate
 from gridmap_cli.sim.world import World
-from gridmap_cli.sync import synchronise
 from gridmap_cli.writers.aria_log import save_aria_log
 from gridmap_cli.writers.csv_log import save_csv_log
 from gridmap_cli.writers.map_image import write_map

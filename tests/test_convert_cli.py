@@ -15,8 +15,8 @@ import pytest
 from mcap.reader import make_reader
 
 from gridmap_cli.readers import format_names, resolve_format
-from gridmap_cli.readers.aria_log import read_aria_log
-from gridmap_cli.readers.csv_log import read_csv_log
+from gridmap_cli.readers.text.aria_log import read_aria_log
+from gridmap_cli.readers.text.csv_log import read_csv_log
 from tests.helpers import names, run
 from tests.writers.test_mcap_log import ros2_messages
 

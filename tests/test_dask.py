@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from gridmap_cli.batch import REPORT_NAME
+from gridmap_cli.runs.batch import REPORT_NAME
 from tests.helpers import run
 
 try:
@@ -86,7 +86,7 @@ def test_a_fused_build_reduced_on_dask_is_the_local_bytes(scheduler: str, tmp_pa
 def test_an_unreachable_scheduler_is_one_line(
     tmp_path: Path, logs: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("gridmap_cli.executors.DASK_CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr("gridmap_cli.runs.executors.DASK_CONNECT_TIMEOUT", "1s")
     code, _, err = run("batch", str(logs), "-o", str(tmp_path / "o"), "--executor", "dask",
                        "--scheduler", "tcp://127.0.0.1:9")  # fmt: skip
     assert code == 1 and err.count("\n") == 1

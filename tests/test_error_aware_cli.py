@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli.mapfile import load_map
+from gridmap_cli.mapping.mapfile import load_map
 from tests.helpers import names, run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
@@ -136,7 +136,7 @@ def test_undecided_trinary_map_warns_and_suggests_scale() -> None:
 def test_readings_beyond_the_heading_spread_limit_are_left_out(tmp_path: Path) -> None:
     # heading drift 0.1 rad/m: g passes 30 deg after 5.2 m of the 56 m lap, and every later
     # reading is left out (weight 0); with no limit they blur over wedges up to 90 deg
-    from gridmap_cli.evaluate import load_probability_map
+    from gridmap_cli.evaluation.evaluate import load_probability_map
 
     sample = Path(__file__).resolve().parents[1] / "samples" / "corridor_loop.csv"
     known = []

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli.evaluate import (
+from gridmap_cli.evaluation.evaluate import (
     EvaluationError,
     ProbabilityMap,
     evaluate_map,
@@ -20,9 +20,9 @@ from gridmap_cli.evaluate import (
     odometry_frame_in_world,
     sensed_region,
 )
-from gridmap_cli.evaluate_plot import UNKNOWN_RGB, map_rgb
-from gridmap_cli.grid import GridSpec, OccupancyMap
-from gridmap_cli.mapfile import load_map
+from gridmap_cli.evaluation.plot import UNKNOWN_RGB, map_rgb
+from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
+from gridmap_cli.mapping.mapfile import load_map
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.sim.world import World
@@ -345,7 +345,7 @@ def test_the_corridor_sample_mapped_with_truth_scores_better(tmp_path: Path) -> 
 
 def test_a_reference_map_with_unknown_cells_is_scored_on_its_known_cells(tmp_path: Path) -> None:
     """A 3 x 3 reference computed by hand: its unknown cells are not free, they are skipped."""
-    from gridmap_cli.evaluate import evaluate_map, load_truth
+    from gridmap_cli.evaluation.evaluate import evaluate_map, load_truth
 
     # rows top to bottom as in the image: 0 occupied (black), 254 free, 205 unknown
     pixels = bytes([205, 254, 0, 254, 254, 205, 0, 254, 205])

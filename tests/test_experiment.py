@@ -12,9 +12,9 @@ from types import ModuleType
 import numpy as np
 import pytest
 
-from gridmap_cli.evaluate import ProbabilityMap, Truth, evaluate_map
-from gridmap_cli.grid import GridSpec
-from gridmap_cli.odometry_error import OdometryError
+from gridmap_cli.evaluation.evaluate import ProbabilityMap, Truth, evaluate_map
+from gridmap_cli.mapping.grid import GridSpec
+from gridmap_cli.poses.odometry_error import OdometryError
 from gridmap_cli.sim.world import World
 
 SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "experiment.py"

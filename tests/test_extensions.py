@@ -24,7 +24,7 @@ def test_a_present_extension_is_loaded_once_and_numpy_turns_it_off(
 ) -> None:
     monkeypatch.setattr(extensions, "_loaded", {})
     monkeypatch.setenv("GRIDMAP_KERNELS", "auto")
-    first = extensions.optional("gridmap_cli.readers._cwalk")
-    assert first is not None and extensions.optional("gridmap_cli.readers._cwalk") is first
+    first = extensions.optional("gridmap_cli.readers.ros._cwalk")
+    assert first is not None and extensions.optional("gridmap_cli.readers.ros._cwalk") is first
     monkeypatch.setenv("GRIDMAP_KERNELS", "numpy")
-    assert extensions.optional("gridmap_cli.readers._cwalk") is None
+    assert extensions.optional("gridmap_cli.readers.ros._cwalk") is None

@@ -11,9 +11,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from gridmap_cli.fuse import Partial, combine, place, reduce_tree, tree_pairs, union_spec
-from gridmap_cli.grid import GridSpec
+from gridmap_cli.mapping.grid import GridSpec
 from gridmap_cli.records import PoseTrack
+from gridmap_cli.runs.fuse import Partial, combine, place, reduce_tree, tree_pairs, union_spec
 from tests.helpers import run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"

@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gridmap_cli.errors import MapSizeError
-from gridmap_cli.grid import FrequencyAccumulator, GridSpec
+from gridmap_cli.mapping.grid import FrequencyAccumulator, GridSpec
 
 # Map-sized values: coordinates within 100 km, cells from 1 mm to 10 m.
 coords = st.floats(min_value=-1e5, max_value=1e5, allow_nan=False)

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gridmap_cli.grid import OccupancyMap
-from gridmap_cli.mapfile import load_map
-from gridmap_cli.metrics import wall_scores, walls_in_map_frame
+from gridmap_cli.evaluation.metrics import wall_scores, walls_in_map_frame
+from gridmap_cli.mapping.grid import OccupancyMap
+from gridmap_cli.mapping.mapfile import load_map
 from tests.helpers import run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"

@@ -11,8 +11,8 @@ import pytest
 from PIL import Image
 
 from gridmap_cli.errors import InputFileError, UsageError
-from gridmap_cli.grid import GridSpec, OccupancyMap
-from gridmap_cli.mapfile import LOADER_FLAVOURS, LoadedMap, load_map
+from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
+from gridmap_cli.mapping.mapfile import LOADER_FLAVOURS, LoadedMap, load_map
 from gridmap_cli.writers.map_image import write_map
 
 NAN = math.nan

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from gridmap_cli.grid import GridSpec, OccupancyMap
-from gridmap_cli.metrics import wall_scores, walls_in_map_frame
+from gridmap_cli.evaluation.metrics import wall_scores, walls_in_map_frame
+from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
 
 # a 10 x 10 world at 1 m with one wall along column 5
 WORLD = GridSpec(0.0, 0.0, 1.0, 10, 10)

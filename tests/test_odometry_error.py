@@ -13,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.odometry_error import (
+from gridmap_cli.poses.odometry_error import (
     OdometryError,
     load_odometry_error,
     odometry_error_yaml,

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from gridmap_cli.errors import MapSizeError, NoDataError
-from gridmap_cli.mapfile import load_map
-from gridmap_cli.metrics import WallScores, wall_scores
-from gridmap_cli.pipeline import BuildOptions, build_map, plan_build
+from gridmap_cli.evaluation.metrics import WallScores, wall_scores
+from gridmap_cli.mapping.mapfile import load_map
+from gridmap_cli.mapping.pipeline import BuildOptions, build_map, plan_build
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import load_robot
 from gridmap_cli.sim.path import load_path

@@ -8,8 +8,8 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
+from gridmap_cli.mapping.shards import batch_bounds
 from gridmap_cli.records import RangeReadings, cut_chunks
-from gridmap_cli.shards import batch_bounds
 
 
 @given(

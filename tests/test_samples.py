@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from mcap.reader import make_reader
 
 from gridmap_cli.cli import cli
-from gridmap_cli.readers.mcap_channels import METADATA_NAME
+from gridmap_cli.readers.ros.mcap.channels import METADATA_NAME
 
 REPO = Path(__file__).resolve().parent.parent
 SAMPLES = REPO / "samples"

@@ -11,11 +11,9 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 
-from gridmap_cli.grid import GridSpec
-from gridmap_cli.odometry_error import travelled
-from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
-from gridmap_cli.robot import RobotDescription, load_robot
-from gridmap_cli.scan_match import (
+from gridmap_cli.mapping.grid import GridSpec
+from gridmap_cli.poses.odometry_error import travelled
+from gridmap_cli.poses.scan_match import (
     FALLBACK,
     FIRST,
     NoLaserError,
@@ -27,10 +25,12 @@ from gridmap_cli.scan_match import (
     match_scans,
     scan_matched_log,
 )
+from gridmap_cli.poses.sync import interpolate_pose
+from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
+from gridmap_cli.robot import RobotDescription, load_robot
 from gridmap_cli.sim.path import WaypointPath
 from gridmap_cli.sim.simulate import simulate
 from gridmap_cli.sim.world import World
-from gridmap_cli.sync import interpolate_pose
 
 RES = 0.05
 

@@ -12,10 +12,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gridmap_cli.errors import UsageError
-from gridmap_cli.readers.csv_log import read_csv_log
-from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
-from gridmap_cli.robot import RangeSensor, load_robot
-from gridmap_cli.selection import (
+from gridmap_cli.mapping.selection import (
     Selection,
     apply_selection,
     ignore_other_columns,
@@ -25,6 +22,9 @@ from gridmap_cli.selection import (
     select_sensors,
     select_window,
 )
+from gridmap_cli.readers.text.csv_log import read_csv_log
+from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
+from gridmap_cli.robot import RangeSensor, load_robot
 
 S = 1_000_000_000
 APRIL_8 = 1_744_122_870 * S  # 2025-04-08T14:34:30Z

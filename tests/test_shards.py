@@ -7,13 +7,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli import pipeline, shards
-from gridmap_cli.grid import LogOddsAccumulator
-from gridmap_cli.pipeline import BuildOptions, plan_build
+from gridmap_cli.mapping import pipeline, shards
+from gridmap_cli.mapping.grid import LogOddsAccumulator
+from gridmap_cli.mapping.pipeline import BuildOptions, plan_build
+from gridmap_cli.poses.sync import select_readings
 from gridmap_cli.readers import read_log
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot
-from gridmap_cli.sync import select_readings
 from tests.helpers import run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli.grid import GridSpec, OccupancyMap
-from gridmap_cli.readers.csv_log import read_csv_log
+from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
+from gridmap_cli.readers.text.csv_log import read_csv_log
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import load_robot, preset_names
 from gridmap_cli.writers.map_image import write_map
@@ -215,7 +215,7 @@ def test_build_maps_the_simulated_log(world: Path, path_file: Path, tmp_path: Pa
     # With perfect odometry the map's frame is the world's shifted to the start (1, 1), heading 0:
     # occupied cells lie along the four walls (sonar arcs blur corners a little), never in the
     # middle of the room.
-    from gridmap_cli.mapfile import load_map
+    from gridmap_cli.mapping.mapfile import load_map
 
     loaded = load_map(tmp_path / "map.yaml")
     rows, cols = np.nonzero(loaded.occupancy == 100)

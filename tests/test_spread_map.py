@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli.grid import GridSpec
-from gridmap_cli.odometry_error import OdometryError, save_odometry_error
+from gridmap_cli.evaluation.spread_map import pose_spread_map
+from gridmap_cli.mapping.grid import GridSpec
+from gridmap_cli.poses.odometry_error import OdometryError, save_odometry_error
+from gridmap_cli.poses.sync import SensorReadings, select_readings, synchronise
 from gridmap_cli.readers import read_log
 from gridmap_cli.robot import RangeSensor, robot_from_log
-from gridmap_cli.spread_map import pose_spread_map
-from gridmap_cli.sync import SensorReadings, select_readings, synchronise
 from tests.helpers import run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"

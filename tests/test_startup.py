@@ -7,7 +7,9 @@ import sys
 from pathlib import Path
 
 from gridmap_cli import readers
-from gridmap_cli.readers import bag_log, carmen_log, mcap_channels
+from gridmap_cli.readers.ros.bag import log as bag_log
+from gridmap_cli.readers.ros.mcap import channels as mcap_channels
+from gridmap_cli.readers.text import carmen_log
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 
@@ -35,17 +37,18 @@ def test_a_csv_build_imports_no_decoder_plotting_or_scipy(tmp_path: Path) -> Non
     modules = _modules_after(
         "build", str(SAMPLES / "corridor_loop.csv"), "-o", str(tmp_path / "m.png"), "-q"
     )
-    assert "gridmap_cli.readers.csv_log" in modules
+    assert "gridmap_cli.readers.text.csv_log" in modules
     loaded = {m.split(".")[0] for m in modules} & set(HEAVY)
     assert not loaded
     assert not {m for m in modules if m.startswith(("gridmap_cli.readers.ros", "gridmap_cli.sim"))}
     # nor what only batch runs, error-aware lasers or --draw-path use, nor numpy.ma (np.unique
     # loads it); the compiled kernels are there
     assert not modules & {
-        "gridmap_cli.batch", "gridmap_cli.models.error_aware_ray", "gridmap_cli.scan_match",
+        "gridmap_cli.runs.batch", "gridmap_cli.mapping.models.error_aware_ray",
+        "gridmap_cli.poses.scan_match",
         "gridmap_cli.writers.preview", "numpy.ma",
     }  # fmt: skip
-    assert "gridmap_cli.models._ckernels" in modules
+    assert "gridmap_cli.mapping.models._ckernels" in modules
 
 
 def test_version_imports_no_command() -> None:

@@ -7,10 +7,10 @@ import pytest
 
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose
-from gridmap_cli.odometry_error import travelled_at
+from gridmap_cli.poses.odometry_error import travelled_at
+from gridmap_cli.poses.sync import interpolate_pose, stamp_groups, synchronise
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor, RobotDescription
-from gridmap_cli.sync import interpolate_pose, stamp_groups, synchronise
 
 S = 1_000_000_000
 

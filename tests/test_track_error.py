@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from gridmap_cli.poses.track_error import align_se2, track_error, transformed
 from gridmap_cli.records import PoseTrack
-from gridmap_cli.track_error import align_se2, track_error, transformed
 
 
 def square(n: int = 200) -> PoseTrack:

@@ -8,7 +8,13 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from gridmap_cli.batch import (
+from gridmap_cli.cli.build import check_resolution
+from gridmap_cli.cli.common import handle_errors
+from gridmap_cli.errors import GridmapError, UsageError
+from gridmap_cli.poses.sync import POSE_SOURCES
+from gridmap_cli.readers import format_names
+from gridmap_cli.robot import load_robot, preset_names
+from gridmap_cli.runs.batch import (
     REPORT_NAME,
     BatchLock,
     BatchOptions,
@@ -17,13 +23,7 @@ from gridmap_cli.batch import (
     plan_jobs,
     run_batch,
 )
-from gridmap_cli.cli.build import check_resolution
-from gridmap_cli.cli.common import handle_errors
-from gridmap_cli.errors import GridmapError, UsageError
-from gridmap_cli.executors import EXECUTORS, check_dask, dask_cluster, local_processes
-from gridmap_cli.readers import format_names
-from gridmap_cli.robot import load_robot, preset_names
-from gridmap_cli.sync import POSE_SOURCES
+from gridmap_cli.runs.executors import EXECUTORS, check_dask, dask_cluster, local_processes
 from gridmap_cli.writers.map_image import MAP_MODES
 
 

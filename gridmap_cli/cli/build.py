@@ -27,30 +27,30 @@ from gridmap_cli.cli.common import (
     warn,
 )
 from gridmap_cli.errors import UsageError
-from gridmap_cli.executors import EXECUTORS, check_dask, fuse_dask, fuse_local
-from gridmap_cli.fuse import FuseJob, Partial, fused_map, parse_initial_pose
 from gridmap_cli.heap import TRIM_EVERY_BATCHES, TrimEvery, keep_scratch_memory, release_free_memory
-from gridmap_cli.models.error_aware import ErrorAwareParams
-from gridmap_cli.models.standard import StandardSonarParams
-from gridmap_cli.odometry_error import OdometryError, load_odometry_error
-from gridmap_cli.pipeline import (
+from gridmap_cli.mapping.models.error_aware import ErrorAwareParams
+from gridmap_cli.mapping.models.standard import StandardSonarParams
+from gridmap_cli.mapping.pipeline import (
     MAPPING_MODES,
     MAX_RESOLUTION_M,
     BuildOptions,
     BuildResult,
     build_map,
 )
+from gridmap_cli.mapping.selection import Selection, apply_selection
+from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
+from gridmap_cli.poses.sync import POSE_SOURCES, select_poses
 from gridmap_cli.readers import format_names
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import load_robot, preset_names, robot_from_log
-from gridmap_cli.selection import Selection, apply_selection
-from gridmap_cli.sync import POSE_SOURCES, select_poses
+from gridmap_cli.runs.executors import EXECUTORS, check_dask, fuse_dask, fuse_local
+from gridmap_cli.runs.fuse import FuseJob, Partial, fused_map, parse_initial_pose
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, MAP_MODES, check_map_outputs, write_map
 
 if TYPE_CHECKING:
-    from gridmap_cli.scan_match import ScanMatch
+    from gridmap_cli.poses.scan_match import ScanMatch
     from gridmap_cli.writers.preview import DrawnTrack
 
 
@@ -311,7 +311,7 @@ def build(
         robot_desc = robot_from_log(logs[0], data.metadata)
     match: ScanMatch | None = None
     if pose == "scan-matched":
-        from gridmap_cli.scan_match import scan_matched_log  # scipy, small_gicp: only here
+        from gridmap_cli.poses.scan_match import scan_matched_log  # scipy, small_gicp: only here
 
         data, match = scan_matched_log(data, robot_desc)
     else:

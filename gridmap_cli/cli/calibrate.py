@@ -20,14 +20,14 @@ from gridmap_cli.cli.common import (
     selection_options,
 )
 from gridmap_cli.errors import UsageError
+from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.readers import STDIN_NAME, format_names
 from gridmap_cli.records import RangeLog
-from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.writers import check_output
 
 if TYPE_CHECKING:
     # scipy.ndimage (0.3 s) comes with it: imported when the command runs
-    from gridmap_cli.calibrate import Calibration
+    from gridmap_cli.poses.calibrate import Calibration
 
 
 @click.command()
@@ -100,8 +100,8 @@ def calibrate(
     LOG must carry ground truth (CSV true_x/true_y/true_theta, ARIA robotGlobal). Odometry and
     truth are compared over consecutive windows of travel; see docs/odometry-error.md.
     """
-    from gridmap_cli.calibrate import calibrate as calibrate_log
-    from gridmap_cli.odometry_error import save_odometry_error
+    from gridmap_cli.poses.calibrate import calibrate as calibrate_log
+    from gridmap_cli.poses.odometry_error import save_odometry_error
 
     if not (window_m > 0.0 and math.isfinite(window_m)):
         raise UsageError(f"--window must be a positive number of metres, got {window_m}")
@@ -141,8 +141,8 @@ def calibrate(
 def _scan_matched(path: Path, data: RangeLog, robot: str | None) -> RangeLog:
     """The log with its odometry replaced by the scan-matched track (one pose per scan), the
     track whose residual drift against the reference is then calibrated."""
+    from gridmap_cli.poses.scan_match import match_log
     from gridmap_cli.robot import load_robot, robot_from_log
-    from gridmap_cli.scan_match import match_log
 
     description = load_robot(robot) if robot else robot_from_log(path, data.metadata)
     return dataclasses.replace(data, poses=match_log(data, description).track)

@@ -18,10 +18,10 @@ from typing import TYPE_CHECKING, Any, ParamSpec, TypeVar
 import click
 
 from gridmap_cli.errors import GridmapError, InputFileError, UsageError
+from gridmap_cli.mapping.selection import EXCLUDE
 from gridmap_cli.readers import STDIN_NAME, read_bytes, read_logs
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
-from gridmap_cli.selection import EXCLUDE
 
 if TYPE_CHECKING:
     from tqdm import tqdm

@@ -16,11 +16,11 @@ from gridmap_cli.cli.common import (
     read_input,
     stdout_file,
 )
-from gridmap_cli.convert import output_writer, write_log, writer_names
 from gridmap_cli.errors import UsageError
 from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.writers import check_output
+from gridmap_cli.writers.convert import output_writer, write_log, writer_names
 from gridmap_cli.writers.mcap_log import ENCODINGS
 
 

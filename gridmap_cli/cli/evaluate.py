@@ -18,19 +18,19 @@ from gridmap_cli.cli.common import (
     warn,
 )
 from gridmap_cli.errors import InputFileError, UsageError
-from gridmap_cli.models.error_aware import ErrorAwareParams
-from gridmap_cli.odometry_error import OdometryError, load_odometry_error
+from gridmap_cli.mapping.models.error_aware import ErrorAwareParams
+from gridmap_cli.mapping.selection import Selection, apply_selection
+from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.robot import load_robot, robot_from_log
-from gridmap_cli.selection import Selection, apply_selection
 from gridmap_cli.writers import check_output
 
 if TYPE_CHECKING:
     import numpy.typing as npt
 
     # scipy.ndimage (0.3 s) comes with it: imported when the command runs
-    from gridmap_cli.evaluate import Evaluation, ProbabilityMap
-    from gridmap_cli.grid import GridSpec
+    from gridmap_cli.evaluation.evaluate import Evaluation, ProbabilityMap
+    from gridmap_cli.mapping.grid import GridSpec
     from gridmap_cli.records import RangeLog
     from gridmap_cli.robot import RobotDescription
 
@@ -116,8 +116,8 @@ def evaluate(
     pose: --log places it in the world. A map built with --pose global is in the world frame
     already: give --frame world.
     """
-    from gridmap_cli import evaluate as ev
-    from gridmap_cli.sync import sensors_for_log
+    from gridmap_cli.evaluation import evaluate as ev
+    from gridmap_cli.poses.sync import sensors_for_log
 
     for given, what in ((map_yaml, "MAP"), (truth_yaml, "--truth")):
         if given.suffix.lower() not in (".yaml", ".yml"):
@@ -154,7 +154,7 @@ def evaluate(
     for out, flag in ((plot, "--plot"), (spread_plot, "--spread-plot")):
         if out is None:
             continue
-        from gridmap_cli.evaluate_plot import check_plotting
+        from gridmap_cli.evaluation.plot import check_plotting
 
         check_plotting()
         if out.suffix.lower() != ".png":
@@ -194,7 +194,7 @@ def evaluate(
     )
     result = ev.evaluate_map(pmap, truth.walls, truth.spec, region, map_to_world, truth.known)
     if plot is not None:
-        from gridmap_cli.evaluate_plot import plot_evaluation
+        from gridmap_cli.evaluation.plot import plot_evaluation
 
         plot_evaluation(
             plot,
@@ -205,7 +205,7 @@ def evaluate(
             title=f"{map_yaml.name} vs {truth_yaml.name}",
         )
     if spread_plot is not None and spread is not None:
-        from gridmap_cli.evaluate_plot import plot_pose_spread
+        from gridmap_cli.evaluation.plot import plot_pose_spread
 
         limit = math.degrees(ErrorAwareParams.max_heading_spread_rad)
         plot_pose_spread(
@@ -247,9 +247,9 @@ def _spread_in_world(
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """The pose spread of ``log``'s readings on the map's grid, placed on the world grid: the
     position spread (m) and the heading spread (deg), shape ``world.shape``."""
-    from gridmap_cli import evaluate as ev
-    from gridmap_cli.spread_map import pose_spread_map
-    from gridmap_cli.sync import synchronise
+    from gridmap_cli.evaluation import evaluate as ev
+    from gridmap_cli.evaluation.spread_map import pose_spread_map
+    from gridmap_cli.poses.sync import synchronise
 
     readings, _ = synchronise(log, robot)
     spread = pose_spread_map(pmap.spec, readings, odometry)

@@ -15,10 +15,10 @@ from gridmap_cli.cli.common import (
     selection_options,
     topic_options,
 )
+from gridmap_cli.mapping.selection import Selection
 from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot
-from gridmap_cli.selection import Selection
 
 
 @click.command()

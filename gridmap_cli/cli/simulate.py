@@ -16,10 +16,10 @@ from gridmap_cli.cli.common import (
     json_text,
     stdout_file,
 )
-from gridmap_cli.convert import output_writer, write_log, writer_names
 from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.robot import load_robot
 from gridmap_cli.writers import check_output
+from gridmap_cli.writers.convert import output_writer, write_log, writer_names
 from gridmap_cli.writers.mcap_log import ENCODINGS
 
 
@@ -78,7 +78,7 @@ def simulate(
 
     WORLD is a map_server map (YAML + image); PATH a waypoint file (see docs/simulator.md).
     """
-    from gridmap_cli.mapfile import load_map
+    from gridmap_cli.mapping.mapfile import load_map
     from gridmap_cli.sim.path import load_path
     from gridmap_cli.sim.simulate import simulate as run_simulation
     from gridmap_cli.sim.world import World

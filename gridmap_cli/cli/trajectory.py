@@ -16,11 +16,11 @@ from gridmap_cli.cli.common import (
     handle_errors,
     topic_options,
 )
+from gridmap_cli.poses.scan_match import STATUS_NAMES, match_log
+from gridmap_cli.poses.sync import POSE_SOURCES, select_poses
 from gridmap_cli.readers import format_names, read_logs
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot, robot_from_log
-from gridmap_cli.scan_match import STATUS_NAMES, match_log
-from gridmap_cli.sync import POSE_SOURCES, select_poses
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.trajectory import trajectory_format, write_trajectory
 

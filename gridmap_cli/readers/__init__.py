@@ -25,12 +25,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 from gridmap_cli.errors import InputFileError, UnknownFormatError, UsageError
-from gridmap_cli.readers import compressed, csv_log, csv_stream
 from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.text import compressed, csv_log, csv_stream
 from gridmap_cli.records import RangeLog
 
 if TYPE_CHECKING:
-    from gridmap_cli.readers.ros_recording import RecordingSource
+    from gridmap_cli.readers.ros.recording import RecordingSource
 
 #: The first bytes of an MCAP file and of a ROS 1 bag (the readers' own constants, repeated here
 #: so that sniffing needs no import of them; tests check that they agree).
@@ -90,7 +90,7 @@ def _stream_csv(path: Path, options: ReadOptions) -> RangeLog | None:
 
 
 def _reader_module(name: str) -> Any:
-    return importlib.import_module(f"gridmap_cli.readers.{name}")
+    return importlib.import_module(f"gridmap_cli.readers.text.{name}")
 
 
 def _lazy_sniff(module: str) -> Callable[[bytes], bool]:
@@ -140,13 +140,13 @@ def _is_rosbag2(path: Path) -> bool:
 
 
 def _read_sources(sources: list[RecordingSource], options: ReadOptions) -> RangeLog:
-    from gridmap_cli.readers.ros_recording import read_recording
+    from gridmap_cli.readers.ros.recording import read_recording
 
     return read_recording(sources, options).log
 
 
 def _rosbag2_sources(path: Path) -> list[RecordingSource]:
-    from gridmap_cli.readers import bag_log
+    from gridmap_cli.readers.ros.bag import log as bag_log
 
     return bag_log.rosbag2_sources(_rosbag2_folder(path))
 
@@ -156,7 +156,7 @@ def _read_rosbag2(path: Path, options: ReadOptions) -> RangeLog:
 
 
 def _mcap_sources(path: Path) -> list[RecordingSource]:
-    from gridmap_cli.readers import mcap_log
+    from gridmap_cli.readers.ros.mcap import log as mcap_log
 
     return [mcap_log.McapSource(path)]
 
@@ -166,13 +166,13 @@ def _read_mcap(path: Path, options: ReadOptions) -> RangeLog:
 
 
 def _stream_mcap(path: Path, options: ReadOptions) -> RangeLog | None:
-    from gridmap_cli.readers import mcap_stream
+    from gridmap_cli.readers.ros.mcap import stream as mcap_stream
 
     return mcap_stream.read_streamed(path, options)
 
 
 def _bag_sources(path: Path) -> list[RecordingSource]:
-    from gridmap_cli.readers import bag_log
+    from gridmap_cli.readers.ros.bag import log as bag_log
 
     return [bag_log.BagSource(path)]
 

@@ -26,7 +26,7 @@ class ReadOptions:
     point clouds need). ``stream``: a long log's readings may be left unheld and read again
     from the file at each pass (:attr:`gridmap_cli.records.RangeLog.stream`): for a caller that
     goes through them by :meth:`~gridmap_cli.records.RangeLog.reading_chunks` and cuts no time
-    window. CSV files do it above :data:`gridmap_cli.readers.csv_stream.STREAM_FROM_BYTES`.
+    window. CSV files do it above :data:`gridmap_cli.readers.text.csv_stream.STREAM_FROM_BYTES`.
     """
 
     odom_topic: str | None = None

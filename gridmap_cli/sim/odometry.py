@@ -27,7 +27,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from gridmap_cli.geometry import compose, inverse, wrap_angle
-from gridmap_cli.odometry_error import OdometryError
+from gridmap_cli.poses.odometry_error import OdometryError
 from gridmap_cli.records import PoseTrack
 
 
@@ -69,7 +69,7 @@ class OdometryErrorModel:
         return replace(self, **{f.name: getattr(self, f.name) * drift for f in fields(self)})
 
     def as_odometry_error(self) -> OdometryError:
-        """The f and g coefficients (:mod:`gridmap_cli.odometry_error`) these errors give.
+        """The f and g coefficients (:mod:`gridmap_cli.poses.odometry_error`) these errors give.
 
         Each term maps onto one coefficient: the systematic ones as magnitudes (a spread has no
         sign), the random walks as they are. The sonar's own error keeps its default.

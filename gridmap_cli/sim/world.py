@@ -1,7 +1,8 @@
 """The simulated world: an occupancy grid that rays can be cast into.
 
 A :class:`World` is a boolean grid (``True`` = occupied) laid out as
-:class:`~gridmap_cli.grid.GridSpec` describes it: shape (height, width), row 0 at the bottom,
+:class:`~gridmap_cli.mapping.grid.GridSpec` describes it: shape (height, width), row 0 at the
+bottom,
 ``origin`` the lower-left corner of cell (0, 0). Each occupied cell is a solid square of side
 ``resolution_m``.
 
@@ -31,7 +32,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy import ndimage
 
-from gridmap_cli.grid import GridSpec, OccupancyMap
+from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
 
 FloatArray = npt.NDArray[np.float64]
 

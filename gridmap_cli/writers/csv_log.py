@@ -14,7 +14,7 @@ import numpy as np
 
 from gridmap_cli.atomic import atomic_write
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.readers.csv_log import POSE_COLUMNS, TRUTH_COLUMNS
+from gridmap_cli.readers.text.csv_log import POSE_COLUMNS, TRUTH_COLUMNS
 from gridmap_cli.records import RangeLog
 from gridmap_cli.writers import check_metadata_lines
 

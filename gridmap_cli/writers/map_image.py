@@ -28,7 +28,7 @@ from PIL import Image
 
 from gridmap_cli.atomic import atomic_outputs
 from gridmap_cli.errors import GridmapError, UsageError
-from gridmap_cli.grid import GridSpec, OccupancyMap
+from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
 from gridmap_cli.writers import check_output
 from gridmap_cli.yamlfile import format_float
 

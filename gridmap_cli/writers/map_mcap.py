@@ -17,8 +17,8 @@ import numpy.typing as npt
 from mcap_ros2._dynamic import serialize_dynamic
 
 from gridmap_cli.atomic import atomic_write
-from gridmap_cli.grid import OccupancyMap
-from gridmap_cli.readers.ros_frames import IDENTITY_ROTATION
+from gridmap_cli.mapping.grid import OccupancyMap
+from gridmap_cli.readers.ros.frames import IDENTITY_ROTATION
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import occupancy_percent
 from gridmap_cli.writers.mcap_log import (

@@ -32,8 +32,8 @@ from mcap_ros2._dynamic import serialize_dynamic
 
 from gridmap_cli.atomic import atomic_write
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.readers.mcap_channels import METADATA_NAME
-from gridmap_cli.readers.ros_frames import Quaternion, quaternion_of_yaw
+from gridmap_cli.readers.ros.frames import Quaternion, quaternion_of_yaw
+from gridmap_cli.readers.ros.mcap.channels import METADATA_NAME
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.writers import Laser, laser_groups

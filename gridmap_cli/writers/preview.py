@@ -18,7 +18,7 @@ from PIL import Image, ImageDraw
 from gridmap_cli.atomic import atomic_outputs
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse
-from gridmap_cli.grid import OccupancyMap
+from gridmap_cli.mapping.grid import OccupancyMap
 from gridmap_cli.records import PoseTrack
 
 #: Colours (RGB): cells never observed, and the two tracks.

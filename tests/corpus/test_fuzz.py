@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.mapfile import load_map
+from gridmap_cli.mapping.mapfile import load_map
 from gridmap_cli.readers import read_log
 from gridmap_cli.robot import load_robot
 from gridmap_cli.sim.path import load_path

@@ -8,12 +8,12 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from gridmap_cli.grid import FrequencyAccumulator, GridSpec
-from gridmap_cli.models.error_aware import ErrorAwareParams, ErrorAwareSonarModel
-from gridmap_cli.models.sector import F64
-from gridmap_cli.models.standard import StandardSonarParams
+from gridmap_cli.mapping.grid import FrequencyAccumulator, GridSpec
+from gridmap_cli.mapping.models.error_aware import ErrorAwareParams, ErrorAwareSonarModel
+from gridmap_cli.mapping.models.sector import F64
+from gridmap_cli.mapping.models.standard import StandardSonarParams
+from gridmap_cli.poses.sync import SensorReadings
 from gridmap_cli.robot import RangeSensor
-from gridmap_cli.sync import SensorReadings
 
 SONAR = RangeSensor("s", 0.0, 0.0, 0.0, math.radians(25), 0.15, 4.0)
 SPEC = GridSpec(-1.0, -4.0, 0.05, 160, 160)  # x -1..7, y -4..4

@@ -6,12 +6,12 @@ import math
 
 import numpy as np
 
-from gridmap_cli.grid import FrequencyAccumulator, GridSpec
-from gridmap_cli.models.error_aware import ErrorAwareParams
-from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
-from gridmap_cli.pipeline import batch_bounds
+from gridmap_cli.mapping.grid import FrequencyAccumulator, GridSpec
+from gridmap_cli.mapping.models.error_aware import ErrorAwareParams
+from gridmap_cli.mapping.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
+from gridmap_cli.mapping.pipeline import batch_bounds
+from gridmap_cli.poses.sync import SensorReadings
 from gridmap_cli.robot import RangeSensor
-from gridmap_cli.sync import SensorReadings
 from tests.models.test_error_aware import Linear
 
 BEAMS = 181

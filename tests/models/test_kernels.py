@@ -11,18 +11,18 @@ from typing import Any
 import numpy as np
 import pytest
 
-from gridmap_cli.grid import FrequencyAccumulator, GridSpec, LogOddsAccumulator
-from gridmap_cli.models import kernels
-from gridmap_cli.models.error_aware import ErrorAwareParams, ErrorAwareSonarModel
-from gridmap_cli.models.ray import RaySegments, accumulate_rays
-from gridmap_cli.models.standard import (
+from gridmap_cli.mapping.grid import FrequencyAccumulator, GridSpec, LogOddsAccumulator
+from gridmap_cli.mapping.models import kernels
+from gridmap_cli.mapping.models.error_aware import ErrorAwareParams, ErrorAwareSonarModel
+from gridmap_cli.mapping.models.ray import RaySegments, accumulate_rays
+from gridmap_cli.mapping.models.standard import (
     SectorEvidence,
     StandardSonarParams,
     accumulate_sectors,
     accumulate_sectors_numpy,
 )
+from gridmap_cli.poses.sync import SensorReadings
 from gridmap_cli.robot import RangeSensor
-from gridmap_cli.sync import SensorReadings
 
 SPEC = GridSpec(-3.05, -2.0, 0.05, 97, 83)
 
@@ -132,7 +132,7 @@ def test_the_extension_is_built_and_chosen(monkeypatch: pytest.MonkeyPatch) -> N
     # a missing extension would leave every other test here comparing numpy with itself
     monkeypatch.setenv("GRIDMAP_KERNELS", "compiled")
     module = kernels.compiled()
-    assert module is not None and module.__name__ == "gridmap_cli.models._ckernels"
+    assert module is not None and module.__name__ == "gridmap_cli.mapping.models._ckernels"
     monkeypatch.setenv("GRIDMAP_KERNELS", "auto")
     assert kernels.compiled() is module
     monkeypatch.setenv("GRIDMAP_KERNELS", "numpy")
@@ -140,7 +140,7 @@ def test_the_extension_is_built_and_chosen(monkeypatch: pytest.MonkeyPatch) -> N
 
 
 def test_a_kernel_refuses_arrays_of_the_wrong_size() -> None:
-    from gridmap_cli.models import _ckernels  # type: ignore[attr-defined]
+    from gridmap_cli.mapping.models import _ckernels  # type: ignore[attr-defined]
 
     grid = LogOddsAccumulator(SPEC)
     values, counts = grid.difference_arrays()
@@ -186,7 +186,7 @@ def _readings(rng: np.random.Generator, n: int, sensors: int) -> SensorReadings:
 
 
 def test_error_aware_kernel_equals_the_numpy_reference(monkeypatch: pytest.MonkeyPatch) -> None:
-    from gridmap_cli.odometry_error import OdometryError
+    from gridmap_cli.poses.odometry_error import OdometryError
 
     odometry = OdometryError(
         range_m_per_m=0.01, range_m_per_sqrt_m=0.02, bearing_rad_per_rad=0.02,
@@ -214,8 +214,8 @@ def test_error_aware_kernel_equals_the_numpy_reference(monkeypatch: pytest.Monke
 def test_error_aware_laser_kernel_equals_the_numpy_reference(
     monkeypatch: pytest.MonkeyPatch, spec: GridSpec
 ) -> None:
-    from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
-    from gridmap_cli.odometry_error import OdometryError
+    from gridmap_cli.mapping.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
+    from gridmap_cli.poses.odometry_error import OdometryError
     from gridmap_cli.robot import laser_beams
 
     beams = laser_beams("laser", 0.1, 0.0, 0.0, -90.0, 90.0, 37, 0.05, 4.0)
@@ -277,9 +277,9 @@ def test_error_aware_sonar_and_laser_in_one_batch_equal_the_numpy_reference(
 ) -> None:
     # the mixed model adds each trust class's sonar runs, then its laser runs, in one sum:
     # the kernel must take both in one call, in that order, to give the same bits
-    from gridmap_cli.models.error_aware_mixed import ErrorAwareMixedModel
-    from gridmap_cli.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
-    from gridmap_cli.odometry_error import OdometryError
+    from gridmap_cli.mapping.models.error_aware_mixed import ErrorAwareMixedModel
+    from gridmap_cli.mapping.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
+    from gridmap_cli.poses.odometry_error import OdometryError
     from gridmap_cli.robot import laser_beams
 
     sonars = tuple(

@@ -9,12 +9,12 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from gridmap_cli.grid import GridSpec, LogOddsAccumulator, logodds
-from gridmap_cli.models.ray import RayModel, RayParams, RaySegments, row_runs
-from gridmap_cli.pipeline import BuildOptions, build_map
+from gridmap_cli.mapping.grid import GridSpec, LogOddsAccumulator, logodds
+from gridmap_cli.mapping.models.ray import RayModel, RayParams, RaySegments, row_runs
+from gridmap_cli.mapping.pipeline import BuildOptions, build_map
+from gridmap_cli.poses.sync import SensorReadings
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor
-from gridmap_cli.sync import SensorReadings
 
 SPEC = GridSpec(origin_x_m=-2.0, origin_y_m=-1.5, resolution_m=0.1, width=40, height=30)
 LASER = RangeSensor("laser", 0.0, 0.0, 0.0, 0.0, 0.02, 8.0, kind="laser")
@@ -382,7 +382,7 @@ def test_large_batches_are_split_without_changing_the_result(
         rng.uniform(-1.0, 1.0, n),
     )
     lo, obs, updates = run(r)
-    monkeypatch.setattr("gridmap_cli.models.ray._ROWS_PER_CHUNK", 50)
+    monkeypatch.setattr("gridmap_cli.mapping.models.ray._ROWS_PER_CHUNK", 50)
     lo_split, obs_split, updates_split = run(r)
     assert updates_split == updates
     assert np.array_equal(obs_split, obs)

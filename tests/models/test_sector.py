@@ -7,8 +7,8 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from gridmap_cli.geometry import wrap_angle
-from gridmap_cli.grid import GridSpec
-from gridmap_cli.models.sector import sector_bounds, sector_rows
+from gridmap_cli.mapping.grid import GridSpec
+from gridmap_cli.mapping.models.sector import sector_bounds, sector_rows
 
 SPEC = GridSpec(origin_x_m=-3.0, origin_y_m=-2.0, resolution_m=0.1, width=60, height=45)
 

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from gridmap_cli.grid import DEFAULT_CLAMP_P, GridSpec, LogOddsAccumulator, logodds
-from gridmap_cli.models.standard import StandardSonarModel, StandardSonarParams
+from gridmap_cli.mapping.grid import DEFAULT_CLAMP_P, GridSpec, LogOddsAccumulator, logodds
+from gridmap_cli.mapping.models.standard import StandardSonarModel, StandardSonarParams
+from gridmap_cli.poses.sync import SensorReadings
 from gridmap_cli.robot import RangeSensor
-from gridmap_cli.sync import SensorReadings
 
 SONAR = RangeSensor("s", 0.0, 0.0, 0.0, math.radians(25), 0.15, 4.0)
 SPEC = GridSpec(-1.0, -3.0, 0.05, 140, 120)  # x -1..6, y -3..3

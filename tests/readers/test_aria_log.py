@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.poses.sync import synchronise
 from gridmap_cli.readers import read_log, resolve_format
-from gridmap_cli.readers.aria_log import LASER_MAX_RANGE_M, read_aria_log, sniff
+from gridmap_cli.readers.text.aria_log import LASER_MAX_RANGE_M, read_aria_log, sniff
 from gridmap_cli.robot import load_robot
-from gridmap_cli.sync import synchronise
 
 V4 = """\
 LaserOdometryLog

@@ -11,12 +11,12 @@ from click.testing import CliRunner
 
 from gridmap_cli.cli import cli
 from gridmap_cli.errors import RobotDescriptionError
-from gridmap_cli.readers.aria_params import (
+from gridmap_cli.robot import load_robot
+from gridmap_cli.robot.aria_params import (
     AriaLaser,
     parse_aria_params,
     read_aria_params,
 )
-from gridmap_cli.robot import load_robot
 
 # tests/readers/ -> /work/main -> /work -> /work/shared/data/aria
 ARIA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "aria"

@@ -1,4 +1,4 @@
-"""Bulk reading of ROS 1 bags (gridmap_cli/readers/bag_bulk.py): the same canonical log as the
+"""Bulk reading of ROS 1 bags (gridmap_cli/readers/ros/bag/bulk.py): the same canonical log as the
 rosbags reader message by message, and the same survey from the index section alone."""
 
 from __future__ import annotations
@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from gridmap_cli.readers import bag_bulk
-from gridmap_cli.readers.bag_log import BagSource, read_bag
-from gridmap_cli.readers.mcap_bulk import DECODE_ENV
+from gridmap_cli.readers.ros.bag import bulk as bag_bulk
+from gridmap_cli.readers.ros.bag.log import BagSource, read_bag
+from gridmap_cli.readers.ros.mcap.bulk import DECODE_ENV
 from tests.readers.bag_helpers import write_bag
 from tests.readers.test_mcap_bulk import assert_same, busy_log
 

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from gridmap_cli.readers import read_logs, resolve_format
-from gridmap_cli.readers.bag_log import read_bag
 from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.ros.bag.log import read_bag
 from gridmap_cli.robot import load_robot
 from tests.helpers import names, run
 from tests.readers.test_mcap_real import TIAGO_LASER_YAML, TIAGO_SONAR_YAML, robot_file

@@ -11,7 +11,7 @@ import pytest
 
 from gridmap_cli.errors import InputFileError, UnknownFormatError
 from gridmap_cli.readers import read_log, resolve_format
-from gridmap_cli.readers.carmen_log import read_carmen_log
+from gridmap_cli.readers.text.carmen_log import read_carmen_log
 from tests.readers.carmen_helpers import (
     flaser,
     odom,

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli.odometry_error import travelled
+from gridmap_cli.poses.odometry_error import travelled
 from gridmap_cli.readers import read_log, resolve_format
 from gridmap_cli.records import RangeLog
 

@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gridmap_cli.geometry import compose, inverse
-from gridmap_cli.readers.carmen_tracks import (
+from gridmap_cli.readers.text.carmen_tracks import (
     STAMP_STEP_NS,
     Event,
     build_tracks,

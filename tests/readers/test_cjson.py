@@ -1,4 +1,4 @@
-"""The compiled JSON matcher (gridmap_cli/readers/_cjson.c) takes exactly the messages the numpy
+"""The compiled JSON matcher (gridmap_cli/readers/ros/_cjson.c) takes exactly the messages the numpy
 matcher of json_bulk.py takes, with the same values, on sound messages and on damaged or odd
 ones; and its numbers are the floats ``json.loads`` gives, to the bit."""
 
@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from gridmap_cli.readers import json_bulk
-from gridmap_cli.readers.walk import compiled_walk
+from gridmap_cli.readers.ros.mcap import json_bulk
+from gridmap_cli.readers.ros.walk import compiled_walk
 from tests.readers.test_json_bulk import compact_reading, raw_of
 
 TYPES = sorted(json_bulk.JSON_TYPES)

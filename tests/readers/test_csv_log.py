@@ -11,8 +11,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.readers import csv_log
-from gridmap_cli.readers.csv_log import read_csv_log, seconds_to_ns, sniff
+from gridmap_cli.readers.text import csv_log
+from gridmap_cli.readers.text.csv_log import read_csv_log, seconds_to_ns, sniff
 from gridmap_cli.records import RangeLog
 
 GOOD = """\

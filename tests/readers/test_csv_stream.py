@@ -9,10 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli import pipeline
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.readers import csv_stream, read_log
+from gridmap_cli.mapping import pipeline
+from gridmap_cli.readers import read_log
 from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.text import csv_stream
 from gridmap_cli.records import RangeReadings
 from tests.helpers import built, names, run
 

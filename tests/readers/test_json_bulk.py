@@ -1,4 +1,4 @@
-"""Bulk decoding of gridmap's JSON channels (gridmap_cli/readers/json_bulk.py): the same
+"""Bulk decoding of gridmap's JSON channels (gridmap_cli/readers/ros/mcap/json_bulk.py): the same
 canonical log and the same errors as decoding message by message."""
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ import pytest
 from mcap.writer import Writer
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.readers import json_bulk
-from gridmap_cli.readers.mcap_bulk import DECODE_ENV
-from gridmap_cli.readers.mcap_log import McapSource, read_mcap
-from gridmap_cli.readers.ros_bulk import Raw
+from gridmap_cli.readers.ros.bulk import Raw
+from gridmap_cli.readers.ros.mcap import json_bulk
+from gridmap_cli.readers.ros.mcap.bulk import DECODE_ENV
+from gridmap_cli.readers.ros.mcap.log import McapSource, read_mcap
 from tests.readers.mcap_helpers import S
 from tests.readers.test_mcap_bulk import ROOT, assert_same, both
 
@@ -25,7 +25,7 @@ TOPICS = ["/sensors", "/odom", "/ground_truth", "/range"]
 @pytest.fixture(params=["numpy", "compiled"])
 def kernels(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
     """The compact layout matched by the numpy matcher (the reference), or by the compiled one
-    (gridmap_cli/readers/_cjson.c, built by the dev install)."""
+    (gridmap_cli/readers/ros/_cjson.c, built by the dev install)."""
     monkeypatch.setenv("GRIDMAP_KERNELS", request.param)
     return str(request.param)
 

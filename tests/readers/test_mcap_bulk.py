@@ -1,4 +1,4 @@
-"""Bulk decoding of MCAP channels (gridmap_cli/readers/mcap_bulk.py, ros_bulk.py): the same
+"""Bulk decoding of MCAP channels (gridmap_cli/readers/ros/mcap/bulk.py, ros_bulk.py): the same
 canonical log and the same errors as decoding message by message."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.readers.mcap_bulk import DECODE_ENV
-from gridmap_cli.readers.mcap_log import McapSource, read_mcap
+from gridmap_cli.readers.ros.mcap.bulk import DECODE_ENV
+from gridmap_cli.readers.ros.mcap.log import McapSource, read_mcap
 from gridmap_cli.records import RangeLog
 from tests.readers.mcap_helpers import Recording, S, drive, odometry, sonar_range, static_tf
 
@@ -107,7 +107,7 @@ def test_indexed_messages_as_the_library_yields_them(tmp_path: Path, ros: int) -
     order, for any choice of topics (ties in log time included)."""
     from mcap.reader import make_reader
 
-    from gridmap_cli.readers.mcap_bulk import indexed_messages
+    from gridmap_cli.readers.ros.mcap.bulk import indexed_messages
 
     path = busy_log(tmp_path / "busy.mcap", ros)
     with open(path, "rb") as handle:

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from mcap.writer import CompressionType
 
-from gridmap_cli.readers.mcap_integrity import MAX_CHUNK_BYTES, McapDamage, verify_mcap
+from gridmap_cli.readers.ros.mcap.integrity import MAX_CHUNK_BYTES, McapDamage, verify_mcap
 from tests.corpus.mcap_edit import edit_mcap
 from tests.helpers import names, run
 

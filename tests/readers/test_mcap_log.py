@@ -16,9 +16,9 @@ from mcap.writer import IndexType, Writer
 
 from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.readers import read_log, resolve_format
-from gridmap_cli.readers.mcap_channels import survey_mcap
-from gridmap_cli.readers.mcap_log import float32_decimal, read_mcap, read_mcap_log
 from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.ros.mcap.channels import survey_mcap
+from gridmap_cli.readers.ros.mcap.log import float32_decimal, read_mcap, read_mcap_log
 from gridmap_cli.robot import load_robot
 from tests.helpers import names, run
 from tests.readers.mcap_helpers import (

@@ -13,9 +13,9 @@ import pytest
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.readers import read_log, resolve_format
-from gridmap_cli.readers.mcap_channels import survey_mcap
 from gridmap_cli.readers.options import ReadOptions
-from gridmap_cli.readers.ros_topics import plan_topics
+from gridmap_cli.readers.ros.mcap.channels import survey_mcap
+from gridmap_cli.readers.ros.topics import plan_topics
 from gridmap_cli.robot import load_robot
 from tests.helpers import names, run
 from tests.readers.mcap_helpers import DATA, Recording, merge_mcaps, sonar_range

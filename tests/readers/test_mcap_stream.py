@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 from mcap_ros2.writer import Writer as Ros2Writer
 
-from gridmap_cli import pipeline
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.readers import mcap_stream, read_log
+from gridmap_cli.mapping import pipeline
+from gridmap_cli.readers import read_log
 from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.ros.mcap import stream as mcap_stream
 from gridmap_cli.records import RangeReadings
 from tests.helpers import built, run
 from tests.readers.mcap_helpers import Recording, S, drive, sonar_range, static_tf

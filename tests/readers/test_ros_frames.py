@@ -1,4 +1,4 @@
-"""Quaternions and transform chains (gridmap_cli/readers/ros_frames.py), with hypothesis."""
+"""Quaternions and transform chains (gridmap_cli/readers/ros/frames.py), with hypothesis."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gridmap_cli.geometry import wrap_angle
-from gridmap_cli.readers.ros_frames import (
+from gridmap_cli.readers.ros.frames import (
     IDENTITY,
     IDENTITY_ROTATION,
     Transform,
@@ -78,7 +78,7 @@ def test_a_chain_composes_translations_in_3d() -> None:
 
 def test_transform_series_gives_its_own_samples_exactly_and_nan_outside() -> None:
 
-    from gridmap_cli.readers.ros_frames import TransformSeries
+    from gridmap_cli.readers.ros.frames import TransformSeries
 
     series = TransformSeries()
     a = Transform((1.0, 2.0, 0.0), quaternion_of_yaw(0.3))
@@ -97,7 +97,7 @@ def test_transform_series_gives_its_own_samples_exactly_and_nan_outside() -> Non
 
 @given(st.floats(-10, 10), st.floats(-0.3, 0.3), st.floats(-0.3, 0.3))
 def test_yaws_of_many_quaternions_are_yaw_of_each(yaw: float, roll: float, pitch: float) -> None:
-    from gridmap_cli.readers.ros_frames import _yaws
+    from gridmap_cli.readers.ros.frames import _yaws
 
     flat = quaternion_of_yaw(yaw)
     cr, sr, cp, sp = (

@@ -15,8 +15,8 @@ import pytest
 
 from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.readers import read_log
-from gridmap_cli.readers.mcap_log import read_mcap
 from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.ros.mcap.log import read_mcap
 from tests.helpers import names, run
 from tests.readers.mcap_helpers import DATA, Recording, S, odometry, sonar_range, turn
 

@@ -1,4 +1,4 @@
-"""The compiled record walks (gridmap_cli/readers/_cwalk.c) find the same first unsound record
+"""The compiled record walks (gridmap_cli/readers/ros/_cwalk.c) find the same first unsound record
 as the Python walks of the integrity checks, on sound chunks and on damaged ones."""
 
 from __future__ import annotations
@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from gridmap_cli.errors import DamagedAtError
-from gridmap_cli.readers import bag_integrity, mcap_integrity
-from gridmap_cli.readers.walk import compiled_walk
+from gridmap_cli.readers.ros.bag import integrity as bag_integrity
+from gridmap_cli.readers.ros.mcap import integrity as mcap_integrity
+from gridmap_cli.readers.ros.walk import compiled_walk
 
 
 @pytest.fixture

@@ -7,7 +7,7 @@ import pytest
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
-from gridmap_cli.grid import GridSpec
+from gridmap_cli.mapping.grid import GridSpec
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import load_robot
 from gridmap_cli.sim.path import parse_path_yaml

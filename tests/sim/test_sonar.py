@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from gridmap_cli.grid import GridSpec
+from gridmap_cli.mapping.grid import GridSpec
 from gridmap_cli.records import PoseTrack
 from gridmap_cli.robot import RangeSensor, RobotDescription, load_robot
 from gridmap_cli.sim.sonar import simulate_ranges

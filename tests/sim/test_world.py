@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from gridmap_cli.grid import GridSpec
+from gridmap_cli.mapping.grid import GridSpec
 from gridmap_cli.sim.world import World
 
 RES = 0.05

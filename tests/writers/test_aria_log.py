@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.readers.aria_log import read_aria_log
+from gridmap_cli.readers.text.aria_log import read_aria_log
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor, load_robot
 from gridmap_cli.writers.aria_log import write_aria_log

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from gridmap_cli.errors import GridmapError, OutputExistsError, UsageError
-from gridmap_cli.grid import GridSpec, OccupancyMap
+from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.writers import aria_log, check_output, map_mcap, mcap_log

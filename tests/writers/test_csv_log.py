@@ -15,7 +15,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.readers.csv_log import read_csv_log, seconds_to_ns
+from gridmap_cli.readers.text.csv_log import read_csv_log, seconds_to_ns
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.writers import csv_log as csv_log_writer
 from gridmap_cli.writers.csv_log import ns_to_seconds_text, save_csv_log, write_csv_log

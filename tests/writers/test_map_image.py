@@ -11,7 +11,7 @@ import yaml
 from PIL import Image
 
 from gridmap_cli.errors import GridmapError, OutputExistsError, UsageError
-from gridmap_cli.grid import GridSpec, OccupancyMap
+from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
 from gridmap_cli.writers import map_image
 from gridmap_cli.writers.map_image import (
     check_map_outputs,

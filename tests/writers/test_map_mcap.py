@@ -13,8 +13,8 @@ from mcap_ros2.decoder import DecoderFactory
 from PIL import Image
 
 from gridmap_cli.errors import GridmapError, OutputExistsError
-from gridmap_cli.grid import GridSpec, OccupancyMap
-from gridmap_cli.readers.csv_log import read_csv_log
+from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
+from gridmap_cli.readers.text.csv_log import read_csv_log
 from gridmap_cli.writers.map_mcap import occupancy_values, write_map_mcap
 from tests.helpers import names, run
 

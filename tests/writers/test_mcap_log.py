@@ -476,7 +476,7 @@ def test_sensors_must_match_the_log() -> None:
 
 def test_a_simulated_p3at_log_round_trips_through_both_encodings() -> None:
     """The committed sample, decoded by hand, against the CSV of the same run."""
-    from gridmap_cli.readers.csv_log import read_csv_log
+    from gridmap_cli.readers.text.csv_log import read_csv_log
 
     csv = read_csv_log(REPO / "samples" / "corridor_loop.csv")
     robot = load_robot("p3at")

@@ -1,0 +1,127 @@
+"""Where a map's uncertainty comes from: the pose spread at which each cell was seen.
+
+The error-aware model widens and discounts a reading by the odometry error accumulated when it
+was taken: f(d), the position spread (metres), and g(d, phi), the heading spread (radians).
+A cell that only late readings looked at stays grey however many of them there were. This
+module draws, per cell, the *smallest* f of the readings whose beam crossed the cell (and the g
+of those readings), so a user can tell a region that is grey because the pose was lost there
+from one that is grey because the sensors disagree. No file I/O: :mod:`gridmap_cli.cli.evaluate`
+reads the log and the odometry error, :mod:`gridmap_cli.evaluation.plot` draws the result.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from gridmap_cli.mapping.grid import GridSpec, SpanSums
+from gridmap_cli.mapping.models.error_aware import OdometrySpread
+from gridmap_cli.mapping.models.ray import RaySegments, row_runs
+from gridmap_cli.poses.sync import SensorReadings, select_readings
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Levels f and g are each cut into: a cell's spread is exact to within one level, and the
+#: cost is one cumulative sum of the grid per level.
+SPREAD_LEVELS = 128
+#: Rays drawn across a wide beam (a sonar's cone), at most; one for a laser.
+MAX_RAYS_PER_BEAM = 9
+#: Readings turned into rays at once (memory of one batch of row runs).
+_READINGS_PER_CHUNK = 50_000
+
+
+@dataclass(frozen=True)
+class PoseSpreadMap:
+    """Per cell of ``spec`` (shape ``spec.shape``, row 0 at the bottom, NaN where no reading's
+    beam crossed the cell): ``position_m``, the smallest position spread f of the readings that
+    crossed it, and ``heading_rad``, the heading spread g of those readings. ``levels_m`` and
+    ``levels_rad`` are the step of each, the precision of the values."""
+
+    spec: GridSpec
+    position_m: FloatArray
+    heading_rad: FloatArray
+    levels_m: float
+    levels_rad: float
+
+
+def _quantise(values: FloatArray, levels: int) -> tuple[npt.NDArray[np.int64], float]:
+    top = float(np.max(values)) if values.size else 0.0
+    if not top > 0.0:
+        return np.zeros(values.shape, dtype=np.int64), 0.0
+    step = top / levels
+    return np.floor(values / step).astype(np.int64), step
+
+
+def _beam_rays(
+    readings: SensorReadings, spec: GridSpec
+) -> tuple[npt.NDArray[np.int64], RaySegments]:
+    """Rays across each reading's beam from its sensor to its range (the echo cell included).
+
+    Returns the reading index of every ray, shape (R,), and the rays."""
+    res = spec.resolution_m
+    beam = readings.per_sensor("beam_width_rad")
+    zmax = readings.per_sensor("max_range_m")
+    z = np.minimum(readings.range_m, zmax)
+    n_rays = np.minimum(np.ceil(beam * zmax / res).astype(np.int64) + 1, MAX_RAYS_PER_BEAM)
+    index: list[npt.NDArray[np.int64]] = []
+    angle: list[FloatArray] = []
+    for n in np.unique(n_rays):
+        pick = np.flatnonzero(n_rays == n)
+        frac = np.linspace(-0.5, 0.5, int(n)) if n > 1 else np.zeros(1)
+        index.append(np.repeat(pick, frac.shape[0]))
+        angle.append((readings.theta_rad[pick, None] + beam[pick, None] * frac[None, :]).ravel())
+    idx = np.concatenate(index) if index else np.zeros(0, dtype=np.int64)
+    a = np.concatenate(angle) if angle else np.zeros(0)
+    # carried a hundredth of a cell past the echo, a ray ends inside the cell it reflected from
+    length = np.where(z[idx] < zmax[idx], z[idx] + 0.01 * res, z[idx])
+    x0, y0 = readings.x_m[idx], readings.y_m[idx]
+    return idx, RaySegments(
+        x0_m=x0,
+        y0_m=y0,
+        x1_m=x0 + length * np.cos(a),
+        y1_m=y0 + length * np.sin(a),
+        echo=np.ones(idx.shape[0], dtype=bool),
+    )
+
+
+def pose_spread_map(
+    spec: GridSpec,
+    readings: SensorReadings,
+    odometry: OdometrySpread,
+    levels: int = SPREAD_LEVELS,
+) -> PoseSpreadMap:
+    """The smallest pose spread at which each cell of ``spec`` was crossed by a reading's beam.
+
+    ``readings`` in the map's (odometry) frame, with ``distance_m`` and ``rotation_rad``; f and
+    g from ``odometry`` (eq. 11 and 12 of docs/sensor-model.md). Readings are cut into groups
+    of one level of f and one of g (``levels`` each, from 0 to the largest); groups are drawn
+    from the smallest f up and each cell keeps the first group that crossed it, so its values
+    are exact to within one level (f and g only grow along a log, so groups are runs of it).
+    """
+    d, phi = readings.distance_m, readings.rotation_rad
+    if d is None or phi is None:
+        raise ValueError("the pose spread needs the distance driven for each reading")
+    f = np.asarray(odometry.f(d), dtype=np.float64)
+    g = np.asarray(odometry.g(d, phi), dtype=np.float64)
+    qf, step_f = _quantise(f, levels)
+    qg, step_g = _quantise(g, levels)
+    position = np.full(spec.shape, np.nan)
+    heading = np.full(spec.shape, np.nan)
+    if len(readings) == 0:
+        return PoseSpreadMap(spec, position, heading, step_f, step_g)
+    # one group per (level of f, level of g); drawn in increasing f, then g
+    key = qf * (int(qg.max()) + 1) + qg
+    for k in np.unique(key):
+        members = np.flatnonzero(key == k)
+        crossed = SpanSums(spec, np.int64)
+        for lo in range(0, members.shape[0], _READINGS_PER_CHUNK):
+            part = members[lo : lo + _READINGS_PER_CHUNK]
+            _, rays = _beam_rays(select_readings(readings, part), spec)
+            runs = row_runs(spec, rays)
+            crossed.add(runs.row, runs.col0, runs.col1, np.ones(runs.row.shape[0], np.int64))
+        new = (crossed.total() > 0) & np.isnan(position)
+        position[new] = float(np.min(f[members]))
+        heading[new] = float(np.min(g[members]))
+    return PoseSpreadMap(spec, position, heading, step_f, step_g)

@@ -1,0 +1,698 @@
+/* gridmap's compiled mapping kernels: the inner loops of the sonar cone and of the ray model,
+ * standard and error-aware, over one batch of readings.
+ *
+ * Each kernel repeats its numpy reference (gridmap_cli/mapping/models/sector.py, standard.py, ray.py,
+ * error_aware.py, error_aware_ray.py) operation for operation, in the same order, so that the grids are equal bit
+ * for bit: the per-reading trigonometry stays in numpy; here the row and span arithmetic is
+ * plain IEEE +, -, *, /, sqrt, floor and ceil (built with -ffp-contract=off: no fused
+ * multiply-adds), and float evidence goes into a per-batch difference array in the order
+ * np.bincount adds it (every run's start, then every run's end), which is then added to the
+ * running sums as SpanSums.add does. Integer counts are exact in any order.
+ *
+ * Arrays arrive through the buffer protocol (contiguous float64 / int64, checked here), so the
+ * module needs no numpy headers to build. gridmap_cli/mapping/models/kernels.py is the Python side.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- buffers ------------------------------------------------------------------------- */
+
+typedef struct {
+    Py_buffer view;
+    int held;
+} Buf;
+
+/* Take a contiguous buffer of `n` 8-byte items (n < 0: any length); writable when asked. */
+static int take(PyObject *obj, Buf *b, Py_ssize_t n, int writable, const char *name)
+{
+    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(obj, &b->view, flags) != 0)
+        return -1;
+    b->held = 1;
+    if (b->view.itemsize != 8 || (n >= 0 && b->view.len != n * 8)) {
+        PyErr_Format(PyExc_ValueError, "%s: expected %zd items of 8 bytes, got %zd bytes",
+                     name, n, b->view.len);
+        return -1;
+    }
+    return 0;
+}
+
+static void release(Buf *bufs, int count)
+{
+    for (int i = 0; i < count; i++)
+        if (bufs[i].held)
+            PyBuffer_Release(&bufs[i].view);
+}
+
+#define F64(b) ((const double *)(b).view.buf)
+#define I64(b) ((const int64_t *)(b).view.buf)
+
+/* ---- the sector geometry (sector.py) ---------------------------------------------- */
+
+/* x-extent of {dx : a dx + b dy >= 0}: lo > hi when empty (sector.py _half_plane). */
+static inline void half_plane(double a, double b, double dy, double *lo, double *hi)
+{
+    if (a == 0.0) {
+        if (b * dy >= 0.0) {
+            *lo = -INFINITY;
+            *hi = INFINITY;
+        } else {
+            *lo = INFINITY;
+            *hi = -INFINITY;
+        }
+        return;
+    }
+    double bound = (-b * dy) / a;
+    if (a > 0.0) {
+        *lo = bound;
+        *hi = INFINITY;
+    } else {
+        *lo = -INFINITY;
+        *hi = bound;
+    }
+}
+
+/* The column span of the wedge extent [lo_m, hi_m] cut by the disk of radius r in a row dy
+ * from the apex (SectorRows.spans); returns 0 when the run is empty. */
+static inline int span(double lo_m, double hi_m, double dy, double r, double sx, double ox,
+                       double res, int64_t width, int64_t *c0, int64_t *c1)
+{
+    double d2 = r * r - dy * dy;
+    double half = sqrt(d2 > 0.0 ? d2 : 0.0);
+    double lo = lo_m > -half ? lo_m : -half;
+    double hi = hi_m < half ? hi_m : half;
+    double c0f = ceil((sx + lo - ox) / res - 0.5);
+    double c1f = floor((sx + hi - ox) / res - 0.5);
+    if (!(d2 >= 0.0 && r > 0.0 && c0f <= c1f && c1f >= 0.0 && c0f <= (double)(width - 1)))
+        return 0;
+    double top = (double)(width - 1);
+    *c0 = (int64_t)(c0f < 0.0 ? 0.0 : (c0f > top ? top : c0f));
+    *c1 = (int64_t)(c1f < 0.0 ? 0.0 : (c1f > top ? top : c1f));
+    return 1;
+}
+
+/* The wedge's extent in one row (sector_rows: right of the left edge, left of the right). */
+static inline void wedge(double sin_r, double cos_r, double sin_l, double cos_l, double dy,
+                         double *lo, double *hi)
+{
+    double lo1, hi1, lo2, hi2;
+    half_plane(-sin_r, cos_r, dy, &lo1, &hi1);
+    half_plane(sin_l, -cos_l, dy, &lo2, &hi2);
+    *lo = lo1 > lo2 ? lo1 : lo2;
+    *hi = hi1 < hi2 ? hi1 : hi2;
+}
+
+/* ---- difference arrays ------------------------------------------------------------- */
+
+/* A float delta over the index range [base, base + size) of a difference array, with the
+ * run ends held back until every start is in (np.bincount's order). The reference then adds
+ * the whole delta to the sums. Where a batch has few runs for the range it spans, only the
+ * indices they touched are added (the others would add +0.0), so a small batch on a large
+ * grid costs its runs, not the grid.
+ *
+ * The buffers are kept between calls (two slots: a kernel holds at most two deltas), the
+ * delta zeroed again after use: allocating a grid-sized delta per batch cost a page fault per
+ * 4 KiB each time (3 of 9 s of system time on a large laser map). Calls hold the GIL. */
+typedef struct {
+    double *delta;
+    int64_t *start_at, *end_at;
+    double *end_value;
+    size_t delta_cap, runs_cap, starts_cap;
+} Scratch;
+
+static Scratch scratch[2];
+
+typedef struct {
+    double *delta;
+    int64_t base, size;
+    int64_t *start_at, *end_at;
+    double *end_value;
+    int64_t runs;
+    int sparse; /* few runs for the range: starts are kept, and only touched entries move */
+} Delta;
+
+static int delta_open(Delta *d, int slot, int64_t base, int64_t size, int64_t max_runs)
+{
+    Scratch *s = &scratch[slot];
+    memset(d, 0, sizeof *d);
+    d->base = base;
+    d->size = size > 0 ? size : 0;
+    size_t runs = (size_t)(max_runs > 0 ? max_runs : 0) + 1;
+    d->sparse = (int64_t)runs < d->size / 32;
+    if ((size_t)d->size + 1 > s->delta_cap) {
+        free(s->delta);
+        s->delta_cap = (size_t)d->size + 1;
+        s->delta = calloc(s->delta_cap, sizeof(double)); /* zero; kept zero after each use */
+    }
+    if (runs > s->runs_cap) {
+        free(s->end_at);
+        free(s->end_value);
+        s->runs_cap = runs;
+        s->end_at = malloc(runs * sizeof(int64_t));
+        s->end_value = malloc(runs * sizeof(double));
+    }
+    if (d->sparse && runs > s->starts_cap) {
+        free(s->start_at);
+        s->starts_cap = runs;
+        s->start_at = malloc(runs * sizeof(int64_t));
+    }
+    if (!s->delta || (d->sparse && !s->start_at) || !s->end_at || !s->end_value) {
+        free(s->delta);
+        free(s->start_at);
+        free(s->end_at);
+        free(s->end_value);
+        memset(s, 0, sizeof *s);
+        PyErr_NoMemory();
+        return -1;
+    }
+    d->delta = s->delta;
+    d->start_at = s->start_at;
+    d->end_at = s->end_at;
+    d->end_value = s->end_value;
+    return 0;
+}
+
+static inline void delta_run(Delta *d, int64_t start, int64_t end, double value)
+{
+    d->delta[start - d->base] += value;
+    if (d->sparse)
+        d->start_at[d->runs] = start;
+    d->end_at[d->runs] = end;
+    d->end_value[d->runs] = -value;
+    d->runs++;
+}
+
+/* Move one touched entry of the delta into the sums (an index touched twice moves once). */
+static inline void delta_move(Delta *d, int64_t at, double *sums)
+{
+    double *v = &d->delta[at - d->base];
+    if (*v != 0.0)
+        sums[at] += *v;
+    *v = 0.0;
+}
+
+/* The held-back ends, then the delta into the running sums, leaving the delta zero. */
+static void delta_close(Delta *d, double *sums)
+{
+    for (int64_t k = 0; k < d->runs; k++)
+        d->delta[d->end_at[k] - d->base] += d->end_value[k];
+    if (d->sparse) {
+        for (int64_t k = 0; k < d->runs; k++) {
+            delta_move(d, d->start_at[k], sums);
+            delta_move(d, d->end_at[k], sums);
+        }
+        return;
+    }
+    for (int64_t k = 0; k < d->size; k++) {
+        sums[d->base + k] += d->delta[k];
+        d->delta[k] = 0.0;
+    }
+}
+
+/* The index range of the difference array that rows j0[m] .. j0[m] + counts[m] - 1 touch. */
+static void row_range(const int64_t *j0, const int64_t *counts, Py_ssize_t m, int64_t stride,
+                      int64_t *base, int64_t *size, int64_t *rows)
+{
+    int64_t lo = INT64_MAX, hi = -1, total = 0;
+    for (Py_ssize_t i = 0; i < m; i++) {
+        if (counts[i] <= 0)
+            continue;
+        total += counts[i];
+        if (j0[i] < lo)
+            lo = j0[i];
+        if (j0[i] + counts[i] - 1 > hi)
+            hi = j0[i] + counts[i] - 1;
+    }
+    if (hi < 0) {
+        *base = 0;
+        *size = 0;
+    } else {
+        *base = lo * stride;
+        *size = (hi - lo + 1) * stride;
+    }
+    *rows = total;
+}
+
+/* ---- the standard sonar cone (standard.py accumulate_sectors_numpy) ------------------ */
+
+static PyObject *sector_batch(PyObject *self, PyObject *args)
+{
+    (void)self;
+    double ox, oy, res;
+    int64_t width, height;
+    PyObject *o[14];
+    if (!PyArg_ParseTuple(args, "dddLLOOOOOOOOOOOOOO", &ox, &oy, &res, &width, &height, &o[0],
+                          &o[1], &o[2], &o[3], &o[4], &o[5], &o[6], &o[7], &o[8], &o[9], &o[10],
+                          &o[11], &o[12], &o[13]))
+        return NULL;
+    Buf b[14] = {0};
+    PyObject *result = NULL;
+    Delta outer = {0}, inner = {0};
+    int64_t stride = width + 1;
+    if (take(o[0], &b[0], -1, 0, "x") != 0)
+        goto done;
+    Py_ssize_t m = b[0].view.len / 8;
+    static const char *names[] = {"x",     "y",       "sin_r",         "cos_r",
+                                  "sin_l", "cos_l",   "j0",            "counts",
+                                  "outer_m", "outer_value", "inner_m", "inner_value"};
+    for (int i = 1; i < 12; i++)
+        if (take(o[i], &b[i], m, 0, names[i]) != 0)
+            goto done;
+    if (take(o[12], &b[12], height * stride, 1, "value_sums") != 0 ||
+        take(o[13], &b[13], height * stride, 1, "count_sums") != 0)
+        goto done;
+    const double *x = F64(b[0]), *y = F64(b[1]), *sin_r = F64(b[2]), *cos_r = F64(b[3]),
+                 *sin_l = F64(b[4]), *cos_l = F64(b[5]), *outer_m = F64(b[8]),
+                 *outer_value = F64(b[9]), *inner_m = F64(b[10]), *inner_value = F64(b[11]);
+    const int64_t *j0 = I64(b[6]), *counts = I64(b[7]);
+    double *value_sums = (double *)b[12].view.buf;
+    int64_t *count_sums = (int64_t *)b[13].view.buf;
+
+    int64_t base, size, rows;
+    row_range(j0, counts, m, stride, &base, &size, &rows);
+    if (delta_open(&outer, 0, base, size, rows) != 0 ||
+        delta_open(&inner, 1, base, size, rows) != 0)
+        goto done;
+    long long cells = 0;
+    for (Py_ssize_t i = 0; i < m; i++) {
+        if (counts[i] <= 0)
+            continue;
+        double r_out = outer_m[i], v_out = outer_value[i];
+        double r_in = inner_m[i], v_in = inner_value[i];
+        for (int64_t k = 0; k < counts[i]; k++) {
+            int64_t row = j0[i] + k;
+            double dy = oy + ((double)row + 0.5) * res - y[i];
+            double lo, hi;
+            int64_t c0, c1;
+            wedge(sin_r[i], cos_r[i], sin_l[i], cos_l[i], dy, &lo, &hi);
+            int64_t at = row * stride;
+            if (span(lo, hi, dy, r_out, x[i], ox, res, width, &c0, &c1)) {
+                count_sums[at + c0] += 1;
+                count_sums[at + c1 + 1] -= 1;
+                cells += c1 - c0 + 1;
+                if (v_out != 0.0)
+                    delta_run(&outer, at + c0, at + c1 + 1, v_out);
+            }
+            if (span(lo, hi, dy, r_in, x[i], ox, res, width, &c0, &c1))
+                delta_run(&inner, at + c0, at + c1 + 1, v_in);
+        }
+    }
+    delta_close(&outer, value_sums);
+    delta_close(&inner, value_sums);
+    result = PyLong_FromLongLong(cells);
+done:
+    release(b, 14);
+    return result;
+}
+
+/* ---- the ray model's free runs (ray.py row_runs) ------------------------------------- */
+
+/* What ray.py's RayRows holds, per segment. */
+typedef struct {
+    const int64_t *ra, *rb, *p_lo, *counts;
+    const double *off, *slope, *ua, *ub;
+} RayRows;
+
+/* The run of segment i in its row ra + p (row_runs); returns 0 when clipping drops it. */
+static inline int ray_run(const RayRows *r, Py_ssize_t i, int64_t p, int clip, int64_t width,
+                          int64_t *col0, int64_t *col1)
+{
+    int64_t p_hi = r->p_lo[i] + r->counts[i] - 1;
+    double pf = (double)p;
+    double u_in = (pf + r->off[i]) * r->slope[i] + r->ua[i];
+    double u_out = (pf + 1.0 + r->off[i]) * r->slope[i] + r->ua[i];
+    if (p == r->p_lo[i] && r->p_lo[i] == 0)
+        u_in = r->ua[i];
+    if (p == p_hi && r->ra[i] + p_hi == r->rb[i])
+        u_out = r->ub[i];
+    int64_t c_in = (int64_t)floor(u_in), c_out = (int64_t)floor(u_out);
+    *col0 = c_in < c_out ? c_in : c_out;
+    *col1 = c_in < c_out ? c_out : c_in;
+    if (clip) {
+        if (*col1 < 0 || *col0 > width - 1)
+            return 0;
+        if (*col0 < 0)
+            *col0 = 0;
+        if (*col1 > width - 1)
+            *col1 = width - 1;
+    }
+    return 1;
+}
+
+/* The index range of the difference array the segments' rows touch, and their run count. */
+static void ray_range(const RayRows *r, Py_ssize_t n, int64_t stride, int64_t *base,
+                      int64_t *size, int64_t *runs)
+{
+    int64_t lo_row = INT64_MAX, hi_row = -1, total = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        if (r->counts[i] <= 0)
+            continue;
+        total += r->counts[i];
+        int64_t first = r->ra[i] + r->p_lo[i], last = first + r->counts[i] - 1;
+        if (first < lo_row)
+            lo_row = first;
+        if (last > hi_row)
+            hi_row = last;
+    }
+    *base = hi_row < 0 ? 0 : lo_row * stride;
+    *size = hi_row < 0 ? 0 : (hi_row - lo_row + 1) * stride;
+    *runs = total;
+}
+
+static PyObject *ray_batch(PyObject *self, PyObject *args)
+{
+    (void)self;
+    int64_t width;
+    int clip;
+    double l_free;
+    PyObject *o[10];
+    if (!PyArg_ParseTuple(args, "LOOOOOOOOpdOO", &width, &o[0], &o[1], &o[2], &o[3], &o[4],
+                          &o[5], &o[6], &o[7], &clip, &l_free, &o[8], &o[9]))
+        return NULL;
+    Buf b[10] = {0};
+    PyObject *result = NULL;
+    Delta delta = {0};
+    int64_t stride = width + 1;
+    if (take(o[0], &b[0], -1, 0, "ra") != 0)
+        goto done;
+    Py_ssize_t n = b[0].view.len / 8;
+    static const char *names[] = {"ra", "rb", "p_lo", "counts", "off", "slope", "ua", "ub"};
+    for (int i = 1; i < 8; i++)
+        if (take(o[i], &b[i], n, 0, names[i]) != 0)
+            goto done;
+    if (take(o[8], &b[8], -1, 1, "value_sums") != 0 ||
+        take(o[9], &b[9], b[8].view.len / 8, 1, "count_sums") != 0)
+        goto done;
+    if (b[8].view.len / 8 % stride != 0) {
+        PyErr_SetString(PyExc_ValueError, "value_sums: not a whole number of grid rows");
+        goto done;
+    }
+    RayRows r = {I64(b[0]), I64(b[1]), I64(b[2]), I64(b[3]),
+                 F64(b[4]), F64(b[5]), F64(b[6]), F64(b[7])};
+    double *value_sums = (double *)b[8].view.buf;
+    int64_t *count_sums = (int64_t *)b[9].view.buf;
+    int64_t base, size, runs;
+    ray_range(&r, n, stride, &base, &size, &runs);
+    if (delta_open(&delta, 0, base, size, runs) != 0)
+        goto done;
+    long long cells = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        for (int64_t p = r.p_lo[i]; p < r.p_lo[i] + r.counts[i]; p++) {
+            int64_t col0, col1;
+            if (!ray_run(&r, i, p, clip, width, &col0, &col1))
+                continue;
+            int64_t at = (r.ra[i] + p) * stride;
+            count_sums[at + col0] += 1;
+            count_sums[at + col1 + 1] -= 1;
+            cells += col1 - col0 + 1;
+            delta_run(&delta, at + col0, at + col1 + 1, l_free);
+        }
+    }
+    delta_close(&delta, value_sums);
+    result = PyLong_FromLongLong(cells);
+done:
+    release(b, 10);
+    return result;
+}
+
+/* ---- error-aware evidence (error_aware.py, error_aware_ray.py, error_aware_mixed.py) --- */
+
+/* One trust class's readings go into the looks, hits and seen difference arrays, as the
+ * reference's runs for that class: the sonar readings' parts, then the laser readings' parts
+ * (error_aware_mixed.py concatenates the two models' runs in that order), every part's starts,
+ * part by part, then the ends, in one delta per array. */
+
+typedef struct {
+    double ox, oy, res;
+    int64_t width, height, stride;
+} Grid;
+
+enum { SONAR_ARRAYS = 18, LASER_ARRAYS = 21 };
+
+/* The sonar readings: the echo ring (free_m, look_m] of the wide wedge (the disk of look_m,
+ * +1, less that of free_m, -1, over the ring's rows), looked at with the reading's weight and
+ * hit with weight * hit; and the narrow wedge up to free_m (+1), looked through. */
+typedef struct {
+    Buf b[SONAR_ARRAYS];
+    Py_ssize_t m;
+} Sonar;
+
+static const char *const SONAR_NAMES[SONAR_ARRAYS] = {
+    "x", "y", "wide_sin_r", "wide_cos_r", "wide_sin_l", "wide_cos_l", "wide_j0", "wide_counts",
+    "narrow_sin_r", "narrow_cos_r", "narrow_sin_l", "narrow_cos_l", "narrow_j0",
+    "narrow_counts", "look_m", "free_m", "weight", "hit"};
+
+/* The laser readings: the free segment along each beam (looked through with the reading's
+ * weight), then the hit ring of each echo (the disk of look_m, +1, less that of ring_in_m,
+ * -1), looked at with ring_look and hit with ring_hit. */
+typedef struct {
+    Buf b[LASER_ARRAYS];
+    Py_ssize_t m;
+    int clip;
+} Laser;
+
+static const char *const LASER_NAMES[LASER_ARRAYS] = {
+    "ra", "rb", "p_lo", "counts", "off", "slope", "ua", "ub", "free_look", "x", "y", "sin_r",
+    "cos_r", "sin_l", "cos_l", "j0", "ring_counts", "look_m", "ring_in_m", "ring_look",
+    "ring_hit"};
+
+/* Take a tuple of `count` arrays of one length (the first's). */
+static int take_set(PyObject *tuple, Buf *b, int count, const char *const *names,
+                    Py_ssize_t *m)
+{
+    if (!PyTuple_Check(tuple) || PyTuple_GET_SIZE(tuple) != count) {
+        PyErr_Format(PyExc_ValueError, "expected a tuple of %d arrays", count);
+        return -1;
+    }
+    if (take(PyTuple_GET_ITEM(tuple, 0), &b[0], -1, 0, names[0]) != 0)
+        return -1;
+    *m = b[0].view.len / 8;
+    for (int i = 1; i < count; i++)
+        if (take(PyTuple_GET_ITEM(tuple, i), &b[i], *m, 0, names[i]) != 0)
+            return -1;
+    return 0;
+}
+
+/* Widen [lo, hi) to hold [base, base + size). */
+static void widen(int64_t *lo, int64_t *hi, int64_t base, int64_t size)
+{
+    if (size <= 0)
+        return;
+    if (*hi <= *lo) {
+        *lo = base;
+        *hi = base + size;
+        return;
+    }
+    if (base < *lo)
+        *lo = base;
+    if (base + size > *hi)
+        *hi = base + size;
+}
+
+static void sonar_extent(const Sonar *s, const Grid *g, int64_t *lo, int64_t *hi,
+                         int64_t *look_runs, int64_t *hit_runs)
+{
+    for (int w = 0; w < 2; w++) {
+        int64_t base, size, rows;
+        row_range(I64(s->b[6 + 6 * w]), I64(s->b[7 + 6 * w]), s->m, g->stride, &base, &size,
+                  &rows);
+        widen(lo, hi, base, size);
+        *look_runs += w == 0 ? 2 * rows : rows;
+        *hit_runs += w == 0 ? 2 * rows : 0;
+    }
+}
+
+static long long sonar_add(const Sonar *s, const Grid *g, Delta *looks, Delta *hits,
+                           int64_t *seen_sums)
+{
+    const double *x = F64(s->b[0]), *y = F64(s->b[1]);
+    const double *trig[2][4] = {{F64(s->b[2]), F64(s->b[3]), F64(s->b[4]), F64(s->b[5])},
+                                {F64(s->b[8]), F64(s->b[9]), F64(s->b[10]), F64(s->b[11])}};
+    const int64_t *j0[2] = {I64(s->b[6]), I64(s->b[12])};
+    const int64_t *counts[2] = {I64(s->b[7]), I64(s->b[13])};
+    const double *look_m = F64(s->b[14]), *free_m = F64(s->b[15]), *weight = F64(s->b[16]),
+                 *hit = F64(s->b[17]);
+    /* part: (wedge, radius, sign, in the ring) */
+    static const int part_wedge[3] = {0, 0, 1}, part_sign[3] = {1, -1, 1};
+    static const int part_ring[3] = {1, 1, 0};
+    long long cells = 0;
+    for (int p = 0; p < 3; p++) {
+        int w = part_wedge[p];
+        const double *radius = p == 0 ? look_m : free_m;
+        for (Py_ssize_t i = 0; i < s->m; i++) {
+            if (counts[w][i] <= 0)
+                continue;
+            double look = part_sign[p] * weight[i];
+            double hit_mass = look * hit[i];
+            for (int64_t k = 0; k < counts[w][i]; k++) {
+                int64_t row = j0[w][i] + k;
+                double dy = g->oy + ((double)row + 0.5) * g->res - y[i];
+                double lo, hi;
+                int64_t c0, c1;
+                wedge(trig[w][0][i], trig[w][1][i], trig[w][2][i], trig[w][3][i], dy, &lo, &hi);
+                if (!span(lo, hi, dy, radius[i], x[i], g->ox, g->res, g->width, &c0, &c1))
+                    continue;
+                int64_t at = row * g->stride;
+                seen_sums[at + c0] += part_sign[p];
+                seen_sums[at + c1 + 1] -= part_sign[p];
+                delta_run(looks, at + c0, at + c1 + 1, look);
+                if (part_ring[p])
+                    delta_run(hits, at + c0, at + c1 + 1, hit_mass);
+                if (p == 0)
+                    cells += c1 - c0 + 1;
+            }
+        }
+    }
+    return cells;
+}
+
+static RayRows laser_rows(const Laser *l)
+{
+    RayRows r = {I64(l->b[0]), I64(l->b[1]), I64(l->b[2]), I64(l->b[3]),
+                 F64(l->b[4]), F64(l->b[5]), F64(l->b[6]), F64(l->b[7])};
+    return r;
+}
+
+static void laser_extent(const Laser *l, const Grid *g, int64_t *lo, int64_t *hi,
+                         int64_t *look_runs, int64_t *hit_runs)
+{
+    RayRows r = laser_rows(l);
+    int64_t base, size, runs;
+    ray_range(&r, l->m, g->stride, &base, &size, &runs);
+    widen(lo, hi, base, size);
+    *look_runs += runs;
+    row_range(I64(l->b[15]), I64(l->b[16]), l->m, g->stride, &base, &size, &runs);
+    widen(lo, hi, base, size);
+    *look_runs += 2 * runs;
+    *hit_runs += 2 * runs;
+}
+
+static long long laser_add(const Laser *l, const Grid *g, Delta *looks, Delta *hits,
+                           int64_t *seen_sums)
+{
+    RayRows r = laser_rows(l);
+    const double *free_look = F64(l->b[8]), *x = F64(l->b[9]), *y = F64(l->b[10]),
+                 *sin_r = F64(l->b[11]), *cos_r = F64(l->b[12]), *sin_l = F64(l->b[13]),
+                 *cos_l = F64(l->b[14]), *look_m = F64(l->b[17]), *ring_in_m = F64(l->b[18]),
+                 *ring_look = F64(l->b[19]), *ring_hit = F64(l->b[20]);
+    const int64_t *j0 = I64(l->b[15]), *ring_counts = I64(l->b[16]);
+    long long cells = 0;
+    for (Py_ssize_t i = 0; i < l->m; i++) {
+        for (int64_t p = r.p_lo[i]; p < r.p_lo[i] + r.counts[i]; p++) {
+            int64_t col0, col1;
+            if (!ray_run(&r, i, p, l->clip, g->width, &col0, &col1))
+                continue;
+            int64_t at = (r.ra[i] + p) * g->stride;
+            seen_sums[at + col0] += 1;
+            seen_sums[at + col1 + 1] -= 1;
+            cells += col1 - col0 + 1;
+            delta_run(looks, at + col0, at + col1 + 1, free_look[i]);
+        }
+    }
+    for (int part = 0; part < 2; part++) {
+        const double *radius = part == 0 ? look_m : ring_in_m;
+        int sign = part == 0 ? 1 : -1;
+        for (Py_ssize_t i = 0; i < l->m; i++) {
+            if (ring_counts[i] <= 0)
+                continue;
+            double look = part == 0 ? ring_look[i] : -ring_look[i];
+            double hit = part == 0 ? ring_hit[i] : -ring_hit[i];
+            for (int64_t k = 0; k < ring_counts[i]; k++) {
+                int64_t row = j0[i] + k;
+                double dy = g->oy + ((double)row + 0.5) * g->res - y[i];
+                double lo, hi;
+                int64_t c0, c1;
+                wedge(sin_r[i], cos_r[i], sin_l[i], cos_l[i], dy, &lo, &hi);
+                if (!span(lo, hi, dy, radius[i], x[i], g->ox, g->res, g->width, &c0, &c1))
+                    continue;
+                int64_t at = row * g->stride;
+                seen_sums[at + c0] += sign;
+                seen_sums[at + c1 + 1] -= sign;
+                cells += sign * (c1 - c0 + 1);
+                delta_run(looks, at + c0, at + c1 + 1, look);
+                delta_run(hits, at + c0, at + c1 + 1, hit);
+            }
+        }
+    }
+    return cells;
+}
+
+/* spread_batch(ox, oy, res, width, height, sonar, laser, clip, looks, hits, seen): sonar and
+ * laser are tuples of their arrays (SONAR_NAMES, LASER_NAMES) or None; returns the cell
+ * updates. */
+static PyObject *spread_batch(PyObject *self, PyObject *args)
+{
+    (void)self;
+    Grid g;
+    PyObject *sonar_arrays, *laser_arrays, *o[3];
+    int clip;
+    if (!PyArg_ParseTuple(args, "dddLLOOpOOO", &g.ox, &g.oy, &g.res, &g.width, &g.height,
+                          &sonar_arrays, &laser_arrays, &clip, &o[0], &o[1], &o[2]))
+        return NULL;
+    g.stride = g.width + 1;
+    Sonar sonar = {0};
+    Laser laser = {0};
+    Buf sums[3] = {0};
+    PyObject *result = NULL;
+    Delta looks = {0}, hits = {0};
+    int has_sonar = sonar_arrays != Py_None, has_laser = laser_arrays != Py_None;
+    laser.clip = clip;
+    if ((has_sonar && take_set(sonar_arrays, sonar.b, SONAR_ARRAYS, SONAR_NAMES, &sonar.m)) ||
+        (has_laser && take_set(laser_arrays, laser.b, LASER_ARRAYS, LASER_NAMES, &laser.m)))
+        goto done;
+    static const char *const sum_names[3] = {"look_sums", "hit_sums", "seen_sums"};
+    for (int i = 0; i < 3; i++)
+        if (take(o[i], &sums[i], g.height * g.stride, 1, sum_names[i]) != 0)
+            goto done;
+    int64_t lo = 0, hi = 0, look_runs = 0, hit_runs = 0;
+    if (has_sonar)
+        sonar_extent(&sonar, &g, &lo, &hi, &look_runs, &hit_runs);
+    if (has_laser)
+        laser_extent(&laser, &g, &lo, &hi, &look_runs, &hit_runs);
+    if (delta_open(&looks, 0, lo, hi - lo, look_runs) != 0 ||
+        delta_open(&hits, 1, lo, hi - lo, hit_runs) != 0)
+        goto done;
+    int64_t *seen = (int64_t *)sums[2].view.buf;
+    long long cells = 0;
+    if (has_sonar)
+        cells += sonar_add(&sonar, &g, &looks, &hits, seen);
+    if (has_laser)
+        cells += laser_add(&laser, &g, &looks, &hits, seen);
+    delta_close(&looks, (double *)sums[0].view.buf);
+    delta_close(&hits, (double *)sums[1].view.buf);
+    result = PyLong_FromLongLong(cells);
+done:
+    release(sonar.b, SONAR_ARRAYS);
+    release(laser.b, LASER_ARRAYS);
+    release(sums, 3);
+    return result;
+}
+
+static PyMethodDef methods[] = {
+    {"sector_batch", sector_batch, METH_VARARGS,
+     "One batch of nested sonar sectors into the running difference arrays; returns the "
+     "outer sectors' cells."},
+    {"spread_batch", spread_batch, METH_VARARGS,
+     "One trust class's error-aware readings, sonar and laser, into the looks, hits and seen "
+     "difference arrays; returns the cell updates."},
+    {"ray_batch", ray_batch, METH_VARARGS,
+     "One chunk of rays' free runs into the running difference arrays; returns the cells."},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {
+    .m_base = PyModuleDef_HEAD_INIT,
+    .m_name = "_ckernels",
+    .m_doc = "gridmap's compiled mapping kernels (see gridmap_cli/mapping/models/kernels.py).",
+    .m_size = -1,
+    .m_methods = methods,
+};
+
+PyMODINIT_FUNC PyInit__ckernels(void)
+{
+    return PyModule_Create(&module);
+}

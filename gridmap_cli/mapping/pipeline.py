@@ -1,0 +1,269 @@
+"""Wires the stages: canonical log -> sync -> sensor model -> grid -> finished map.
+
+Plain functions returning plain results: no printing, no progress bars (the CLI passes a
+callback), no file output (writers do that).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from gridmap_cli.errors import GridmapError, MapSizeError, NoDataError
+from gridmap_cli.mapping.grid import (
+    DEFAULT_CLAMP_P,
+    DEFAULT_MAX_CELLS,
+    DEFAULT_PRIOR_COUNTS,
+    FrequencyAccumulator,
+    GridSpec,
+    LogOddsAccumulator,
+    OccupancyMap,
+)
+from gridmap_cli.mapping.models.error_aware import (
+    ErrorAwareParams,
+    ErrorAwareSonarModel,
+    OdometrySpread,
+)
+from gridmap_cli.mapping.models.ray import RayModel, RayParams
+from gridmap_cli.mapping.models.standard import StandardSonarModel, StandardSonarParams
+from gridmap_cli.mapping.plan import BuildPlan as BuildPlan
+from gridmap_cli.mapping.plan import SensorModel as SensorModel
+from gridmap_cli.mapping.plan import split_by_kind
+from gridmap_cli.mapping.shards import accumulate_frequencies, accumulate_log_odds
+from gridmap_cli.mapping.shards import (
+    batch_bounds as batch_bounds,  # callers cut batches as build does
+)
+from gridmap_cli.poses.odometry_error import travelled
+from gridmap_cli.poses.sync import (
+    SyncStats,
+    sensors_for_log,
+    synchronise,
+)
+from gridmap_cli.records import RangeLog, cut_chunks, span_text
+from gridmap_cli.robot import RangeSensor, RobotDescription
+
+MAPPING_MODES = ("standard", "error-aware")
+#: The coarsest cell size build takes: a range sensor sees a few metres, so coarser cells map
+#: nothing (``--resolution 1e6`` used to give a 2 x 2 map without a word).
+MAX_RESOLUTION_M = 5.0
+
+
+@dataclass(frozen=True)
+class BuildOptions:
+    """How to build a map. Units: metres; see docs/sensor-model.md for the model's defaults."""
+
+    resolution_m: float = 0.05
+    mode: str = "standard"
+    sonar: StandardSonarParams = field(default_factory=StandardSonarParams)
+    ray: RayParams = field(default_factory=RayParams)
+    clamp_p: tuple[float, float] = DEFAULT_CLAMP_P
+    error_aware: ErrorAwareParams = field(default_factory=ErrorAwareParams)
+    odometry_error: OdometrySpread | None = None
+    prior_counts: tuple[float, float] = DEFAULT_PRIOR_COUNTS
+    margin_m: float = 0.2
+    max_cells: int = DEFAULT_MAX_CELLS
+    batch_size: int = 20_000
+    #: Processes mapping the readings; the map does not depend on it
+    #: (:mod:`gridmap_cli.mapping.shards`).
+    jobs: int = 1
+
+
+@dataclass(frozen=True)
+class BuildResult:
+    """The map and what went into it."""
+
+    map: OccupancyMap
+    sync: SyncStats
+    cell_updates: int
+
+    @property
+    def observed_cells(self) -> int:
+        return int(np.count_nonzero(~np.isnan(self.map.prob)))
+
+
+#: Log readings synchronised at a time, by build and by inspect: with the models' bounds kept and
+#: the readings let go, a chunk at a time, the synchronised readings never exist for the whole
+#: log at once (the hour log's 576,000 were about 40 MiB, three times over).
+SYNC_CHUNK_READINGS = 100_000
+#: Readings synchronised and bounded at a time in the bounds pass: its minima, maxima and
+#: counts are the same for any cut, and the models' bounds of 100,000 sonar readings took
+#: 24 MiB of temporaries (the mapping pass keeps the chunks above: its sums follow them).
+BOUNDS_CHUNK_READINGS = 25_000
+
+
+def plan_build(log: RangeLog, robot: RobotDescription | None, options: BuildOptions) -> BuildPlan:
+    """Every check :func:`build_map` makes before mapping, with the plan it maps by.
+
+    ``gridmap inspect`` calls this too, so that its verdict is build's own: the errors are
+    :func:`build_map`'s (a sensor without mounting, :class:`NoDataError` when no reading can be
+    mapped, :class:`MapSizeError` when the data spans an absurd area, a mode that cannot take
+    the log's sensors). The readings are synchronised chunk by chunk and only the stats and
+    bounds kept: minima and maxima of chunks are the whole's, to the bit.
+    """
+    if options.mode not in MAPPING_MODES:
+        raise GridmapError(f"unknown mapping mode '{options.mode}' (known: {MAPPING_MODES})")
+    sensors = sensors_for_log(log, robot)
+    narrow = np.array([s.kind == "laser" or s.beam_width_rad <= 0.0 for s in sensors], dtype=bool)
+    bounding = _bounding_models(sensors, narrow, options)
+    size = SYNC_CHUNK_READINGS
+    driven = travelled(log.poses) if len(log.poses) else None
+    chunks: list[tuple[int, int]] = []
+    totals = np.zeros(4, dtype=np.int64)  # total, used, outside odometry, below minimum range
+    boxes = []  # (xmin, ymin, xmax, ymax) of each chunk and model
+    kinds = np.zeros(2, dtype=bool)  # any ray, any sonar reading kept
+    for chunk in log.reading_chunks(size):
+        start = chunks[-1][1] if chunks else 0
+        chunks.append((start, start + len(chunk)))
+        for piece in cut_chunks([chunk], BOUNDS_CHUNK_READINGS):
+            readings, chunk_stats = synchronise(log, robot, piece, driven)
+            totals += dataclasses.astuple(chunk_stats)
+            if len(readings) == 0:
+                continue
+            is_ray = narrow[readings.sensor]
+            kinds |= (bool(is_ray.any()), bool(not is_ray.all()))
+            boxes += [
+                model.bounds(part) for model, part in split_by_kind(bounding, narrow, readings)
+            ]
+    stats = SyncStats(*(int(v) for v in totals))
+    if stats.used == 0:
+        raise NoDataError(_why_empty(log, stats))
+    box = np.array(boxes)
+    xmin, ymin, _, _ = box.min(axis=0)
+    _, _, xmax, ymax = box.max(axis=0)
+    try:
+        spec = GridSpec.covering(
+            xmin, ymin, xmax, ymax, options.resolution_m, options.margin_m, options.max_cells
+        )
+    except MapSizeError as exc:
+        raise MapSizeError(f"{log.source}: {exc}") from exc
+    models = _mapping_models(sensors, narrow, options, bool(kinds[0]), bool(kinds[1]))
+    return BuildPlan(stats, models, spec, log, robot, chunks, narrow, size, driven)
+
+
+def build_map(
+    log: RangeLog,
+    robot: RobotDescription | None,
+    options: BuildOptions,
+    progress: Callable[[int], object] | None = None,
+    between_passes: Callable[[], object] | None = None,
+) -> BuildResult:
+    """Build an occupancy map from a canonical log.
+
+    ``progress`` is called with the number of readings just processed (one call per batch);
+    ``between_passes`` once the bounds pass is done, before any mapping (the CLI returns the
+    freed heap then). Raises what :func:`plan_build` raises, before any mapping.
+    """
+    plan = plan_build(log, robot, options)
+    if between_passes is not None:
+        between_passes()
+    spec, stats = plan.spec, plan.sync
+    grid: LogOddsAccumulator | FrequencyAccumulator
+    grid = LogOddsAccumulator(spec) if options.mode == "standard" else FrequencyAccumulator(spec)
+    updates = accumulate(plan, grid, options, progress)
+    if isinstance(grid, FrequencyAccumulator):
+        omap = grid.occupancy_map(options.prior_counts)
+    else:
+        omap = grid.occupancy_map(options.clamp_p)
+    return BuildResult(map=omap, sync=stats, cell_updates=updates)
+
+
+def accumulate(
+    plan: BuildPlan,
+    grid: LogOddsAccumulator | FrequencyAccumulator,
+    options: BuildOptions,
+    progress: Callable[[int], object] | None = None,
+) -> int:
+    """Add every reading of ``plan`` to ``grid`` on ``options.jobs`` processes; returns the cell
+    updates. The grid is the same to the byte for every number of jobs
+    (:mod:`gridmap_cli.mapping.shards`
+    says how)."""
+    if isinstance(grid, LogOddsAccumulator):
+        return accumulate_log_odds(plan, grid, options.batch_size, options.jobs, progress)
+    return accumulate_frequencies(plan, grid, options.batch_size, options.jobs, progress)
+
+
+def _bounding_models(
+    sensors: tuple[RangeSensor, ...], narrow: npt.NDArray[np.bool_], options: BuildOptions
+) -> list[tuple[SensorModel, str]]:
+    """The models whose bounds hold every cell the readings touch, whichever kinds of sensor
+    turn out to have readings (the error-aware mixed model bounds each kind by its own model)."""
+    if options.mode == "error-aware":
+        return [(_error_aware_model(sensors, narrow, options, bool(narrow.any()), True), "all")]
+    return _mapping_models(sensors, narrow, options, True, True)
+
+
+def _mapping_models(
+    sensors: tuple[RangeSensor, ...],
+    narrow: npt.NDArray[np.bool_],
+    options: BuildOptions,
+    any_ray: bool,
+    any_sonar: bool,
+) -> list[tuple[SensorModel, str]]:
+    """Each model and the kind of reading it maps; models without readings are left out.
+
+    Narrow-beam sensors (kind "laser" or beam width 0) go to the ray model, the others to the
+    sonar model. Log-odds sums do not depend on order, so the models may run one after the other.
+    """
+    if options.mode == "error-aware":
+        return [(_error_aware_model(sensors, narrow, options, any_ray, any_sonar), "all")]
+    models: list[tuple[SensorModel, str]] = []
+    if any_ray:
+        models.append((RayModel(options.ray, options.resolution_m), "ray"))
+    if any_sonar:
+        models.append((StandardSonarModel(options.sonar, options.resolution_m), "sonar"))
+    return models
+
+
+def _error_aware_model(
+    sensors: tuple[RangeSensor, ...],
+    narrow: npt.NDArray[np.bool_],
+    options: BuildOptions,
+    any_ray: bool,
+    any_sonar: bool,
+) -> SensorModel:
+    """Sonar cones, laser rays, or both: the error-aware model for the log's sensors."""
+    if options.odometry_error is None:
+        raise GridmapError(
+            "error-aware mode needs the odometry error model (gridmap calibrate writes one)"
+        )
+    sonar = ErrorAwareSonarModel(
+        options.sonar, options.error_aware, options.odometry_error, options.resolution_m
+    )
+    if not any_ray:
+        return sonar
+    from gridmap_cli.mapping.models.error_aware_mixed import ErrorAwareMixedModel
+    from gridmap_cli.mapping.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
+
+    ray = ErrorAwareRayModel(
+        options.error_aware,
+        options.odometry_error,
+        ScanLayout.of(sensors, narrow),
+        options.sonar.band_half_m(options.resolution_m),
+    )
+    if not any_sonar:
+        return ray
+    return ErrorAwareMixedModel(sonar, ray, narrow)
+
+
+def _why_empty(log: RangeLog, stats: SyncStats) -> str:
+    if stats.total == 0:
+        return f"{log.source}: the log holds no range readings"
+    if stats.outside_odometry == stats.total:
+        odo = log.poses.stamp_ns
+        return (
+            f"{log.source}: no odometry during the range readings: the {stats.total} readings "
+            f"span {span_text(*log.reading_span())}, the odometry "
+            f"{span_text(int(odo[0]), int(odo[-1]))} (recorded at different times?)"
+        )
+    parts = []
+    if stats.outside_odometry:
+        parts.append(f"{stats.outside_odometry} outside the odometry's time span")
+    if stats.below_min_range:
+        parts.append(f"{stats.below_min_range} below their sensor's minimum range")
+    return (
+        f"{log.source}: none of the {stats.total} range readings can be mapped ({'; '.join(parts)})"
+    )

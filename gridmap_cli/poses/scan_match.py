@@ -1,0 +1,385 @@
+"""Scan matching: correct the odometry with the laser (scan to local map, no loop closure).
+
+Each laser scan is registered against a local map made of the last few keyframe scans, starting
+from the pose the odometry predicts (the previous corrected pose composed with the odometry's
+increment since). The registration is small_gicp's GICP; a planar scan becomes a thin vertical
+sheet (three copies of its points, one voxel apart in z) so that GICP's local covariances see
+walls as planes instead of degenerate lines. Only x, y and yaw of the result are kept.
+
+A match is judged before it is trusted (``docs/scan-matching.md``):
+
+- *poor*: too few points, too few of them within ``inlier_m`` of the local map after the
+  match, or a correction larger than the odometry can plausibly be wrong by: the step keeps the
+  odometry's increment (a *fallback*);
+- *degenerate*: the translation is constrained in one direction only (a featureless corridor):
+  the correction is kept across the corridor and the odometry is kept along it.
+
+Frames: the corrected track is in the odometry frame, starting at the odometry's pose at the
+first scan. Poses between scans, and other sensors' readings, are placed by carrying the
+odometry with the correction (corrected (-) odometry) interpolated between the scans around them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import small_gicp
+from scipy.spatial import cKDTree
+
+from gridmap_cli.errors import GridmapError
+from gridmap_cli.geometry import compose, inverse, wrap_angle
+from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
+from gridmap_cli.records import PoseTrack, RangeLog
+from gridmap_cli.robot import RangeSensor, RobotDescription
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Per-scan outcome codes of :attr:`ScanMatch.status`.
+MATCHED, FALLBACK, DEGENERATE, FIRST = 0, 1, 2, 3
+STATUS_NAMES = {MATCHED: "matched", FALLBACK: "fallback", DEGENERATE: "degenerate", FIRST: "first"}
+
+
+class NoLaserError(GridmapError):
+    """The log holds no laser scan to match."""
+
+
+@dataclass(frozen=True)
+class ScanMatchParams:
+    """How scans are matched. Metres and radians.
+
+    ``max_range_m``: beams longer than this are left out of matching (far points are sparse and
+    their angular error large). ``downsample_m``: voxel size for the scan and the local map.
+    ``keyframe_m``/``keyframe_rad``: a scan joins the local map when the robot has moved this far
+    or turned this much since the last one that did; ``local_map_scans`` keyframes are kept.
+    ``correspondence_m``: GICP's maximum correspondence distance. ``inlier_m``: a matched point
+    within this of the local map counts as an inlier; ``min_inlier_fraction`` of them are needed
+    and at least ``min_points`` points. ``max_correction_m``/``max_correction_rad`` plus
+    ``correction_per_m`` times the step length bound how far a match may move the odometry's
+    guess. ``degenerate_ratio``: smallest over largest eigenvalue of the translation block of
+    the match's Hessian below which the match is degenerate. ``heading_starts_rad``: extra
+    starting headings (offsets from the guess) tried when the first match is poor.
+    """
+
+    max_range_m: float = 30.0
+    downsample_m: float = 0.1
+    keyframe_m: float = 0.3
+    keyframe_rad: float = math.radians(10.0)
+    local_map_scans: int = 20
+    correspondence_m: float = 1.0
+    max_iterations: int = 30
+    inlier_m: float = 0.15
+    min_inlier_fraction: float = 0.5
+    min_points: int = 20
+    max_correction_m: float = 0.5
+    max_correction_rad: float = math.radians(15.0)
+    correction_per_m: float = 0.5
+    degenerate_ratio: float = 0.02
+    heading_starts_rad: tuple[float, ...] = (
+        math.radians(-8.0),
+        math.radians(8.0),
+        math.radians(-16.0),
+        math.radians(16.0),
+    )
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.name != "heading_starts_rad" and not (value >= 0 and math.isfinite(value)):
+                raise ValueError(f"{f.name} must be a finite number >= 0, got {value}")
+
+
+@dataclass(frozen=True)
+class Scans:
+    """Laser scans: one per distinct stamp of the log's laser readings.
+
+    ``stamp_ns`` shape (S,); ``points`` a list of S arrays, shape (K_i, 2), the beam end points
+    (echoes only, within the matching range) in the robot base frame, metres.
+    """
+
+    stamp_ns: npt.NDArray[np.int64]
+    points: list[FloatArray]
+
+    def __len__(self) -> int:
+        return int(self.stamp_ns.shape[0])
+
+
+@dataclass(frozen=True)
+class ScanMatch:
+    """The corrected pose of every scan and how each was obtained, shape (S,) each.
+
+    ``track``: corrected poses (odometry frame) at the scans' stamps. ``odometry``: the
+    odometry's poses at the same stamps. ``status``: :data:`MATCHED`, :data:`FALLBACK`,
+    :data:`DEGENERATE` or :data:`FIRST`. ``inlier_fraction``: share of the scan's points
+    within ``inlier_m`` of the local map after the match (NaN for the first scan).
+    """
+
+    track: PoseTrack
+    odometry: PoseTrack
+    status: npt.NDArray[np.int8]
+    inlier_fraction: FloatArray
+    seconds: float
+
+    @property
+    def fallbacks(self) -> int:
+        return int(np.count_nonzero(self.status == FALLBACK))
+
+    @property
+    def degenerate(self) -> int:
+        return int(np.count_nonzero(self.status == DEGENERATE))
+
+    def summary(self) -> dict[str, float | int]:
+        """Counts for people and JSON: scans, matched, fallbacks, degenerate, seconds."""
+        return {
+            "scans": len(self.track),
+            "matched": int(np.count_nonzero(self.status == MATCHED)),
+            "fallbacks": self.fallbacks,
+            "degenerate": self.degenerate,
+            "seconds": round(self.seconds, 3),
+        }
+
+
+def laser_scans(log: RangeLog, sensors: tuple[RangeSensor, ...], params: ScanMatchParams) -> Scans:
+    """The log's laser readings grouped into scans by stamp (all lasers at one stamp together).
+
+    ``sensors`` is the mounting of each of ``log.sensor_names``. Raises :class:`NoLaserError`
+    when no sensor is a laser or no laser reading is in the log.
+    """
+    is_laser = np.array([s.kind == "laser" for s in sensors], dtype=bool)
+    if not is_laser.any():
+        kinds = sorted({s.kind for s in sensors}) or ["none"]
+        raise NoLaserError(
+            f"{log.source}: --pose scan-matched matches laser scans, and the log has no laser "
+            f"(its range sensors: {', '.join(kinds)}); use --pose odometry or global"
+        )
+    r = log.readings
+    keep = is_laser[r.sensor]
+    table = np.array(
+        [(s.x_m, s.y_m, s.yaw_rad, s.min_range_m, min(s.max_range_m, params.max_range_m))
+         for s in sensors]
+    ).reshape(len(sensors), 5)  # fmt: skip
+    low, high = table[r.sensor, 3], table[r.sensor, 4]
+    echo = keep & (r.range_m >= low) & (r.range_m < high)
+    laser_stamps = np.unique(r.stamp_ns[keep])
+    if len(laser_stamps) == 0:
+        raise NoLaserError(f"{log.source}: the log holds no laser reading to match")
+    idx = np.flatnonzero(echo)
+    stamps = r.stamp_ns[idx]
+    sx, sy, syaw = (table[r.sensor[idx], j] for j in range(3))
+    rng = r.range_m[idx]
+    px = sx + rng * np.cos(syaw)
+    py = sy + rng * np.sin(syaw)
+    # readings are time-ordered: each scan is a contiguous run of one stamp
+    cuts = np.searchsorted(stamps, laser_stamps, side="left")
+    ends = np.searchsorted(stamps, laser_stamps, side="right")
+    points = [np.column_stack([px[a:b], py[a:b]]) for a, b in zip(cuts, ends, strict=True)]
+    return Scans(stamp_ns=laser_stamps.astype(np.int64), points=points)
+
+
+def _matrix(x: float, y: float, theta: float) -> FloatArray:
+    m = np.eye(4)
+    c, s = math.cos(theta), math.sin(theta)
+    m[0, 0], m[0, 1], m[1, 0], m[1, 1] = c, -s, s, c
+    m[0, 3], m[1, 3] = x, y
+    return m
+
+
+def _planar(m: FloatArray) -> tuple[float, float, float]:
+    return float(m[0, 3]), float(m[1, 3]), math.atan2(float(m[1, 0]), float(m[0, 0]))
+
+
+def _sheet(points: FloatArray, voxel_m: float) -> FloatArray:
+    """Planar points (K, 2) as three layers one voxel apart in z, shape (3K, 3)."""
+    layers = [np.column_stack([points, np.full(len(points), z)]) for z in (-voxel_m, 0.0, voxel_m)]
+    sheet: FloatArray = np.vstack(layers) + np.array([0.0, 0.0, 0.5 * voxel_m])
+    return sheet
+
+
+def _transform(points: FloatArray, pose: tuple[float, float, float]) -> FloatArray:
+    x, y, th = pose
+    c, s = math.cos(th), math.sin(th)
+    return np.column_stack(
+        [x + c * points[:, 0] - s * points[:, 1], y + s * points[:, 0] + c * points[:, 1]]
+    )
+
+
+class _LocalMap:
+    """The last keyframe scans in the odometry frame, for GICP (3D sheet) and scoring (2D)."""
+
+    def __init__(self, params: ScanMatchParams) -> None:
+        self.params = params
+        self.frames: deque[FloatArray] = deque(maxlen=params.local_map_scans)
+        self.last_pose: tuple[float, float, float] | None = None
+        self.cloud: small_gicp.PointCloud | None = None
+        self.tree: small_gicp.KdTree | None = None
+        self.tree2d: cKDTree | None = None
+
+    def wants(self, pose: tuple[float, float, float]) -> bool:
+        if self.last_pose is None:
+            return True
+        dx, dy = pose[0] - self.last_pose[0], pose[1] - self.last_pose[1]
+        turn = abs(float(wrap_angle(pose[2] - self.last_pose[2])))
+        return math.hypot(dx, dy) >= self.params.keyframe_m or turn >= self.params.keyframe_rad
+
+    def add(self, world_points: FloatArray, pose: tuple[float, float, float]) -> None:
+        self.frames.append(world_points)
+        self.last_pose = pose
+        flat = np.vstack(list(self.frames))
+        voxel = self.params.downsample_m
+        self.cloud, self.tree = small_gicp.preprocess_points(
+            _sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
+        )
+        self.tree2d = cKDTree(flat)
+
+
+def match_scans(
+    scans: Scans, odometry: PoseTrack, params: ScanMatchParams | None = None
+) -> ScanMatch:
+    """Register each scan against the local map, seeded by ``odometry`` (odometry frame).
+
+    Scans outside the odometry's time span are an error (the caller keeps only those inside).
+    """
+    params = params or ScanMatchParams()
+    started = time.perf_counter()
+    n = len(scans)
+    ox, oy, oth, valid = interpolate_pose(odometry, scans.stamp_ns)
+    if not valid.all():
+        raise GridmapError("scan_match: scans outside the odometry's time span")
+    poses = np.zeros((n, 3))
+    status = np.full(n, MATCHED, dtype=np.int8)
+    score = np.full(n, np.nan)
+    local = _LocalMap(params)
+    for k in range(n):
+        pts = scans.points[k]
+        if k == 0:
+            poses[0] = ox[0], oy[0], oth[0]
+            status[0] = FIRST
+        else:
+            # the odometry's increment since the last scan, applied to the last corrected pose
+            ix, iy, ith = inverse(ox[k - 1], oy[k - 1], oth[k - 1])
+            dx, dy, dth = compose(ix, iy, ith, ox[k], oy[k], oth[k])
+            gx, gy, gth = compose(poses[k - 1, 0], poses[k - 1, 1], poses[k - 1, 2], dx, dy, dth)
+            guess = (float(gx), float(gy), float(gth))
+            step_m = float(math.hypot(dx, dy))
+            poses[k], status[k], score[k] = _match_one(pts, guess, step_m, local, params)
+        if len(pts) and local.wants(tuple(poses[k])):
+            local.add(_transform(pts, tuple(poses[k])), tuple(poses[k]))
+    track = PoseTrack(
+        stamp_ns=scans.stamp_ns.copy(),
+        x_m=np.ascontiguousarray(poses[:, 0]),
+        y_m=np.ascontiguousarray(poses[:, 1]),
+        theta_rad=np.ascontiguousarray(wrap_angle(poses[:, 2])),
+    )
+    odo = PoseTrack(stamp_ns=scans.stamp_ns.copy(), x_m=ox, y_m=oy, theta_rad=oth)
+    return ScanMatch(track, odo, status, score, time.perf_counter() - started)
+
+
+def _match_one(
+    pts: FloatArray,
+    guess: tuple[float, float, float],
+    step_m: float,
+    local: _LocalMap,
+    params: ScanMatchParams,
+) -> tuple[tuple[float, float, float], int, float]:
+    """One scan's pose, status and inlier fraction."""
+    if local.cloud is None or local.tree is None or local.tree2d is None:
+        return guess, FALLBACK, 0.0
+    voxel = params.downsample_m
+    source, _ = small_gicp.preprocess_points(
+        _sheet(pts, voxel), downsampling_resolution=voxel, num_neighbors=10
+    )
+    planar = np.asarray(source.points())[:, :2]
+    planar = planar[np.abs(np.asarray(source.points())[:, 2] - 0.5 * voxel) < 0.25 * voxel]
+    if len(planar) < params.min_points:
+        return guess, FALLBACK, 0.0
+    limit_m = params.max_correction_m + params.correction_per_m * step_m
+    best: tuple[float, tuple[float, float, float], FloatArray] | None = None
+    for offset in (0.0, *params.heading_starts_rad):
+        start = (guess[0], guess[1], guess[2] + offset)
+        result = small_gicp.align(
+            local.cloud,
+            source,
+            local.tree,
+            init_T_target_source=_matrix(*start),
+            registration_type="GICP",
+            max_correspondence_distance=params.correspondence_m,
+            max_iterations=params.max_iterations,
+            num_threads=1,
+        )
+        pose = _planar(np.asarray(result.T_target_source))
+        moved = math.hypot(pose[0] - guess[0], pose[1] - guess[1])
+        turned = abs(float(wrap_angle(pose[2] - guess[2])))
+        if moved > limit_m or turned > params.max_correction_rad:
+            continue
+        dist, _ = local.tree2d.query(_transform(planar, pose), distance_upper_bound=params.inlier_m)
+        fraction = float(np.mean(np.isfinite(dist)))
+        if best is None or fraction > best[0]:
+            best = (fraction, pose, np.asarray(result.H))
+        if fraction >= params.min_inlier_fraction:
+            break
+    if best is None:
+        return guess, FALLBACK, 0.0
+    fraction, pose, hessian = best
+    if fraction < params.min_inlier_fraction:
+        return guess, FALLBACK, fraction
+    # small_gicp's tangent is (rotation, translation): the x, y block is H[3:5, 3:5]
+    values, vectors = np.linalg.eigh(hessian[3:5, 3:5])
+    if values[1] <= 0 or values[0] / values[1] < params.degenerate_ratio:
+        strong = vectors[:, 1]
+        shift = np.array([pose[0] - guess[0], pose[1] - guess[1]])
+        kept = strong * float(strong @ shift)
+        return (guess[0] + kept[0], guess[1] + kept[1], pose[2]), DEGENERATE, fraction
+    return pose, MATCHED, fraction
+
+
+def match_log(
+    log: RangeLog, robot: RobotDescription | None, params: ScanMatchParams | None = None
+) -> ScanMatch:
+    """Match the laser scans of ``log`` that lie within its odometry's time span."""
+    params = params or ScanMatchParams()
+    sensors = sensors_for_log(log, robot)
+    scans = laser_scans(log, sensors, params)
+    t = log.poses.stamp_ns
+    inside = (scans.stamp_ns >= t[0]) & (scans.stamp_ns <= t[-1])
+    if not inside.any():
+        raise NoLaserError(
+            f"{log.source}: no laser scan lies within the odometry's time span "
+            "(recorded at different times?); scan matching needs both"
+        )
+    kept = Scans(
+        stamp_ns=scans.stamp_ns[inside],
+        points=[p for p, ok in zip(scans.points, inside, strict=True) if ok],
+    )
+    return match_scans(kept, log.poses, params)
+
+
+def corrected_track(odometry: PoseTrack, match: ScanMatch) -> PoseTrack:
+    """The odometry carried by the scans' corrections, at the odometry's and the scans' stamps.
+
+    The correction at scan k is ``corrected_k (-) odometry_k`` (the odometry frame's pose in the
+    corrected frame); between scans it is interpolated (linear in x, y, shortest arc in theta),
+    before the first and after the last scan it is the nearest one's. So the track keeps the
+    odometry's own shape between scans and passes through every corrected scan pose.
+    """
+    stamps = np.union1d(odometry.stamp_ns, match.track.stamp_ns).astype(np.int64)
+    ox, oy, oth, _ = interpolate_pose(odometry, stamps)
+    m, o = match.track, match.odometry
+    ix, iy, ith = inverse(o.x_m, o.y_m, o.theta_rad)
+    cx, cy, cth = compose(m.x_m, m.y_m, m.theta_rad, ix, iy, ith)
+    correction = PoseTrack(stamp_ns=m.stamp_ns, x_m=cx, y_m=cy, theta_rad=cth)
+    kx, ky, kth, _ = interpolate_pose(correction, stamps)
+    x, y, th = compose(kx, ky, kth, ox, oy, oth)
+    return PoseTrack(stamp_ns=stamps, x_m=x, y_m=y, theta_rad=th)
+
+
+def scan_matched_log(
+    log: RangeLog, robot: RobotDescription | None, params: ScanMatchParams | None = None
+) -> tuple[RangeLog, ScanMatch]:
+    """``log`` with its poses replaced by the scan-matched track, and the match itself."""
+    match = match_log(log, robot, params)
+    return dataclasses.replace(log, poses=corrected_track(log.poses, match)), match

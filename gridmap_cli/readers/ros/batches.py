@@ -1,0 +1,280 @@
+"""Messages decoded in bulk (:mod:`~gridmap_cli.readers.ros.bulk`) into a MessageAccumulator.
+
+Each function does for a whole channel, in log-time order, what the accumulator's per-message
+method does message by message, with the same state afterwards: the same frames claimed in the
+same order, the same sensor limits (first field of view, largest limits), the same reading keys,
+and the same error for the first bad message. Readings are kept as arrays
+(:attr:`MessageAccumulator.r_chunks`); poses and transforms go into the same lists.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from gridmap_cli.errors import InputFileError
+from gridmap_cli.readers.ros.bulk import TF_TYPES, Columns
+from gridmap_cli.readers.ros.frames import Transform, TransformSeries, frame_name, yaw_of
+from gridmap_cli.readers.ros.messages import (
+    MessageAccumulator,
+    _f32,
+    _Scan,
+    _Sonar,
+    _Track,
+)
+
+#: Poses whose headings are computed at a time (yaw_of is per pose, on Python floats).
+_YAW_ROWS = 1 << 14
+
+
+def add_columns(
+    acc: MessageAccumulator, source: str, topic: str, type_name: str, cols: Columns
+) -> None:
+    """Take the decoded messages of one channel (all of them, in log-time order)."""
+    acc.message_path = source
+    acc.topic_types[topic] = type_name
+    if len(cols) == 0:
+        return
+    plan = acc.plan
+    if type_name in TF_TYPES:
+        _tf(acc, cols, static=topic in plan.static_topics)
+    elif type_name in ("nav_msgs/Odometry", "gridmap.Pose2D"):
+        track = {plan.odom_topic: acc.odom, plan.truth_topic: acc.truth}.get(topic)
+        if track is None and topic == plan.reference_topic:
+            track = acc.reference
+        if track is not None:
+            _poses(acc, track, topic, cols)
+    elif type_name == "gridmap.RangeReading" and topic in acc.range_topics:
+        _json_readings(acc, topic, cols)
+    elif type_name == "sensor_msgs/Range":
+        _ranges(acc, topic, cols)
+    elif type_name == "sensor_msgs/LaserScan":
+        _scans(acc, topic, cols)
+
+
+def _stamps(cols: Columns) -> npt.NDArray[np.int64]:
+    """Header stamps; a zero stamp falls back to the log time."""
+    stamp = cols.arrays["stamp_ns"].astype(np.int64)
+    log_ns = cols.arrays["log_ns"].astype(np.int64)
+    return np.where(stamp != 0, stamp, log_ns)
+
+
+def _frames(cols: Columns, column: str = "frame") -> tuple[npt.NDArray[np.int64], list[str]]:
+    """A frame column with names as gridmap compares them (no leading ``/``): indexes into the
+    distinct names, in order of first appearance."""
+    merged: dict[str, int] = {}
+    remap = np.array(
+        [merged.setdefault(frame_name(n), len(merged)) for n in cols.names[column]],
+        dtype=np.int64,
+    )
+    index = remap[cols.arrays[column]] if len(remap) else cols.arrays[column].astype(np.int64)
+    return index, list(merged)
+
+
+def _first_rows(index: npt.NDArray[np.int64], n_names: int) -> npt.NDArray[np.int64]:
+    """The first row of each name (rows are in order, so names appear in index order)."""
+    first = np.full(n_names, len(index), dtype=np.int64)
+    np.minimum.at(first, index, np.arange(len(index), dtype=np.int64))
+    return first
+
+
+def _where(acc: MessageAccumulator, topic: str, cols: Columns, row: int) -> str:
+    return acc._where(topic, int(cols.arrays["log_ns"][row]))
+
+
+def _claim_until(
+    acc: MessageAccumulator, topic: str, frames: list[str], first: npt.NDArray[np.int64], row: int
+) -> None:
+    """Claim the frames that appear at or before ``row``, in order of appearance."""
+    for i in np.argsort(first, kind="stable").tolist():
+        if first[i] <= row:
+            acc._claim(frames[i], topic)
+
+
+def _ranges(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
+    a = cols.arrays
+    n = len(cols)
+    index, frames = _frames(cols)
+    first = _first_rows(index, len(frames))
+    rmin = a["min"].astype(np.float64)
+    rmax = a["max"].astype(np.float64)
+    with np.errstate(invalid="ignore"):
+        bad = ~((rmin >= 0.0) & (rmin < rmax) & np.isfinite(rmax))
+    bad_row = int(np.argmax(bad)) if bad.any() else n
+    _claim_until(acc, topic, frames, first, bad_row)
+    if bad_row < n:
+        frame = frames[int(index[bad_row])]
+        raise InputFileError(
+            acc.message_path,
+            f"{_where(acc, topic, cols, bad_row)}: frame '{frame}': need 0 <= min_range < "
+            f"max_range, got {_f32(rmin[bad_row])} and {_f32(rmax[bad_row])}",
+        )
+    most_min = np.full(len(frames), -np.inf)
+    most_max = np.full(len(frames), -np.inf)
+    np.maximum.at(most_min, index, rmin)
+    np.maximum.at(most_max, index, rmax)
+    fov = a["fov"].astype(np.float64)
+    keys = np.empty(len(frames), dtype=np.int64)
+    for i in np.argsort(first, kind="stable").tolist():
+        frame = frames[i]
+        sonar = acc.sonars.get(frame)
+        if sonar is None:
+            row = int(first[i])
+            acc.sonars[frame] = _Sonar(float(fov[row]), float(most_min[i]), float(most_max[i]))
+        else:
+            sonar.min_range = max(sonar.min_range, float(most_min[i]))
+            sonar.max_range = max(sonar.max_range, float(most_max[i]))
+        keys[i] = acc._key(frame)
+    value = a["range"].astype(np.float64)
+    with np.errstate(invalid="ignore"):
+        keep = ~np.isnan(value) & (value >= 0.0)  # NaN: no reading; -inf and below 0: dropped
+        value = np.where(value >= rmax, np.inf, value)  # at or beyond max_range: no echo
+    acc.r_chunks.append((_stamps(cols)[keep], keys[index[keep]], value[keep], True))
+
+
+def _scans(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
+    a = cols.arrays
+    n = len(cols)
+    index, frames = _frames(cols)
+    first = _first_rows(index, len(frames))
+    count = a["count"].astype(np.int64)
+    amin, ainc = a["angle_min"].astype(np.float64), a["angle_increment"].astype(np.float64)
+    known: list[_Scan] = []
+    for i, frame in enumerate(frames):
+        row = int(first[i])
+        geometry = _Scan(
+            float(amin[row]),
+            float(ainc[row]),
+            int(count[row]),
+            float(a["range_min"][row]),
+            float(a["range_max"][row]),
+        )
+        known.append(acc.scans.get(frame, geometry))
+    k_min = np.array([k.angle_min for k in known])[index]
+    k_inc = np.array([k.angle_increment for k in known])[index]
+    k_count = np.array([k.count for k in known], dtype=np.int64)[index]
+    changed = (amin != k_min) | (ainc != k_inc) | (count != k_count)
+    bad_row = int(np.argmax(changed)) if changed.any() else n
+    _claim_until(acc, topic, frames, first, bad_row)
+    for i in np.argsort(first, kind="stable").tolist():
+        if first[i] <= bad_row:
+            acc.scans.setdefault(frames[i], known[i])
+    if bad_row < n:
+        frame = frames[int(index[bad_row])]
+        k = acc.scans[frame]
+        raise InputFileError(
+            acc.message_path,
+            f"{_where(acc, topic, cols, bad_row)}: laser '{frame}' changed its beams "
+            f"({int(count[bad_row])} from {_f32(amin[bad_row]):g} rad by "
+            f"{_f32(ainc[bad_row]):g}, first scan had {k.count} from "
+            f"{_f32(k.angle_min):g} by {_f32(k.angle_increment):g})",
+        )
+    base = np.empty(len(frames), dtype=np.int64)
+    for i in np.argsort(first, kind="stable").tolist():
+        frame, k = frames[i], known[i]
+        first_key = base[i] = acc._key(f"{frame}_0")
+        if first_key + k.count > len(acc.keys):
+            for j in range(1, k.count):
+                acc._key(f"{frame}_{j}")
+    scan, beam, out = scan_beams(cols, count)
+    acc.r_chunks.append((_stamps(cols)[scan], base[index][scan] + beam, out, True))
+
+
+def scan_beams(
+    cols: Columns, count: npt.NDArray[np.int64]
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+    """The beams of a batch of scans (``count`` beams each) that hold a reading: each one's
+    scan (row of ``cols``), its index in the scan, and its range, +inf for no echo (at or
+    beyond the scan's ``range_max``). NaN (no reading) and -inf (too close) are left out."""
+    assert cols.ranges is not None
+    with np.errstate(invalid="ignore"):  # NaN payloads
+        ranges = cols.ranges.astype(np.float64)
+    row_of = np.repeat(np.arange(len(cols)), count)
+    beam = np.arange(len(ranges), dtype=np.int64) - np.repeat(np.cumsum(count) - count, count)
+    range_max = cols.arrays["range_max"].astype(np.float64)[row_of]
+    with np.errstate(invalid="ignore"):
+        valid = ~np.isnan(ranges) & (ranges >= 0.0)  # NaN: no reading; -inf: too close
+        no_echo = valid & (ranges >= range_max)
+    return row_of[valid], beam[valid], np.where(no_echo, np.inf, ranges)[valid]
+
+
+def _json_readings(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
+    """gridmap.RangeReading: NaN is no reading; a negative range is an error; the rest (inf
+    included) is kept as written, not a float32."""
+    a = cols.arrays
+    value = a["range"].astype(np.float64)
+    keep = ~np.isnan(value)
+    bad = keep & (value < 0.0)
+    n = int(np.argmax(bad)) if bad.any() else len(value)
+    rows = np.flatnonzero(keep[:n])
+    # sensor names become keys in order of their first kept reading, as one by one
+    sensor = a["sensor"][rows]
+    names = cols.names["sensor"]
+    first = np.unique(sensor, return_index=True)[1] if len(sensor) else np.zeros(0, np.int64)
+    keys = np.zeros(len(names), dtype=np.int64)
+    for i in np.sort(first).tolist():
+        keys[int(sensor[i])] = acc._key(names[int(sensor[i])])
+    if n < len(value):
+        raise InputFileError(
+            acc.message_path, f"{_where(acc, topic, cols, n)}: negative range {float(value[n])}"
+        )
+    acc.r_chunks.append((_stamps(cols)[rows], keys[sensor], value[rows], False))
+
+
+def _poses(acc: MessageAccumulator, track: _Track, topic: str, cols: Columns) -> None:
+    a = cols.arrays
+    stamps = _stamps(cols)
+    xs, ys = a["x"].astype(np.float64), a["y"].astype(np.float64)
+    if "theta" in a:  # gridmap.Pose2D
+        thetas = a["theta"].astype(np.float64)
+    else:
+        thetas = np.empty(len(stamps))
+        for start in range(0, len(stamps), _YAW_ROWS):  # a slice at a time: no 4 whole lists
+            part = slice(start, start + _YAW_ROWS)
+            quats = zip(a["qx"][part].tolist(), a["qy"][part].tolist(),
+                        a["qz"][part].tolist(), a["qw"][part].tolist(), strict=True)  # fmt: skip
+            thetas[part] = [yaw_of(q) for q in quats]
+    finite = np.isfinite(a["x"]) & np.isfinite(a["y"]) & np.isfinite(thetas)
+    n = len(stamps) if finite.all() else int(np.argmax(~finite))
+    if track is acc.odom:
+        index, children = _frames(cols, "child")
+        counts = np.bincount(index[:n], minlength=len(children))
+        for i in np.argsort(_first_rows(index, len(children)), kind="stable").tolist():
+            if children[i] and counts[i]:
+                acc.odom_children[children[i]] += int(counts[i])
+    if n < len(stamps):
+        raise InputFileError(
+            acc.message_path,
+            f"{_where(acc, topic, cols, n)}: pose is not finite ({float(xs[n])}, "
+            f"{float(ys[n])}, {float(thetas[n])})",
+        )
+    track.extend(stamps, np.column_stack((xs, ys, thetas)))
+
+
+def _tf(acc: MessageAccumulator, cols: Columns, static: bool) -> None:
+    a = cols.arrays
+    parent_index, parents = _frames(cols, "parent")
+    child_index, children = _frames(cols, "child")
+    names = ("tx", "ty", "tz", "qx", "qy", "qz", "qw")
+    values = np.column_stack([a[k].astype(np.float64) for k in names])
+    if static:
+        for p, c, v in zip(
+            parent_index.tolist(), child_index.tolist(), values.tolist(), strict=True
+        ):
+            transform = Transform((v[0], v[1], v[2]), (v[3], v[4], v[5], v[6]))
+            acc.tree.add(parents[p], children[c], transform)
+        return
+    stamps = _stamps(cols)
+    pair = parent_index * max(len(children), 1) + child_index
+    _, first_row, inverse = np.unique(pair, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    for g in np.argsort(first_row, kind="stable").tolist():
+        rows = np.flatnonzero(inverse == g)
+        row = int(rows[0])
+        key = (parents[int(parent_index[row])], children[int(child_index[row])])
+        acc.tf_pairs[key] += len(rows)
+        series = acc.tf_series.get(key)
+        if series is None:
+            series = acc.tf_series[key] = TransformSeries()
+        series.stamps.extend(stamps[rows].tolist())
+        series.values.extend(map(tuple, values[rows].tolist()))

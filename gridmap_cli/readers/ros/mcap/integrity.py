@@ -1,0 +1,300 @@
+"""Check an MCAP file's structure and every CRC it carries before any message is trusted.
+
+The ``mcap`` library checks no CRC unless asked, trusts length fields and lets a decompressor's
+own exception escape. This module walks the file's records once, streaming, and refuses the
+file at the first damage it finds, naming the byte offset:
+
+- every record's length must fit in what is left of the file (or of its chunk);
+- a chunk's compression must be known, its records length must fill the chunk record, it must
+  decompress to exactly its ``uncompressed_size`` (at most :data:`MAX_CHUNK_BYTES`), and the
+  CRC-32 of the decompressed records must equal ``uncompressed_crc`` (when not zero);
+- inside a chunk, only schema, channel and message records, each fitting in the chunk;
+- the data section's CRC (``DataEnd.data_section_crc``, when not zero) over every byte from the
+  magic up to the DataEnd record;
+- the summary's CRC (``Footer.summary_crc``, when not zero) from the summary's start through the
+  footer's ``summary_offset_start`` field;
+- every chunk index must point at a chunk found in the data section, with its length;
+- attachments' CRCs.
+
+A zero CRC means "not computed" (the specification's rule), so files written without CRCs pass.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO
+
+from gridmap_cli.errors import DamagedAtError, InputFileError
+from gridmap_cli.readers.ros.walk import compiled_walk
+
+MAGIC = b"\x89MCAP0\r\n"
+#: The largest chunk gridmap decompresses (bytes of records once decompressed). Writers use
+#: chunks of a few MiB; a chunk claiming more is far more likely a lie than a recording.
+MAX_CHUNK_BYTES = 512 * 1024 * 1024
+
+_HEADER, _FOOTER, _SCHEMA, _CHANNEL, _MESSAGE, _CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
+_CHUNK_INDEX, _ATTACHMENT, _DATA_END = 0x08, 0x09, 0x0F
+_IN_CHUNK = (_SCHEMA, _CHANNEL, _MESSAGE)
+_IN_CHUNK_BYTES = bytes(_IN_CHUNK)
+_FOOTER_LENGTH = 20  # summary_start u64, summary_offset_start u64, summary_crc u32
+_MESSAGE_FIXED = 22  # channel_id u16, sequence u32, log_time u64, publish_time u64
+_BLOCK = 1 << 20
+
+
+class McapDamage(DamagedAtError):
+    """An MCAP file is damaged at a byte offset: ``path: byte N: detail``."""
+
+
+def verify_mcap(path: Path) -> None:
+    """Raise :class:`McapDamage` at the first structural damage or CRC mismatch in ``path``.
+
+    Raises :class:`InputFileError` when the file cannot be read. Memory use is bounded by the
+    largest chunk (:data:`MAX_CHUNK_BYTES`).
+    """
+    try:
+        with open(path, "rb") as handle:
+            _Walker(path, handle).walk()
+    except OSError as exc:
+        raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
+
+
+class _Walker:
+    def __init__(self, path: Path, handle: IO[bytes]) -> None:
+        self.path = path
+        self.handle = handle
+        handle.seek(0, 2)
+        self.size = handle.tell()
+        handle.seek(0)
+        self.pos = 0
+        self.crc = 0  # running CRC-32 of the data section, from the magic on
+        self.chunks: dict[int, int] = {}  # chunk offset -> record length (opcode + length + body)
+
+    def damage(self, offset: int, detail: str) -> McapDamage:
+        return McapDamage(self.path, offset, detail)
+
+    def read(self, n: int, in_data: bool) -> bytes:
+        data = self.handle.read(n)
+        if len(data) != n:
+            raise self.damage(self.pos, f"file ends {n - len(data)} bytes early (truncated?)")
+        if in_data:
+            self.crc = zlib.crc32(data, self.crc)
+        self.pos += n
+        return data
+
+    def skip(self, n: int, in_data: bool) -> None:
+        """Read past ``n`` bytes, adding them to the data CRC, in bounded blocks."""
+        while n > 0:
+            step = min(n, _BLOCK)
+            self.read(step, in_data)
+            n -= step
+
+    def walk(self) -> None:
+        if self.size < 2 * len(MAGIC) or self.read(len(MAGIC), True) != MAGIC:
+            raise self.damage(0, "not an MCAP file (no MCAP magic)")
+        self.handle.seek(self.size - len(MAGIC))
+        if self.handle.read(len(MAGIC)) != MAGIC:
+            raise self.damage(
+                self.size,
+                "truncated or damaged MCAP file: no valid footer at the end (no closing magic); "
+                "was the recording cut short? `mcap recover` can rebuild it",
+            )
+        self.handle.seek(self.pos)
+        summary_start: int | None = None
+        while True:
+            start = self.pos
+            if self.size - start < 9:
+                raise self.damage(start, "file ends inside a record header (truncated?)")
+            head = self.read(9, False)
+            opcode, length = head[0], struct.unpack_from("<Q", head, 1)[0]
+            left = self.size - self.pos
+            if length > left:
+                raise self.damage(
+                    start,
+                    f"record (opcode 0x{opcode:02x}) claims {length} bytes, only {left} remain "
+                    "(truncated, or a damaged length field)",
+                )
+            if opcode == _DATA_END and summary_start is None:
+                self._data_end(start, length)  # the data CRC covers every byte before it
+                summary_start = self.pos
+                continue
+            if opcode == _FOOTER:
+                self._footer(start, length)
+                return
+            if summary_start is None:
+                self.crc = zlib.crc32(head, self.crc)
+                self._data_record(start, opcode, length)
+            else:
+                self._summary_record(start, opcode, length)
+
+    def _data_record(self, start: int, opcode: int, length: int) -> None:
+        if opcode == _CHUNK:
+            self._chunk(start, length)
+        elif opcode == _ATTACHMENT:
+            self._attachment(start, length)
+        elif opcode == _MESSAGE and length < _MESSAGE_FIXED:
+            raise self.damage(start, f"message record of {length} bytes, shorter than its fields")
+        else:
+            self.skip(length, True)
+
+    def _data_end(self, start: int, length: int) -> None:
+        expected_crc = self.crc
+        body = self.read(length, False)
+        if length < 4:
+            raise self.damage(start, f"DataEnd record of {length} bytes, expected at least 4")
+        stored = struct.unpack_from("<I", body)[0]
+        if stored and stored != expected_crc:
+            raise self.damage(
+                start,
+                f"data section CRC mismatch (stored {stored:#010x}, computed "
+                f"{expected_crc:#010x}): bytes 0..{start} are damaged",
+            )
+
+    def _chunk(self, start: int, length: int) -> None:
+        body_start = self.pos
+        body = self.read(length, True)
+        self.chunks[start] = 9 + length
+        try:
+            _, _, usize, ucrc, clen = struct.unpack_from("<QQQII", body)
+            compression = body[32 : 32 + clen]
+            if len(compression) != clen:
+                raise struct.error("compression name")
+            (rlen,) = struct.unpack_from("<Q", body, 32 + clen)
+        except struct.error:
+            raise self.damage(
+                start, f"chunk record of {length} bytes too short for its fields"
+            ) from None
+        data_at = 40 + clen
+        if rlen != length - data_at:
+            raise self.damage(
+                start,
+                f"chunk claims {rlen} bytes of records, its record holds {length - data_at} "
+                "(damaged length field)",
+            )
+        if usize > MAX_CHUNK_BYTES:
+            raise self.damage(
+                start,
+                f"chunk claims {usize} bytes uncompressed, above gridmap's limit of "
+                f"{MAX_CHUNK_BYTES} bytes per chunk (MAX_CHUNK_BYTES)",
+            )
+        data = self._decompress(start, compression, body[data_at:], usize)
+        if len(data) != usize:
+            raise self.damage(
+                start, f"chunk decompresses to {len(data)} bytes, its header says {usize}"
+            )
+        if ucrc and zlib.crc32(data) != ucrc:
+            raise self.damage(
+                start,
+                f"chunk CRC mismatch (stored {ucrc:#010x}, computed {zlib.crc32(data):#010x}): "
+                f"the chunk's data at bytes {body_start + data_at}..{body_start + length} is "
+                "damaged",
+            )
+        walk = compiled_walk()
+        if (
+            walk is not None
+            and walk.mcap_records(data, _IN_CHUNK_BYTES, _MESSAGE, _MESSAGE_FIXED) < 0
+        ):
+            return  # sound: the Python walk below words the error when it is not
+        for offset, opcode, rec_len, fits in _records(data):
+            if not fits:
+                raise self.damage(
+                    start,
+                    f"record at byte {offset} of the chunk's data claims {rec_len} bytes, more "
+                    "than the chunk holds (damaged length field)",
+                )
+            if opcode not in _IN_CHUNK:
+                raise self.damage(
+                    start, f"record of opcode 0x{opcode:02x} inside a chunk (byte {offset} of it)"
+                )
+            if opcode == _MESSAGE and rec_len < _MESSAGE_FIXED:
+                raise self.damage(
+                    start, f"message record of {rec_len} bytes at byte {offset} of the chunk"
+                )
+
+    def _decompress(self, start: int, compression: bytes, data: bytes, usize: int) -> bytes:
+        name = compression.decode("utf-8", errors="replace")
+        try:
+            if name == "":
+                return data
+            if name == "zstd":
+                import zstandard
+
+                return zstandard.ZstdDecompressor().decompress(data, max_output_size=usize)
+            if name == "lz4":
+                import lz4.frame
+
+                return bytes(lz4.frame.decompress(data))
+        except Exception as exc:  # each codec has its own error class; all mean damage here
+            raise self.damage(
+                start, f"{name} chunk does not decompress ({type(exc).__name__}: {exc})"
+            ) from exc
+        raise self.damage(start, f"chunk compression {name!r} unknown (known: zstd, lz4, none)")
+
+    def _attachment(self, start: int, length: int) -> None:
+        body = self.read(length, True)
+        if length < 4:
+            raise self.damage(start, f"attachment record of {length} bytes")
+        stored = struct.unpack_from("<I", body, length - 4)[0]
+        if stored and zlib.crc32(body[: length - 4]) != stored:
+            raise self.damage(start, "attachment CRC mismatch: the attachment is damaged")
+
+    def _summary_record(self, start: int, opcode: int, length: int) -> None:
+        body = self.read(length, False)
+        if opcode != _CHUNK_INDEX:
+            return
+        try:
+            chunk_at, chunk_len = struct.unpack_from("<QQ", body, 16)
+        except struct.error:
+            raise self.damage(start, "chunk index record too short for its fields") from None
+        if self.chunks.get(chunk_at) != chunk_len:
+            raise self.damage(
+                start,
+                f"chunk index points at a chunk of {chunk_len} bytes at byte {chunk_at}; the "
+                "data section has none there (damaged summary)",
+            )
+
+    def _footer(self, start: int, length: int) -> None:
+        if length != _FOOTER_LENGTH or self.size - self.pos - length != len(MAGIC):
+            raise self.damage(start, "footer record is not where the file ends (damaged)")
+        body = self.read(length, False)
+        summary_start, _, stored = struct.unpack("<QQI", body)
+        if self.read(len(MAGIC), False) != MAGIC:
+            raise self.damage(self.pos - len(MAGIC), "no MCAP magic at the end (truncated?)")
+        if not stored:
+            return
+        first = summary_start or start
+        if first > start:
+            raise self.damage(start, f"footer's summary start {summary_start} is past the footer")
+        self.handle.seek(first)
+        crc = 0
+        remaining = start + 9 + 16 - first
+        while remaining > 0:
+            block = self.handle.read(min(remaining, _BLOCK))
+            crc = zlib.crc32(block, crc)
+            remaining -= len(block)
+        if crc != stored:
+            raise self.damage(
+                first,
+                f"summary CRC mismatch (stored {stored:#010x}, computed {crc:#010x}): the "
+                f"summary at bytes {first}..{start} is damaged",
+            )
+
+
+def _records(data: bytes) -> Iterator[tuple[int, int, int, bool]]:
+    """(offset, opcode, length, fits) of each record in a chunk's data; ``fits`` is False for a
+    record whose header or length overruns the data (then the walk stops)."""
+    pos = 0
+    end = len(data)
+    while pos < end:
+        if end - pos < 9:
+            yield pos, 0, end - pos, False
+            return
+        opcode = data[pos]
+        (length,) = struct.unpack_from("<Q", data, pos + 1)
+        if length > end - pos - 9:
+            yield pos, opcode, length, False
+            return
+        yield pos, opcode, length, True
+        pos += 9 + length

@@ -1,0 +1,73 @@
+"""What a robot is to gridmap: its range sensors and where each is mounted on the base.
+
+Plain frozen dataclasses and the expansion of a laser into its beams; no file is read here (the
+loaders in :mod:`gridmap_cli.robot` and :mod:`gridmap_cli.robot.aria_params` read them).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+SENSOR_KINDS = ("sonar", "laser")
+
+
+@dataclass(frozen=True)
+class RangeSensor:
+    """One range sensor: its name, mounting pose in the base frame and beam.
+
+    ``x_m``, ``y_m``: position in the robot base frame (x forward, y left), metres.
+    ``yaw_rad``: direction of the beam axis in the base frame, radians, counter-clockwise.
+    ``beam_width_rad``: full opening angle of the beam (0 for a ray-like sensor).
+    ``min_range_m``, ``max_range_m``: readings below the minimum are discarded; readings at or
+    beyond the maximum mean "no echo".
+    """
+
+    name: str
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    beam_width_rad: float
+    min_range_m: float
+    max_range_m: float
+    kind: str = "sonar"
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """A named robot and its range sensors, in a fixed order."""
+
+    name: str
+    sensors: tuple[RangeSensor, ...]
+
+    def names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.sensors)
+
+    def by_name(self) -> dict[str, RangeSensor]:
+        return {s.name: s for s in self.sensors}
+
+
+def laser_beams(
+    name: str,
+    x_m: float,
+    y_m: float,
+    yaw_rad: float,
+    first_deg: float,
+    last_deg: float,
+    samples: int,
+    min_range_m: float,
+    max_range_m: float,
+) -> list[RangeSensor]:
+    """One ray sensor per beam of a scanning laser, ``<name>_0`` .. ``<name>_<samples-1>``:
+    beam i points ``first_deg + i * (last_deg - first_deg) / (samples - 1)`` degrees from the
+    laser's axis ``yaw_rad``.
+
+    Robot descriptions and ARIA logs both describe a laser this way; computing its beams in one
+    place gives the same laser the same beam directions to the bit, whichever file described it.
+    """
+    step = (last_deg - first_deg) / (samples - 1) if samples > 1 else 0.0
+    return [
+        RangeSensor(f"{name}_{i}", x_m, y_m, yaw_rad + math.radians(first_deg + i * step), 0.0,
+                    min_range_m, max_range_m, "laser")
+        for i in range(samples)
+    ]  # fmt: skip

@@ -1,0 +1,386 @@
+"""Batch runs for cron: one map per log, skipping logs whose map is up to date.
+
+:func:`find_logs` turns the inputs (files, folders, globs) into logs; :func:`plan_jobs` names one
+map per log; :func:`run_job` builds one map and never raises (a failed log is a result, so a
+batch continues past it); :func:`run_batch` runs the jobs on an executor (in this process, local
+processes, or a Dask cluster, :mod:`gridmap_cli.runs.executors`) and reports each as it finishes.
+
+Up to date means: the map, its YAML and its sidecar (``.<map>.batch.json``) exist and the
+sidecar's key is the SHA-256 of the log's content (every file of a rosbag2 folder), the build
+options and gridmap's version. Touching a log without changing it rebuilds nothing; changing a
+byte of it, or an option, rebuilds its map.
+
+:class:`BatchLock` keeps two batch runs off one output folder: an advisory ``flock`` on
+``OUTDIR/.gridmap-batch.lock``, released by the kernel when its holder exits or is killed, so a
+crashed run never leaves a stale lock.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import fcntl
+import glob
+import hashlib
+import json
+import os
+import time
+from collections import Counter
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+from gridmap_cli import __version__
+from gridmap_cli.atomic import atomic_write
+from gridmap_cli.errors import GridmapError, UsageError
+
+#: The sidecar beside each map, holding the key of what it was built from.
+SIDECAR_SUFFIX = ".batch.json"
+LOCK_NAME = ".gridmap-batch.lock"
+REPORT_NAME = "batch-report.jsonl"
+_GLOB_CHARS = "*?["
+_HASH_BLOCK = 1 << 20
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """How every map of a batch is built (``gridmap build``'s flags of the same names)."""
+
+    resolution_m: float = 0.05
+    robot: str | None = None  # preset name or absolute path; None: each log's own
+    pose: str = "odometry"
+    map_mode: str = "trinary"
+    occupied: float = 0.65
+    free: float = 0.25
+    log_format: str | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class Job:
+    """One log and the map to build from it."""
+
+    log: Path
+    output: Path  # the map image; its YAML and sidecar go beside it
+    options: BatchOptions
+
+    @property
+    def sidecar(self) -> Path:
+        return self.output.with_name(f".{self.output.stem}{SIDECAR_SUFFIX}")
+
+    @property
+    def yaml(self) -> Path:
+        return self.output.with_suffix(".yaml")
+
+
+@dataclass(frozen=True)
+class JobResult:
+    """What became of one job: ``status`` is ``built``, ``skipped`` (up to date) or ``failed``."""
+
+    log: str
+    map: str
+    status: str
+    error: str | None = None
+    seconds: dict[str, float] = field(default_factory=dict)
+    input_bytes: int = 0
+    map_bytes: int = 0
+    cells: dict[str, int] = field(default_factory=dict)
+    key: str = ""
+
+    def as_json(self) -> str:
+        return json.dumps(dataclasses.asdict(self), sort_keys=True)
+
+
+# ----------------------------------------------------------------------------------- inputs
+
+
+def is_log_name(path: Path) -> bool:
+    """True for a file whose extension is a log format's (``.gz`` of a text log included)."""
+    from gridmap_cli.readers import FORMATS
+
+    suffixes = [s.lower() for s in path.suffixes]
+    if suffixes[-1:] == [".gz"]:
+        suffixes = suffixes[:-1]
+    return bool(suffixes) and any(
+        suffixes[-1] in f.extensions + f.weak_extensions for f in FORMATS if f.name != "rosbag2"
+    )
+
+
+def find_logs(inputs: Sequence[str]) -> list[Path]:
+    """The logs the inputs name: a file is a log; a rosbag2 folder is one log; another folder
+    holds logs (files with a log extension and rosbag2 folders, not recursing further); a glob
+    (``*``, ``?``, ``[``; ``**`` recurses) names files and folders as above. Sorted, each once.
+
+    Raises :class:`UsageError` naming an input that matches nothing.
+    """
+    from gridmap_cli.readers.ros.bag.log import is_rosbag2
+
+    found: dict[Path, None] = {}
+    for text in inputs:
+        if any(c in text for c in _GLOB_CHARS) and not Path(text).exists():
+            paths = [Path(p) for p in sorted(glob.glob(text, recursive=True))]
+        else:
+            paths = [Path(text)]
+        matched = False
+        for path in paths:
+            if path.is_dir() and not is_rosbag2(path):
+                inside = sorted(path.iterdir())
+                logs = [p for p in inside if (p.is_file() and is_log_name(p)) or is_rosbag2(p)]
+            elif path.exists():
+                logs = [path]
+            else:
+                continue
+            for log in logs:
+                found[log] = None
+                matched = True
+        if not matched:
+            raise UsageError(f"{text}: no log there (a log file, a folder of logs, or a glob)")
+    return sorted(found)
+
+
+def plan_jobs(logs: Sequence[Path], outdir: Path, options: BatchOptions) -> list[Job]:
+    """One map per log in ``outdir``, named after the log: ``run.mcap`` -> ``run.png``.
+
+    Logs that share a stem (``run.csv`` and ``run.mcap``) are told apart by their extension
+    (``run-csv.png``, ``run-mcap.png``), so a name depends only on the inputs of the run.
+    """
+    stems = Counter(_stem(log) for log in logs)
+    jobs = []
+    for log in logs:
+        stem = _stem(log)
+        if stems[stem] > 1:
+            ext = log.name[len(stem) :].lstrip(".").replace(".", "-") or "dir"
+            stem = f"{stem}-{ext}"
+        jobs.append(Job(log, outdir / f"{stem}.png", options))
+    names = Counter(job.output.name for job in jobs)
+    twice = sorted(name for name, n in names.items() if n > 1)
+    if twice:
+        raise UsageError(
+            f"several logs would write {twice[0]} (same name in different folders); run them "
+            "into separate output folders"
+        )
+    return jobs
+
+
+def _stem(log: Path) -> str:
+    name = log.name
+    if name.lower().endswith(".gz"):
+        name = name[:-3]
+    return Path(name).stem if not log.is_dir() else name
+
+
+# ------------------------------------------------------------------------------ up to date
+
+
+def content_hash(log: Path) -> tuple[str, int]:
+    """SHA-256 of a log's content and its size in bytes; a folder (rosbag2) hashes each file's
+    relative name and content, in name order."""
+    digest = hashlib.sha256()
+    total = 0
+    files = sorted(p for p in log.rglob("*") if p.is_file()) if log.is_dir() else [log]
+    for path in files:
+        if log.is_dir():
+            digest.update(str(path.relative_to(log)).encode() + b"\0")
+        with open(path, "rb") as handle:
+            while block := handle.read(_HASH_BLOCK):
+                digest.update(block)
+                total += len(block)
+    return digest.hexdigest(), total
+
+
+def job_key(content: str, options: BatchOptions) -> str:
+    """The key a map is built from: log content, options and gridmap's version."""
+    text = json.dumps({"content": content, "options": options.as_dict(), "gridmap": __version__},
+                      sort_keys=True)  # fmt: skip
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def up_to_date(job: Job, key: str) -> bool:
+    if not (job.output.is_file() and job.yaml.is_file() and job.sidecar.is_file()):
+        return False
+    try:
+        stored = json.loads(job.sidecar.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(stored, dict) and stored.get("key") == key
+
+
+# ------------------------------------------------------------------------------------ jobs
+
+
+def run_job(job: Job) -> JobResult:
+    """Build one job's map unless it is up to date; never raises (a failure is a result).
+
+    Runs in whatever process the executor chose: everything it needs is in ``job``.
+    """
+    started = time.perf_counter()
+    seconds: dict[str, float] = {}
+    input_bytes = 0
+    key = ""
+    try:
+        content, input_bytes = content_hash(job.log)
+        key = job_key(content, job.options)
+        seconds["hash"] = time.perf_counter() - started
+        if up_to_date(job, key):
+            return _result(job, "skipped", None, seconds, started, input_bytes, key)
+        cells = _build(job, key, seconds)
+    except GridmapError as exc:
+        return _result(job, "failed", _one_line(str(exc)), seconds, started, input_bytes, key)
+    except OSError as exc:
+        error = f"{exc.filename or job.log}: {exc.strerror or exc}"
+        return _result(job, "failed", error, seconds, started, input_bytes, key)
+    except MemoryError:
+        return _result(job, "failed", f"{job.log}: out of memory", seconds, started,
+                       input_bytes, key)  # fmt: skip
+    except Exception as exc:  # a batch continues past anything one log does
+        error = f"{job.log}: internal error ({type(exc).__name__}: {_one_line(str(exc))[:300]})"
+        return _result(job, "failed", error, seconds, started, input_bytes, key)
+    return _result(job, "built", None, seconds, started, input_bytes, key, cells)
+
+
+def _build(job: Job, key: str, seconds: dict[str, float]) -> dict[str, int]:
+    from gridmap_cli.mapping.pipeline import BuildOptions, build_map
+    from gridmap_cli.poses.sync import select_poses
+    from gridmap_cli.readers import read_logs
+    from gridmap_cli.readers.options import ReadOptions
+    from gridmap_cli.robot import load_robot, robot_from_log
+    from gridmap_cli.writers.map_image import write_map
+
+    mark = time.perf_counter()
+    options = job.options
+    robot = load_robot(options.robot) if options.robot else None
+    data = read_logs([job.log], options.log_format, ReadOptions(robot=robot))
+    data = select_poses(data, options.pose)
+    if robot is None:
+        robot = robot_from_log(job.log, data.metadata)
+    seconds["read"] = time.perf_counter() - mark
+    mark = time.perf_counter()
+    result = build_map(data, robot, BuildOptions(resolution_m=options.resolution_m))
+    seconds["map"] = time.perf_counter() - mark
+    mark = time.perf_counter()
+    write_map(job.output, result.map, mode=options.map_mode, occupied_thresh=options.occupied,
+              free_thresh=options.free, force=True)  # fmt: skip
+    sidecar = {"key": key, "log": str(job.log), "options": options.as_dict(),
+               "gridmap": __version__}  # fmt: skip
+    with atomic_write(job.sidecar, "the batch sidecar") as tmp:
+        tmp.write_text(json.dumps(sidecar, sort_keys=True) + "\n", encoding="utf-8")
+    seconds["write"] = time.perf_counter() - mark
+    prob = result.map.prob
+    known = ~np.isnan(prob)
+    return {
+        "width": result.map.spec.width,
+        "height": result.map.spec.height,
+        "observed": int(known.sum()),
+        "occupied": int((prob[known] >= options.occupied).sum()),
+        "free": int((prob[known] <= options.free).sum()),
+    }
+
+
+def _result(
+    job: Job,
+    status: str,
+    error: str | None,
+    seconds: dict[str, float],
+    started: float,
+    input_bytes: int,
+    key: str,
+    cells: dict[str, int] | None = None,
+) -> JobResult:
+    seconds = {k: round(v, 3) for k, v in seconds.items()}
+    seconds["total"] = round(time.perf_counter() - started, 3)
+    map_bytes = sum(p.stat().st_size for p in (job.output, job.yaml) if p.is_file())
+    return JobResult(
+        log=str(job.log),
+        map=str(job.output),
+        status=status,
+        error=error,
+        seconds=seconds,
+        input_bytes=input_bytes,
+        map_bytes=map_bytes if status != "failed" else 0,
+        cells=cells or {},
+        key=key,
+    )
+
+
+def _one_line(text: str) -> str:
+    return " ".join(part.strip() for part in text.splitlines() if part.strip())
+
+
+# ----------------------------------------------------------------------------------- runs
+
+
+@dataclass(frozen=True)
+class BatchSummary:
+    results: list[JobResult]
+
+    def count(self, status: str) -> int:
+        return sum(1 for r in self.results if r.status == status)
+
+    @property
+    def failed(self) -> int:
+        return self.count("failed")
+
+
+def run_batch(
+    jobs: Sequence[Job],
+    submit: Callable[[Sequence[Job]], Iterator[JobResult]],
+    report: Path,
+    on_result: Callable[[JobResult], object] | None = None,
+) -> BatchSummary:
+    """Run ``jobs`` through ``submit`` (an executor's map, results in any order) and write the
+    JSON-lines ``report`` (one line per log, in the order of ``jobs``) atomically at the end.
+
+    ``on_result`` is called with each result as it arrives (a progress bar).
+    """
+    by_map: dict[str, JobResult] = {}
+    for result in submit(jobs):
+        by_map[result.map] = result
+        if on_result is not None:
+            on_result(result)
+    results = [by_map[str(job.output)] for job in jobs]
+    with atomic_write(report, "the batch report") as tmp:
+        tmp.write_text("".join(r.as_json() + "\n" for r in results), encoding="utf-8")
+    return BatchSummary(results)
+
+
+class BatchLock:
+    """An exclusive, non-blocking lock on an output folder for the time of a batch run.
+
+    Raises :class:`GridmapError` at entry when another run holds it, naming that run's pid.
+    """
+
+    def __init__(self, outdir: Path) -> None:
+        self.path = outdir / LOCK_NAME
+        self._handle: IO[str] | None = None
+
+    def __enter__(self) -> BatchLock:
+        handle = open(self.path, "a+", encoding="utf-8")
+        try:
+            fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.seek(0)
+            holder = handle.read().strip() or "unknown"
+            handle.close()
+            raise GridmapError(
+                f"{self.path.parent}: another gridmap batch is writing here (pid {holder}, "
+                f"lock {self.path}); runs do not overlap, so this one stops"
+            ) from None
+        handle.seek(0)
+        handle.truncate()
+        handle.write(f"{os.getpid()}\n")
+        handle.flush()
+        self._handle = handle
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._handle is not None:
+            with contextlib.suppress(OSError):
+                self._handle.seek(0)
+                self._handle.truncate()
+            self._handle.close()  # closing releases the flock
+            self._handle = None
