@@ -183,16 +183,17 @@ def test_every_format_builds_the_golden_map(maps: dict[str, dict[str, bytes]], o
 
 
 def readme_first_example() -> list[str]:
-    """The first command of the README's Use section, split into words."""
+    """The first gridmap command of the README's Use section, split into words."""
     text = (SAMPLES.parent / "README.md").read_text(encoding="utf-8")
     block = text.split("\n## Use\n", 1)[1].split("```sh\n", 1)[1]
-    return shlex.split(block.splitlines()[0].split("#", 1)[0])
+    first = next(line for line in block.splitlines() if line.startswith("gridmap "))
+    return shlex.split(first.split("#", 1)[0])
 
 
 def test_the_readme_command_writes_the_golden_map(tmp_path: Path) -> None:
-    """`gridmap build samples/corridor_loop.mcap -o map.png`, the README's first example."""
+    """`gridmap build samples/corridor_loop.mcap -o out/map.png`, the README's first example."""
     words = readme_first_example()
-    assert words == ["gridmap", "build", "samples/corridor_loop.mcap", "-o", "map.png"]
+    assert words == ["gridmap", "build", "samples/corridor_loop.mcap", "-o", "out/map.png"]
     out = tmp_path / f"{RUN}.png"
     code, _, err = run("build", str(SAMPLES.parent / words[2]), "-o", str(out), "-q")
     assert code == 0, err

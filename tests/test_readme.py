@@ -22,14 +22,15 @@ BLOCK = re.compile(r"^```(?P<info>[^\n]*)\n(?P<body>.*?)^```", re.S | re.M)
 
 
 def examples(doc: Path) -> list[tuple[str, str | None]]:
-    """The command lines of ``doc``'s runnable blocks (continuation lines joined), each with the
-    summary line the doc shows after it (a ``# gridmap: ...`` comment line), if any."""
+    """The command lines of ``doc``'s runnable blocks (``gridmap ...``, and the ``mkdir`` of the
+    output folder; continuation lines joined), each with the summary line the doc shows after
+    it (a ``# gridmap: ...`` comment line), if any."""
     lines: list[tuple[str, str | None]] = []
     for block in BLOCK.finditer(doc.read_text(encoding="utf-8")):
         if block["info"].strip() != "sh":
             continue
         for line in block["body"].replace("\\\n", " ").splitlines():
-            if line.startswith("gridmap "):
+            if line.startswith(("gridmap ", "mkdir ")):
                 lines.append((line, None))
             elif line.startswith("# gridmap: ") and lines:
                 lines[-1] = (lines[-1][0], line.removeprefix("# "))
@@ -62,3 +63,5 @@ def test_examples_run_as_written(doc: Path, tmp_path: Path) -> None:
         assert done.returncode == 0, f"{doc.name}: {command}\n{done.stderr}"
         if shown is not None:  # the doc shows what the command says: it must say that
             assert done.stderr.strip().splitlines()[-1] == shown
+    # run from a clone, the examples write only into out/, which git ignores
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "samples"]

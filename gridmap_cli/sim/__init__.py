@@ -8,4 +8,7 @@ readings) and :mod:`~gridmap_cli.sim.simulate` (all of them into one
 
 Nothing is re-exported here: ``simulate`` is both a module and its main function, and importing
 the function into this package would hide the module.
+
+May import: the core, :mod:`gridmap_cli.robot`, :mod:`gridmap_cli.poses` (the odometry-error
+model drives the drift) and :mod:`gridmap_cli.mapping.grid` (a world is a grid).
 """

@@ -1,4 +1,14 @@
-"""Writers: the end of the flow, turning a finished map or a log into files."""
+"""Writers: the end of the flow, turning a finished map or a log into files.
+
+Map images with their map_server YAML (:mod:`.map_image`), the map as an MCAP OccupancyGrid
+(:mod:`.map_mcap`), the preview with tracks (:mod:`.preview`), logs as CSV, ARIA or MCAP
+(:mod:`.csv_log`, :mod:`.aria_log`, :mod:`.mcap_log`, with :mod:`.convert` choosing among them)
+and tracks as TUM or CSV (:mod:`.trajectory`). Every file is written beside its target and
+renamed (:mod:`gridmap_cli.atomic`).
+
+May import: the core, :mod:`gridmap_cli.robot`, :mod:`gridmap_cli.mapping` (grids),
+:mod:`gridmap_cli.poses` (sync, for conversion) and the readers' format helpers.
+"""
 
 from __future__ import annotations
 

@@ -1,1 +1,9 @@
-"""Sensor models: turn readings with sensor poses into log-odds evidence on the grid."""
+"""Sensor models: turn readings with sensor poses into evidence on the grid.
+
+The standard sonar cone (:mod:`.standard`, on the sector geometry of :mod:`.sector`), the ray
+model of lasers (:mod:`.ray`) and the error-aware models (:mod:`.error_aware`,
+:mod:`.error_aware_ray`, :mod:`.error_aware_mixed`); their inner loops are compiled
+(``_ckernels.c``) with a numpy reference that :mod:`.kernels` falls back to.
+
+May import: the core, :mod:`gridmap_cli.robot`, :mod:`gridmap_cli.poses` and the grid.
+"""
