@@ -1,7 +1,9 @@
 """The command line: the only package that imports click, prints, shows progress or exits.
 
 One module per command (build, batch, inspect, simulate, calibrate, convert, evaluate,
-trajectory) and what they share (:mod:`gridmap_cli.cli.common`). Each command checks every
+trajectory) and what they share (:mod:`gridmap_cli.cli.common`); build's map options
+(:mod:`gridmap_cli.cli.map_options`, for batch to share too) and its report
+(:mod:`gridmap_cli.cli.build_report`) have their own modules. Each command checks every
 precondition (inputs exist, outputs absent unless --force, options consistent) before reading a
 byte, then calls a plain library function and reports. Library errors become one ``Error: ...``
 line: exit 1 for bad data or runtime failures, 2 for usage, 130 for Ctrl-C.

@@ -8,8 +8,8 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from gridmap_cli.cli.build import check_resolution
 from gridmap_cli.cli.common import handle_errors
+from gridmap_cli.cli.map_options import check_resolution
 from gridmap_cli.errors import GridmapError, UsageError
 from gridmap_cli.poses.sync import POSE_SOURCES
 from gridmap_cli.readers import format_names

@@ -1,53 +1,56 @@
-"""``gridmap build``: logs in, a map_server map (or an MCAP OccupancyGrid) out."""
+"""``gridmap build``: logs in, a map_server map (or an MCAP OccupancyGrid) out.
+
+The command, its output options (-o, -f, --fmt, --draw-path) and --fuse; what and how to map
+is in :mod:`.map_options`, what it says of the map in :mod:`.build_report`.
+"""
 
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import click
-import numpy as np
-import numpy.typing as npt
 
+from gridmap_cli.cli.build_report import (
+    build_summary,
+    fused_line,
+    fused_summary,
+    report,
+    summary_line,
+    undecided_note,
+)
 from gridmap_cli.cli.common import (
     STDIO,
     check_input,
     check_not_folder,
     check_output_folder,
     handle_errors,
-    json_text,
     progress_bar,
     read_input,
-    selection_options,
     stdout_file,
-    topic_options,
     warn,
+)
+from gridmap_cli.cli.map_options import (
+    check_resolution,
+    check_thresholds,
+    error_aware_settings,
+    map_options,
+    sonar_params,
 )
 from gridmap_cli.errors import UsageError
 from gridmap_cli.heap import TRIM_EVERY_BATCHES, TrimEvery, keep_scratch_memory, release_free_memory
-from gridmap_cli.mapping.models.error_aware import ErrorAwareParams
-from gridmap_cli.mapping.models.standard import StandardSonarParams
-from gridmap_cli.mapping.pipeline import (
-    MAPPING_MODES,
-    MAX_RESOLUTION_M,
-    BuildOptions,
-    BuildResult,
-    build_map,
-)
+from gridmap_cli.mapping.pipeline import BuildOptions, build_map
 from gridmap_cli.mapping.selection import Selection, apply_selection
-from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
-from gridmap_cli.poses.sync import POSE_SOURCES, select_poses
-from gridmap_cli.readers import format_names
+from gridmap_cli.poses.sync import select_poses
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import load_robot, preset_names, robot_from_log
 from gridmap_cli.runs.executors import EXECUTORS, check_dask, fuse_dask, fuse_local
 from gridmap_cli.runs.fuse import FuseJob, Partial, fused_map, parse_initial_pose
 from gridmap_cli.writers import check_output
-from gridmap_cli.writers.map_image import IMAGE_FORMATS, MAP_MODES, check_map_outputs, write_map
+from gridmap_cli.writers.map_image import IMAGE_FORMATS, check_map_outputs, write_map
 
 if TYPE_CHECKING:
     from gridmap_cli.poses.scan_match import ScanMatch
@@ -76,94 +79,7 @@ if TYPE_CHECKING:
     type=click.Choice(IMAGE_FORMATS),
     help="As map_saver_cli: the image format for -f [default: pgm]; with -o it must match.",
 )
-@click.option(
-    "--robot",
-    help="Robot preset (p3at, p3dx), robot YAML file or ARIA .p file; default: the log's own "
-    "'# robot:' line.",
-)
-@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
-@click.option(
-    "--resolution", type=float, default=0.05, show_default=True, help="Cell size in metres."
-)
-@click.option(
-    "--mode",
-    type=click.Choice(MAPPING_MODES),
-    default="standard",
-    show_default=True,
-    help="Mapping algorithm.",
-)
-@click.option(
-    "--map-mode",
-    type=click.Choice(MAP_MODES),
-    default="trinary",
-    show_default=True,
-    help="How occupancy is stored in the image (map_server modes).",
-)
-@click.option(
-    "--occupied",
-    "--occ",
-    "occupied",
-    type=float,
-    default=0.65,
-    show_default=True,
-    help="Probability at or above which a cell is occupied.",
-)
-@click.option(
-    "--free",
-    type=float,
-    default=0.25,
-    show_default=True,
-    help="Probability at or below which a cell is free.",
-)
-@click.option(
-    "--no-echo-free",
-    type=float,
-    default=StandardSonarParams.no_echo_free_m,
-    show_default=True,
-    help="Metres of free space a max-range (no echo) reading clears; 0 ignores them.",
-)
-@click.option(
-    "--pose",
-    type=click.Choice(POSE_SOURCES),
-    default="odometry",
-    show_default=True,
-    help="Map with the odometry, with the log's global pose (ARIA robotGlobal, CSV true_*, "
-    "CARMEN's corrected poses or TRUEPOS), or with the odometry corrected by matching the laser "
-    "scans (scan-matched).",
-)
-@topic_options
-@selection_options()
-@click.option(
-    "--odometry-error",
-    "odometry_file",
-    type=click.Path(path_type=Path),
-    help="Error-aware mode: odometry-error YAML (what gridmap calibrate writes).",
-)
-@click.option(
-    "--odometry-coefficient",
-    "coefficients",
-    multiple=True,
-    metavar="NAME=VALUE",
-    help="Error-aware mode: set one f/g coefficient (docs/odometry-error.md names them), e.g. "
-    "range_m_per_m=0.01; overrides the file; repeatable.",
-)
-@click.option(
-    "--trust-length",
-    type=float,
-    default=ErrorAwareParams.trust_length_m,
-    show_default=True,
-    help="Error-aware mode: pose error (m) at which a reading counts half.",
-)
-@click.option(
-    "--max-heading-spread",
-    "max_spread_deg",
-    type=float,
-    default=math.degrees(ErrorAwareParams.max_heading_spread_rad),
-    show_default=True,
-    help="Error-aware mode: degrees of heading spread g beyond which a reading is left out "
-    "(weight 0) instead of spread over a wider wedge (capped at 90 degrees); inf, the default, "
-    "keeps every reading.",
-)
+@map_options
 @click.option(
     "--draw-path",
     is_flag=True,
@@ -245,14 +161,10 @@ def build(
     """
     started = time.perf_counter()
     output = map_output(output, basename, image_format)
-    if not (0.0 <= free < occupied <= 1.0):
-        raise UsageError(f"need 0 <= --free < --occupied <= 1, got {free} and {occupied}")
+    check_thresholds(occupied, free)
     check_resolution(resolution)
-    try:
-        sonar = StandardSonarParams(no_echo_free_m=no_echo_free)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from exc
-    error_aware, odometry_error = _error_aware_options(
+    sonar = sonar_params(no_echo_free)
+    error_aware, odometry_error = error_aware_settings(
         mode, odometry_file, coefficients, trust_length, max_spread_deg
     )
     selection = Selection.parse(sensor_patterns, start, end)
@@ -361,15 +273,12 @@ def build(
 
         write_preview(preview, result.map, _tracks(whole, data, pose))
     elapsed = time.perf_counter() - started
-    summary = _summary(result, image_path, yaml_path, elapsed, occupied, free)
+    summary = build_summary(result, image_path, yaml_path, elapsed, occupied, free)
     if preview is not None:
         summary["preview"] = str(preview)
     if match is not None:
         summary["scan_match"] = match.summary()
-    if as_json:
-        click.echo(json_text(summary))
-    if not quiet:
-        click.echo(_summary_line(summary), err=True)
+    report(summary, summary_line(summary), as_json, quiet)
 
 
 def _tracks(whole: RangeLog, mapped: RangeLog, pose: str) -> list[DrawnTrack]:
@@ -419,26 +328,6 @@ def map_output(output: Path | None, basename: Path | None, image_format: str | N
     if image_format is not None and output.suffix.lower() != f".{image_format}":
         raise UsageError(f"--fmt {image_format} does not match -o {output}")
     return output
-
-
-#: Share of the observed cells between the thresholds above which a trinary map warns.
-UNDECIDED_SHARE = 0.5
-
-
-def undecided_note(prob: npt.NDArray[np.float64], occupied: float, free: float) -> tuple[str, ...]:
-    """A warning when most observed cells (not NaN) of ``prob`` (rows, cols) fall between the
-    thresholds, which a trinary image draws as unknown: the error-aware map of a drifting log."""
-    seen = prob[~np.isnan(prob)]
-    if seen.size == 0:
-        return ()
-    share = float(np.count_nonzero((seen > free) & (seen < occupied))) / seen.size
-    if share <= UNDECIDED_SHARE:
-        return ()
-    return (
-        f"{100 * share:.0f} % of the observed cells lie between --free {free:g} and --occupied "
-        f"{occupied:g} and are drawn unknown in this trinary map (the odometry drifted); "
-        "--map-mode scale keeps their probabilities",
-    )
 
 
 def _fuse_options(
@@ -512,153 +401,7 @@ def _write_fused(
         image_path, yaml_path = write_map(
             output, omap, mode=map_mode, occupied_thresh=occupied, free_thresh=free, force=force
         )
-    spec, prob = omap.spec, omap.prob
-    known = ~np.isnan(prob)
-    summary = {
-        "image": str(image_path),
-        "yaml": str(yaml_path) if yaml_path is not None else None,
-        "logs": n_logs,
-        "readings": {"used": total.readings},
-        "map": {"width": spec.width, "height": spec.height, "resolution": spec.resolution_m,
-                "origin": [spec.origin_x_m, spec.origin_y_m, 0.0]},
-        "cells": {"observed": int(known.sum()), "occupied": int((prob[known] >= occupied).sum()),
-                  "free": int((prob[known] <= free).sum())},
-        "seconds": round(time.perf_counter() - started, 3),
-    }  # fmt: skip
-    if as_json:
-        click.echo(json_text(summary))
-    if not quiet:
-        click.echo(
-            f"gridmap: {n_logs} logs fused, {total.readings:,} readings mapped; {spec.width} x "
-            f"{spec.height} cells at {spec.resolution_m} m in {summary['seconds']:.1f} s -> "
-            f"{image_path}" + (f", {yaml_path}" if yaml_path else ""),
-            err=True,
-        )
-
-
-def check_resolution(resolution: float) -> None:
-    """--resolution: a positive cell size no larger than :data:`MAX_RESOLUTION_M`."""
-    if not (resolution > 0.0 and math.isfinite(resolution)):
-        raise UsageError(f"--resolution must be a positive number of metres, got {resolution}")
-    if resolution > MAX_RESOLUTION_M:
-        raise UsageError(
-            f"--resolution {resolution:g} m: cells larger than {MAX_RESOLUTION_M:g} m hold whole "
-            "rooms, and the map would be a few cells of nothing (cell size is in metres: 0.05 "
-            "is 5 cm)"
-        )
-
-
-def _error_aware_options(
-    mode: str,
-    odometry_file: Path | None,
-    coefficients: tuple[str, ...],
-    trust_length: float,
-    max_spread_deg: float = math.degrees(ErrorAwareParams.max_heading_spread_rad),
-) -> tuple[ErrorAwareParams, OdometryError | None]:
-    """The error-aware model's settings from build's flags (usage errors before any reading)."""
-    ctx = click.get_current_context()
-    trust_given = any(
-        ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT
-        for name in ("trust_length", "max_spread_deg")
-    )
-    given = odometry_file is not None or bool(coefficients)
-    if mode != "error-aware":
-        if given or trust_given:
-            raise UsageError(
-                "--odometry-error, --odometry-coefficient, --trust-length and "
-                "--max-heading-spread apply to --mode error-aware"
-            )
-        return ErrorAwareParams(), None
-    if not given:
-        raise UsageError(
-            "--mode error-aware needs the odometry error: --odometry-error FILE (gridmap "
-            "calibrate writes one) or --odometry-coefficient NAME=VALUE"
-        )
-    try:
-        params = ErrorAwareParams(trust_length_m=trust_length)
-    except ValueError as exc:
-        raise UsageError(f"--trust-length: {exc}") from exc
-    if not max_spread_deg > 0:
-        raise UsageError(f"--max-heading-spread must be a positive angle, got {max_spread_deg}")
-    params = dataclasses.replace(params, max_heading_spread_rad=math.radians(max_spread_deg))
-    names = [f.name for f in dataclasses.fields(OdometryError)]
-    overrides: dict[str, float] = {}
-    for item in coefficients:
-        name, sep, text = item.partition("=")
-        name = name.strip()
-        if not sep or name not in names:
-            raise UsageError(
-                f"--odometry-coefficient {item!r}: expected NAME=VALUE, NAME one of "
-                f"{', '.join(names)}"
-            )
-        try:
-            overrides[name] = float(text)
-        except ValueError:
-            raise UsageError(f"--odometry-coefficient {item!r}: {text!r} is not a number") from None
-    model = load_odometry_error(odometry_file) if odometry_file is not None else OdometryError()
-    try:
-        return params, dataclasses.replace(model, **overrides)
-    except ValueError as exc:
-        raise UsageError(f"--odometry-coefficient: {exc}") from exc
-
-
-def _summary(
-    result: BuildResult,
-    image: Path,
-    yaml_path: Path | None,
-    seconds: float,
-    occupied: float,
-    free: float,
-) -> dict[str, Any]:
-    spec = result.map.spec
-    prob = result.map.prob
-    known = ~np.isnan(prob)
-    return {
-        "image": str(image),
-        "yaml": str(yaml_path) if yaml_path is not None else None,
-        "readings": {
-            "total": result.sync.total,
-            "used": result.sync.used,
-            "skipped": result.sync.total - result.sync.used,
-            "outside_odometry": result.sync.outside_odometry,
-            "below_min_range": result.sync.below_min_range,
-        },
-        "map": {
-            "width": spec.width,
-            "height": spec.height,
-            "resolution": spec.resolution_m,
-            "origin": [spec.origin_x_m, spec.origin_y_m, 0.0],
-        },
-        "cells": {
-            "observed": int(known.sum()),
-            "occupied": int((prob[known] >= occupied).sum()),
-            "free": int((prob[known] <= free).sum()),
-        },
-        "cell_updates": result.cell_updates,
-        "seconds": round(seconds, 3),
-    }
-
-
-def _summary_line(s: dict[str, Any]) -> str:
-    r, m = s["readings"], s["map"]
-    matched = ""
-    if "scan_match" in s:
-        sm = s["scan_match"]
-        matched = (
-            f"; {sm['scans']:,} scans matched in {sm['seconds']:.1f} s, {sm['fallbacks']:,} fell "
-            f"back to odometry, {sm['degenerate']:,} degenerate (odometry along the corridor)"
-        )
-    skipped = ""
-    if r["skipped"]:
-        skipped = (
-            f" ({r['skipped']:,} skipped: {r['outside_odometry']:,} outside the odometry's time "
-            f"span, {r['below_min_range']:,} below minimum range)"
-        )
-    return (
-        f"gridmap: {r['used']:,} of {r['total']:,} readings mapped{skipped}; "
-        f"{m['width']} x {m['height']} cells at {m['resolution']} m "
-        f"({m['width'] * m['resolution']:.1f} x {m['height'] * m['resolution']:.1f} m) "
-        f"in {s['seconds']:.1f} s -> {s['image']}"
-        + (f", {s['yaml']}" if s["yaml"] else "")
-        + matched
-    )
+    seconds = time.perf_counter() - started
+    summary = fused_summary(omap, total.readings, image_path, yaml_path, n_logs, seconds,
+                            occupied, free)  # fmt: skip
+    report(summary, fused_line(summary), as_json, quiet)

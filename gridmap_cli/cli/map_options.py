@@ -1,0 +1,230 @@
+"""The map options of ``gridmap build``: what to map and how (robot, log format, resolution,
+mapping mode, map mode, thresholds, pose source, ROS topics, part of the log, the error-aware
+model), as click decorators, with the usage checks that belong to them.
+
+:func:`map_options` adds them all, in the order ``gridmap build --help`` lists them; each
+option is also its own decorator, so another command (``batch``, issue 22) can take the same
+set, defined once, instead of its own copies.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
+
+import click
+
+from gridmap_cli.cli.common import selection_options, topic_options
+from gridmap_cli.errors import UsageError
+from gridmap_cli.mapping.models.error_aware import ErrorAwareParams
+from gridmap_cli.mapping.models.standard import StandardSonarParams
+from gridmap_cli.mapping.pipeline import MAPPING_MODES, MAX_RESOLUTION_M
+from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
+from gridmap_cli.poses.sync import POSE_SOURCES
+from gridmap_cli.readers import format_names
+from gridmap_cli.writers.map_image import MAP_MODES
+
+F = TypeVar("F", bound=Callable[..., object])
+
+robot_option = click.option(
+    "--robot",
+    help="Robot preset (p3at, p3dx), robot YAML file or ARIA .p file; default: the log's own "
+    "'# robot:' line.",
+)
+format_option = click.option(
+    "--format", "log_format", type=click.Choice(format_names()), help="Log format."
+)
+resolution_option = click.option(
+    "--resolution", type=float, default=0.05, show_default=True, help="Cell size in metres."
+)
+mode_option = click.option(
+    "--mode",
+    type=click.Choice(MAPPING_MODES),
+    default="standard",
+    show_default=True,
+    help="Mapping algorithm.",
+)
+map_mode_option = click.option(
+    "--map-mode",
+    type=click.Choice(MAP_MODES),
+    default="trinary",
+    show_default=True,
+    help="How occupancy is stored in the image (map_server modes).",
+)
+occupied_option = click.option(
+    "--occupied",
+    "--occ",
+    "occupied",
+    type=float,
+    default=0.65,
+    show_default=True,
+    help="Probability at or above which a cell is occupied.",
+)
+free_option = click.option(
+    "--free",
+    type=float,
+    default=0.25,
+    show_default=True,
+    help="Probability at or below which a cell is free.",
+)
+no_echo_free_option = click.option(
+    "--no-echo-free",
+    type=float,
+    default=StandardSonarParams.no_echo_free_m,
+    show_default=True,
+    help="Metres of free space a max-range (no echo) reading clears; 0 ignores them.",
+)
+pose_option = click.option(
+    "--pose",
+    type=click.Choice(POSE_SOURCES),
+    default="odometry",
+    show_default=True,
+    help="Map with the odometry, with the log's global pose (ARIA robotGlobal, CSV true_*, "
+    "CARMEN's corrected poses or TRUEPOS), or with the odometry corrected by matching the laser "
+    "scans (scan-matched).",
+)
+
+#: The error-aware model's options; :func:`error_aware_settings` checks them.
+ERROR_AWARE_OPTIONS = (
+    click.option(
+        "--odometry-error",
+        "odometry_file",
+        type=click.Path(path_type=Path),
+        help="Error-aware mode: odometry-error YAML (what gridmap calibrate writes).",
+    ),
+    click.option(
+        "--odometry-coefficient",
+        "coefficients",
+        multiple=True,
+        metavar="NAME=VALUE",
+        help="Error-aware mode: set one f/g coefficient (docs/odometry-error.md names them), e.g. "
+        "range_m_per_m=0.01; overrides the file; repeatable.",
+    ),
+    click.option(
+        "--trust-length",
+        type=float,
+        default=ErrorAwareParams.trust_length_m,
+        show_default=True,
+        help="Error-aware mode: pose error (m) at which a reading counts half.",
+    ),
+    click.option(
+        "--max-heading-spread",
+        "max_spread_deg",
+        type=float,
+        default=math.degrees(ErrorAwareParams.max_heading_spread_rad),
+        show_default=True,
+        help="Error-aware mode: degrees of heading spread g beyond which a reading is left out "
+        "(weight 0) instead of spread over a wider wedge (capped at 90 degrees); inf, the "
+        "default, keeps every reading.",
+    ),
+)
+
+#: Every map option, in help order: the command receives robot, log_format, resolution, mode,
+#: map_mode, occupied, free, no_echo_free, pose, topics (a ReadOptions), sensor_patterns,
+#: start, end, odometry_file, coefficients, trust_length and max_spread_deg.
+MAP_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
+    robot_option,
+    format_option,
+    resolution_option,
+    mode_option,
+    map_mode_option,
+    occupied_option,
+    free_option,
+    no_echo_free_option,
+    pose_option,
+    topic_options,
+    selection_options(),
+    *ERROR_AWARE_OPTIONS,
+)
+
+
+def map_options(func: F) -> F:
+    """Add :data:`MAP_OPTIONS` to a command, listed in that order."""
+    decorated: Callable[..., Any] = func
+    for option in reversed(MAP_OPTIONS):
+        decorated = option(decorated)
+    return decorated  # type: ignore[return-value]
+
+
+def check_thresholds(occupied: float, free: float) -> None:
+    """--occupied and --free: probabilities with free below occupied."""
+    if not (0.0 <= free < occupied <= 1.0):
+        raise UsageError(f"need 0 <= --free < --occupied <= 1, got {free} and {occupied}")
+
+
+def check_resolution(resolution: float) -> None:
+    """--resolution: a positive cell size no larger than :data:`MAX_RESOLUTION_M`."""
+    if not (resolution > 0.0 and math.isfinite(resolution)):
+        raise UsageError(f"--resolution must be a positive number of metres, got {resolution}")
+    if resolution > MAX_RESOLUTION_M:
+        raise UsageError(
+            f"--resolution {resolution:g} m: cells larger than {MAX_RESOLUTION_M:g} m hold whole "
+            "rooms, and the map would be a few cells of nothing (cell size is in metres: 0.05 "
+            "is 5 cm)"
+        )
+
+
+def sonar_params(no_echo_free: float) -> StandardSonarParams:
+    """The standard model's settings from --no-echo-free."""
+    try:
+        return StandardSonarParams(no_echo_free_m=no_echo_free)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from exc
+
+
+def error_aware_settings(
+    mode: str,
+    odometry_file: Path | None,
+    coefficients: tuple[str, ...],
+    trust_length: float,
+    max_spread_deg: float = math.degrees(ErrorAwareParams.max_heading_spread_rad),
+) -> tuple[ErrorAwareParams, OdometryError | None]:
+    """The error-aware model's settings from :data:`ERROR_AWARE_OPTIONS` (usage errors before
+    any reading)."""
+    ctx = click.get_current_context()
+    trust_given = any(
+        ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT
+        for name in ("trust_length", "max_spread_deg")
+    )
+    given = odometry_file is not None or bool(coefficients)
+    if mode != "error-aware":
+        if given or trust_given:
+            raise UsageError(
+                "--odometry-error, --odometry-coefficient, --trust-length and "
+                "--max-heading-spread apply to --mode error-aware"
+            )
+        return ErrorAwareParams(), None
+    if not given:
+        raise UsageError(
+            "--mode error-aware needs the odometry error: --odometry-error FILE (gridmap "
+            "calibrate writes one) or --odometry-coefficient NAME=VALUE"
+        )
+    try:
+        params = ErrorAwareParams(trust_length_m=trust_length)
+    except ValueError as exc:
+        raise UsageError(f"--trust-length: {exc}") from exc
+    if not max_spread_deg > 0:
+        raise UsageError(f"--max-heading-spread must be a positive angle, got {max_spread_deg}")
+    params = dataclasses.replace(params, max_heading_spread_rad=math.radians(max_spread_deg))
+    names = [f.name for f in dataclasses.fields(OdometryError)]
+    overrides: dict[str, float] = {}
+    for item in coefficients:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or name not in names:
+            raise UsageError(
+                f"--odometry-coefficient {item!r}: expected NAME=VALUE, NAME one of "
+                f"{', '.join(names)}"
+            )
+        try:
+            overrides[name] = float(text)
+        except ValueError:
+            raise UsageError(f"--odometry-coefficient {item!r}: {text!r} is not a number") from None
+    model = load_odometry_error(odometry_file) if odometry_file is not None else OdometryError()
+    try:
+        return params, dataclasses.replace(model, **overrides)
+    except ValueError as exc:
+        raise UsageError(f"--odometry-coefficient: {exc}") from exc
