@@ -1,0 +1,122 @@
+"""The whole description: :func:`describe_log` gathers every part, :func:`render_text` puts
+their sections together in the order a person reads them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from gridmap_cli.describe.recording import recording_head, recording_lines, recording_part
+from gridmap_cli.describe.selection import selection_lines, selection_part
+from gridmap_cli.describe.sensors import described_sensors, sensor_lines, sensor_parts
+from gridmap_cli.describe.text import size_text
+from gridmap_cli.describe.tracks import (
+    during_odometry,
+    readings_lines,
+    readings_part,
+    track_lines,
+    track_part,
+)
+from gridmap_cli.describe.verdict import build_lines, build_part, build_problem, robot_for
+from gridmap_cli.errors import InputFileError
+from gridmap_cli.mapping.selection import Selection, apply_selection
+from gridmap_cli.readers import LogFormat, recording_sources
+from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.ros.recording import RecordingRead, read_recording
+from gridmap_cli.records import RangeLog
+from gridmap_cli.robot import RobotDescription
+
+
+def describe_log(
+    paths: Sequence[Path],
+    fmt: LogFormat,
+    options: ReadOptions,
+    selection: Selection | None = None,
+) -> dict[str, Any]:
+    """Describe a log of any format (several ROS recordings as one, as build reads them), or the
+    part of it ``selection`` chooses. ``fmt`` is the format of the first.
+
+    Raises what the reader raises for a broken CSV/ARIA file, and what
+    :func:`~gridmap_cli.mapping.selection.apply_selection` raises for a selection the log cannot
+    meet.
+    """
+    path = paths[0]
+    size = sum(_bytes(p) for p in paths)
+    out: dict[str, Any] = {"file": " + ".join(map(str, paths)), "format": fmt.name, "bytes": size}
+    problem: str | None = None
+    mcap: RecordingRead | None = None
+    sources = recording_sources(paths, fmt.name if len(paths) == 1 else None)
+    if sources is not None:
+        mcap = read_recording(sources, options, strict=False, every_topic=True)
+        problem = None if mcap.problem is None else str(mcap.problem)
+        log = mcap.log
+        out["mcap"] = recording_part(mcap)
+    else:
+        log = fmt.read(path, options)
+    robot, robot_source, robot_problem = robot_for(path, log, options)
+    problem = problem or robot_problem  # build reads the log before it loads the robot
+    try:
+        selected = apply_selection(log, selection or Selection(), robot)
+    except InputFileError as exc:  # the log cannot be mapped: described whole, build's error
+        problem = problem or str(exc)
+        out["selection"], out["notes"] = None, []
+    else:
+        log = selected.log
+        out["selection"] = selection_part(selection, selected) if selection else None
+        out["notes"] = list(selected.notes)
+    if problem is None:
+        problem = build_problem(log, robot)
+    during = during_odometry(log)
+    out["log"] = _log_part(log, during, robot, mcap.mount_from if mcap is not None else None)
+    out["build"] = build_part(fmt, log, mcap, robot, robot_source, problem)
+    return out
+
+
+def _bytes(path: Path) -> int:
+    """A file's size, or the sum of a folder's files (a rosbag2 folder)."""
+    if path.is_dir():
+        return sum(f.stat().st_size for f in path.iterdir() if f.is_file())
+    return path.stat().st_size
+
+
+def _log_part(
+    log: RangeLog,
+    valid: npt.NDArray[np.bool_],
+    robot: RobotDescription | None,
+    mount_from: dict[str, str] | None,
+) -> dict[str, Any]:
+    described = described_sensors(log, robot)
+    sensors = sensor_parts(log, robot, mount_from, described)
+    no_echo = sum(s["no_echo"] for s in sensors)
+    return {
+        "odometry": track_part(log.poses),
+        "truth": track_part(log.truth) if log.truth is not None else None,
+        "readings": readings_part(log.readings, valid, described, no_echo),
+        "sensors": sensors,
+        "metadata": log.metadata,
+    }
+
+
+def render_text(d: dict[str, Any]) -> str:
+    """The description as text for people, one section per subject."""
+    head = f"{d['file']}: {d['format'].upper()} log, {size_text(d['bytes'])}"
+    mcap = d.get("mcap")
+    if mcap is not None:
+        head += recording_head(mcap)
+    lines = [head]
+    if mcap is not None:
+        lines += recording_lines(mcap, d["build"])
+    lines += selection_lines(d.get("selection"), d.get("notes") or [])
+    log = d["log"]
+    lines += track_lines(log, mcap)
+    lines += readings_lines(log["readings"])
+    lines += sensor_lines(log["sensors"])
+    if log["metadata"]:
+        lines += ["", "Log header: " + ", ".join(f"{k}: {v}" for k, v in log["metadata"].items())]
+    lines += build_lines(d)
+    return "\n".join(lines)
