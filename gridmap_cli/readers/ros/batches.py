@@ -15,13 +15,9 @@ import numpy.typing as npt
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.readers.ros.bulk import TF_TYPES, Columns
 from gridmap_cli.readers.ros.frames import Transform, TransformSeries, frame_name, yaw_of
-from gridmap_cli.readers.ros.messages import (
-    MessageAccumulator,
-    _f32,
-    _Scan,
-    _Sonar,
-    _Track,
-)
+from gridmap_cli.readers.ros.messages import MessageAccumulator
+from gridmap_cli.readers.ros.messages.fields import _f32
+from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar, _Track
 
 #: Poses whose headings are computed at a time (yaw_of is per pose, on Python floats).
 _YAW_ROWS = 1 << 14

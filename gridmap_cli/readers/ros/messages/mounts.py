@@ -1,0 +1,96 @@
+"""TF: ``/tf`` and ``/tf_static`` messages into the frame tree and the moving series, the base
+frame, and each sensor frame's mounting (from TF, else from ``--robot``, else refused with the
+reason)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from gridmap_cli.errors import InputFileError
+from gridmap_cli.readers.ros.frames import TransformBuffer, TransformSeries, frame_name
+from gridmap_cli.readers.ros.messages.fields import _transform
+from gridmap_cli.readers.ros.messages.state import _State
+
+
+class _Mounts(_State):
+    """Transforms in; the base frame and sensor mountings out."""
+
+    def _tf(self, topic: str, msg: Any, static: bool, log_time: int) -> None:
+        for t in msg.transforms:
+            parent, child = frame_name(t.header.frame_id), frame_name(t.child_frame_id)
+            transform = _transform(t.transform)
+            if static:
+                self.tree.add(parent, child, transform)
+                continue
+            self.tf_pairs[(parent, child)] += 1
+            series = self.tf_series.get((parent, child))
+            if series is None:
+                series = self.tf_series[(parent, child)] = TransformSeries()
+            series.add(self._stamp(t.header.stamp, log_time), transform)
+
+    def buffer(self) -> TransformBuffer:
+        """Every transform read: ``/tf`` pairs that never change join the fixed tree (ROS 1
+        recordings republish fixed joints on ``/tf``); those that change are never a mounting."""
+        if self._buffer is None:
+            for (parent, child), series in self.tf_series.items():
+                if not series.changes() and child not in self.tree:  # /tf_static wins
+                    self.tree.add(parent, child, series.first())
+            self._buffer = TransformBuffer(self.tree, self.tf_series)
+        return self._buffer
+
+    def base_frame(self) -> str:
+        if self.plan.base_frame:
+            return frame_name(self.plan.base_frame)
+        if self.odom_children:
+            return self.odom_children.most_common(1)[0][0]
+        if self.plan.odom_topic is None:
+            lowest = self.buffer().lowest_moving_child(self.plan.odom_frame, self.frame_topic)
+            if lowest is not None:
+                return lowest
+        return "base_link"
+
+    def _mount(self, base: str, frame: str) -> tuple[float, float, float] | None:
+        """A frame's mounting (x, y, yaw) from TF, else from the robot's sensor of its name."""
+        transform = self.tree.lookup(base, frame)
+        if transform is not None:
+            self.mount_from[frame] = "TF"
+            return transform.planar()
+        if self.robot is not None:
+            known = self.robot.by_name().get(frame)
+            if known is not None:
+                self.mount_from[frame] = "robot"
+                return known.x_m, known.y_m, known.yaw_rad
+        return None
+
+    def _unmounted(self, base: str, frame: str) -> tuple[float, float, float]:
+        """A frame with no known mounting: refused; a NaN mounting when read on."""
+        self.refusals.refuse(self._unknown_mount(base, frame))
+        self.mount_from[frame] = "unknown"
+        return math.nan, math.nan, math.nan
+
+    def _unknown_mount(self, base: str, frame: str) -> InputFileError:
+        where = ", ".join(dict.fromkeys((*self.plan.static_topics, *self.plan.tf_topics)))
+        if self.buffer().moves(base, frame):
+            tf_part = (
+                f"its transform from '{base}' changes over time (a moving joint), and gridmap "
+                "maps sensors with a fixed mounting"
+            )
+        elif frame in self.tree:
+            tf_part = (
+                f"its transforms lead to '{self.tree.root_of(frame)}', not to the base frame "
+                f"'{base}' (--base-frame)"
+            )
+        elif where:
+            tf_part = f"no transform from '{base}' to it on {where}"
+        else:
+            tf_part = "the recording has no TF"
+        if self.robot is None:
+            robot_part = "and no --robot describing it"
+        else:
+            robot_part = f"and robot '{self.robot.name}' has no sensor named '{frame}'"
+        return InputFileError(
+            self.path,
+            f"sensor frame '{frame}' ({self.frame_topic[frame]}): mounting pose unknown: "
+            f"{tf_part}, {robot_part}",
+        )

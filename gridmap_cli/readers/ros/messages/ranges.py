@@ -1,0 +1,220 @@
+"""Range readings: ``sensor_msgs/Range`` (sonar), ``sensor_msgs/LaserScan`` (one sensor per
+beam), RosAria's sonar ``sensor_msgs/PointCloud`` and ``gridmap.RangeReading`` /
+``gridmap.RangeSensor``, into readings by sensor key; and the RangeSensors of the result, in a
+stable order."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from gridmap_cli.errors import InputFileError
+from gridmap_cli.geometry import wrap_angle
+from gridmap_cli.readers.ros.frames import frame_name
+from gridmap_cli.readers.ros.messages.fields import _classify, _f32, float32_decimal
+from gridmap_cli.readers.ros.messages.mounts import _Mounts
+from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar
+from gridmap_cli.robot import RangeSensor
+
+
+class _Ranges(_Mounts):
+    """Range messages in; readings and RangeSensors out."""
+
+    def _claim(self, frame: str, topic: str) -> None:
+        other = self.frame_topic.setdefault(frame, topic)
+        if other != topic:
+            raise InputFileError(
+                self.message_path,
+                f"sensor frame '{frame}' publishes on both {other} and {topic}; "
+                "choose one with --range-topic",
+            )
+
+    def _key(self, name: str) -> int:
+        return self.keys.setdefault(name, len(self.keys))
+
+    def _push(self, stamp: int, key: int, value: float, f32: bool) -> None:
+        self.r_stamp.append(stamp)
+        self.r_key.append(key)
+        self.r_range.append(value)
+        self.r_f32.append(f32)
+
+    def _extend(self, stamp: int, keys: list[int], values: list[float], f32: bool) -> None:
+        self.r_stamp.extend([stamp] * len(keys))
+        self.r_key.extend(keys)
+        self.r_range.extend(values)
+        self.r_f32.extend([f32] * len(keys))
+
+    def _range(self, topic: str, log_time: int, msg: Any) -> None:
+        # float32 fields compare as their decimals do (float32_decimal keeps the order), so the
+        # conversion waits for finish
+        frame = frame_name(msg.header.frame_id)
+        self._claim(frame, topic)
+        rmin, rmax = msg.min_range, msg.max_range
+        if not (0.0 <= rmin < rmax and math.isfinite(rmax)):
+            raise InputFileError(
+                self.message_path,
+                f"{self._where(topic, log_time)}: frame '{frame}': need 0 <= min_range < "
+                f"max_range, got {_f32(rmin)} and {_f32(rmax)}",
+            )
+        sonar = self.sonars.get(frame)
+        if sonar is None:
+            self.sonars[frame] = _Sonar(msg.field_of_view, rmin, rmax)
+        else:
+            sonar.min_range = max(sonar.min_range, rmin)
+            sonar.max_range = max(sonar.max_range, rmax)
+        value = _classify(msg.range, rmax)
+        key = self._key(frame)
+        if value is not None:
+            self._push(self._stamp(msg.header.stamp, log_time), key, value, True)
+
+    def _scan(self, topic: str, log_time: int, msg: Any) -> None:
+        frame = frame_name(msg.header.frame_id)
+        self._claim(frame, topic)
+        ranges = np.asarray(msg.ranges, dtype=np.float64)  # float32 values
+        geometry = _Scan(
+            msg.angle_min, msg.angle_increment, len(ranges), msg.range_min, msg.range_max
+        )
+        known = self.scans.setdefault(frame, geometry)
+        if (known.angle_min, known.angle_increment, known.count) != (
+            geometry.angle_min,
+            geometry.angle_increment,
+            geometry.count,
+        ):
+            raise InputFileError(
+                self.message_path,
+                f"{self._where(topic, log_time)}: laser '{frame}' changed its beams "
+                f"({geometry.count} from {_f32(geometry.angle_min):g} rad by "
+                f"{_f32(geometry.angle_increment):g}, first scan had {known.count} from "
+                f"{_f32(known.angle_min):g} by {_f32(known.angle_increment):g})",
+            )
+        base = self._key(f"{frame}_0")
+        if base + known.count > len(self.keys):
+            for i in range(1, known.count):
+                self._key(f"{frame}_{i}")
+        with np.errstate(invalid="ignore"):
+            valid = ~np.isnan(ranges) & (ranges >= 0.0)  # NaN: no reading; -inf: too close
+            no_echo = valid & (ranges >= geometry.range_max)
+        out = np.where(no_echo, np.inf, ranges)[valid]
+        keys = base + np.nonzero(valid)[0]
+        self._extend(self._stamp(msg.header.stamp, log_time), keys.tolist(), out.tolist(), True)
+
+    def _cloud(self, topic: str, log_time: int, msg: Any) -> None:
+        frame = frame_name(msg.header.frame_id)
+        self._claim(frame, topic)
+        points = np.asarray([(float(p.x), float(p.y), float(p.z)) for p in msg.points])
+        self.clouds.append(
+            (self._stamp(msg.header.stamp, log_time), frame, points.reshape(len(msg.points), 3))
+        )
+
+    def _json_sensor(self, msg: dict[str, Any]) -> None:
+        name = str(msg["name"])
+        self.json_sensors[name] = RangeSensor(
+            name,
+            float(msg["x"]),
+            float(msg["y"]),
+            float(msg["yaw"]),
+            float(msg["beam_width"]),
+            float(msg["min_range"]),
+            float(msg["max_range"]),
+            str(msg.get("kind", "sonar")),
+        )
+
+    def _json_reading(self, topic: str, log_time: int, msg: dict[str, Any]) -> None:
+        value = float(msg["range"])
+        if math.isnan(value):
+            return
+        if value < 0.0:
+            raise InputFileError(
+                self.message_path, f"{self._where(topic, log_time)}: negative range {value}"
+            )
+        self._push(
+            self._stamp(msg["timestamp"], log_time), self._key(str(msg["sensor"])), value, False
+        )
+
+    def _sensors(self, base: str) -> tuple[RangeSensor, ...]:
+        """RangeSensors for every Range / LaserScan frame, in a stable order."""
+        out: dict[str, list[RangeSensor]] = {}
+        for frame, sonar in self.sonars.items():
+            mount = self._mount(base, frame) or self._unmounted(base, frame)
+            fov, rmin, rmax = float32_decimal(
+                [sonar.fov, sonar.min_range, sonar.max_range]
+            ).tolist()
+            out[frame] = [RangeSensor(frame, *mount, fov, rmin, rmax, "sonar")]
+        for frame, scan in self.scans.items():
+            out[frame] = self._beams(base, frame, scan)
+        if self.clouds and self.robot is not None:
+            for s in self._cloud_sonars():
+                out[s.name] = [s]
+                self.mount_from[s.name] = "robot"
+        ranks = {frame: i for i, frame in enumerate(self.tree.order)}
+        robot_rank = {n: i for i, n in enumerate(self.robot.names())} if self.robot else {}
+        appearance = {name: i for i, name in enumerate(self.keys)}
+
+        def rank(frame: str) -> tuple[int, int]:
+            if frame in ranks:
+                return 0, ranks[frame]
+            for candidate in (frame, f"{frame}_0"):
+                if candidate in robot_rank:
+                    return 1, robot_rank[candidate]
+            return 2, appearance.get(frame, appearance.get(f"{frame}_0", len(appearance)))
+
+        return tuple(s for frame in sorted(out, key=rank) for s in out[frame])
+
+    def _beams(self, base: str, frame: str, scan: _Scan) -> list[RangeSensor]:
+        mount = self._mount(base, frame)
+        names = [f"{frame}_{i}" for i in range(scan.count)]
+        first, step, rmin, rmax = float32_decimal(
+            [scan.angle_min, scan.angle_increment, scan.range_min, scan.range_max]
+        ).tolist()
+        known = self.robot.by_name() if self.robot is not None else {}
+        if mount is None and all(n in known for n in names):
+            self.mount_from[frame] = "robot"
+            return [
+                RangeSensor(n, known[n].x_m, known[n].y_m, known[n].yaw_rad, 0.0, rmin, rmax,
+                            "laser")
+                for n in names
+            ]  # fmt: skip
+        x, y, yaw = mount or self._unmounted(base, frame)
+        yaws = wrap_angle(yaw + first + np.arange(len(names)) * step).tolist()
+        return [
+            RangeSensor(name, x, y, beam_yaw, 0.0, rmin, rmax, "laser")
+            for name, beam_yaw in zip(names, yaws, strict=True)
+        ]
+
+    def _cloud_sonars(self) -> list[RangeSensor]:
+        assert self.robot is not None
+        return [s for s in self.robot.sensors if s.kind == "sonar"]
+
+    def _cloud_readings(self, base: str, sensors: tuple[RangeSensor, ...]) -> None:
+        """Ranges from RosAria point clouds: distance from each sonar's mount to its point."""
+        topic = self.frame_topic[self.clouds[0][1]]
+        if self.robot is None:
+            self.refusals.refuse(
+                InputFileError(
+                    self.path,
+                    f"{topic}: sonar point clouds (as RosAria publishes them) need the sonar "
+                    "positions: give --robot (a preset, robot YAML or ARIA .p file)",
+                )
+            )
+            return
+        sonars = self._cloud_sonars()
+        keys = [self._key(s.name) for s in sonars]
+        sx = np.array([s.x_m for s in sonars])
+        sy = np.array([s.y_m for s in sonars])
+        for stamp, frame, points in self.clouds:
+            if len(points) > len(sonars):
+                raise InputFileError(
+                    self.path,
+                    f"{topic}: a cloud has {len(points)} points but robot '{self.robot.name}' "
+                    f"has {len(sonars)} sonars",
+                )
+            px, py = points[:, 0], points[:, 1]
+            transform = self.tree.lookup(base, frame) if frame != base else None
+            if transform is not None:  # RosAria publishes in the robot frame; others may not
+                tx, ty, tyaw = transform.planar()
+                c, s = math.cos(tyaw), math.sin(tyaw)
+                px, py = tx + c * px - s * py, ty + s * px + c * py
+            n = len(points)
+            self._extend(stamp, keys[:n], np.hypot(px - sx[:n], py - sy[:n]).tolist(), False)
