@@ -26,6 +26,52 @@ class LimitError(InputFileError):
     """Input beyond one of gridmap's bounds: the message names the bound."""
 
 
+#: Characters read at a time by :func:`read_bounded_text`.
+_PIECE_CHARS = 1 << 22
+
+
+def _too_long(path: str, line: int) -> LimitError:
+    return LimitError(
+        path,
+        f"line longer than {MAX_LINE_CHARS:,} characters, gridmap's limit for one line "
+        "of a text log (MAX_LINE_CHARS); not a log, or a damaged one",
+        line,
+    )
+
+
+def read_bounded_text(handle: TextIO, path: str) -> str:
+    """All of ``handle``'s text, refusing a line longer than :data:`MAX_LINE_CHARS` (counted
+    between ``\\n`` or ``\\r`` breaks; numbered by ``\\n``) as soon as it is seen, after
+    reading at most a few MiB past its start: a file of one endless line costs that, not its size.
+    """
+    pieces: list[str] = []
+    run = 0  # characters of the line the last piece ended in
+    newlines = 0
+    while True:
+        piece = handle.read(_PIECE_CHARS)
+        if not piece:
+            return "".join(pieces)
+        runs = piece.replace("\r", "\n").split("\n")
+        if run + len(runs[0]) > MAX_LINE_CHARS:
+            raise _too_long(path, newlines + 1)
+        if len(runs) > 1:
+            longest = max(range(1, len(runs) - 1), key=lambda i: len(runs[i]), default=None)
+            if longest is not None and len(runs[longest]) > MAX_LINE_CHARS:
+                raise _too_long(path, newlines + piece.count("\n", 0, _offset(runs, longest)) + 1)
+            run = len(runs[-1])
+        else:
+            run += len(runs[0])
+        newlines += piece.count("\n")
+        if run > MAX_LINE_CHARS:
+            raise _too_long(path, newlines + 1)
+        pieces.append(piece)
+
+
+def _offset(runs: list[str], index: int) -> int:
+    """Where run ``index`` starts in the piece the runs were split from."""
+    return sum(len(r) + 1 for r in runs[:index])
+
+
 def numbered_lines(handle: TextIO, path: str, start: int = 1) -> Iterator[tuple[int, str]]:
     """``enumerate(handle, start)``, refusing a line longer than :data:`MAX_LINE_CHARS` after
     reading at most that many characters of it."""
@@ -36,12 +82,7 @@ def numbered_lines(handle: TextIO, path: str, start: int = 1) -> Iterator[tuple[
             return
         number += 1
         if len(line) > MAX_LINE_CHARS:
-            raise LimitError(
-                path,
-                f"line longer than {MAX_LINE_CHARS:,} characters, gridmap's limit for one line "
-                "of a text log (MAX_LINE_CHARS); not a log, or a damaged one",
-                number,
-            )
+            raise _too_long(path, number)
         yield number, line
 
 

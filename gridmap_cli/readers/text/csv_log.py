@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.limits import numbered_lines
+from gridmap_cli.limits import numbered_lines, read_bounded_text
 from gridmap_cli.readers.text.source import parse_text
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 
@@ -74,7 +74,7 @@ def read_csv_log(source: str | Path | TextIO, name: str | None = None) -> RangeL
 def _read(handle: TextIO, path: str) -> RangeLog:
     """Parse in bulk (:func:`_read_bulk`); when anything is off, the row-by-row reader below
     finds the bad field and says where (``path:line: column``)."""
-    text = handle.read()
+    text = read_bounded_text(handle, path)
     return _read_bulk(text, path) or _read_rows(io.StringIO(text), path)
 
 
