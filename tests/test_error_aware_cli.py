@@ -30,9 +30,41 @@ def test_error_aware_build_from_a_calibrated_file(tmp_path: Path) -> None:
         tmp_path, "sonar", "--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=0"
     )
     standard = build(tmp_path, "standard")
-    # the odometry terms spread late echoes: far fewer cells are drawn occupied
-    assert np.count_nonzero(aware >= 0.65) < 0.5 * np.count_nonzero(sonar_only >= 0.65)
-    assert np.count_nonzero(aware >= 0.65) < 0.5 * np.count_nonzero(standard >= 0.65)
+    # with every coefficient 0 the error-aware map is the standard map
+    assert np.array_equal(sonar_only, standard, equal_nan=True)
+    # the odometry terms fade late evidence: fewer cells are drawn occupied or free, and the
+    # same cells are known (nothing is widened)
+    assert np.count_nonzero(aware >= 0.65) < 0.95 * np.count_nonzero(standard >= 0.65)
+    assert np.count_nonzero(aware <= 0.25) < 0.95 * np.count_nonzero(standard <= 0.25)
+    assert np.array_equal(np.isnan(aware), np.isnan(standard))
+
+
+@pytest.mark.parametrize("log", ["csv", "laser"])
+def test_a_perfect_odometry_file_gives_the_standard_map_byte_for_byte(
+    tmp_path: Path, log: str
+) -> None:
+    source, extra = LOG, ()
+    if log == "laser":
+        source = tmp_path / "laser.2d"
+        code, _, stderr = run(
+            "simulate", str(SAMPLES / "worlds" / "office.yaml"),
+            str(SAMPLES / "paths" / "office.yaml"), "--robot", "p3at-lms200", "--duration", "20",
+            "-o", str(source),
+        )  # fmt: skip
+        assert code == 0, stderr
+        extra = ("--robot", "p3at-lms200")
+    perfect = tmp_path / "perfect.yaml"
+    perfect.write_text("gridmap-odometry-error: 1\n")  # the version line alone
+    outputs = []
+    for name, mode in (("standard", ()), ("aware", ("--mode", "error-aware"))):
+        out = tmp_path / f"{name}.pgm"
+        args = [*mode, "--odometry-error", str(perfect)] if mode else []
+        code, _, stderr = run("build", str(source), "-o", str(out), *extra, *args)
+        assert code == 0, stderr
+        outputs.append((out.read_bytes(), out.with_suffix(".yaml").read_text()))
+    assert outputs[0][0] == outputs[1][0]
+    # the YAML names the image; everything else is the same
+    assert outputs[0][1].replace("standard", "aware") == outputs[1][1]
 
 
 def test_coefficients_from_flags_override_the_file(tmp_path: Path) -> None:
@@ -49,7 +81,11 @@ def test_coefficients_from_flags_override_the_file(tmp_path: Path) -> None:
         "--odometry-coefficient",
         "range_m_per_m=0.05",
     )
-    assert np.nanmax(spread) < np.nanmax(plain)
+
+    def confident(prob: np.ndarray) -> int:
+        return int(np.count_nonzero(np.abs(prob - 0.5) > 0.2))
+
+    assert confident(spread) < 0.97 * confident(plain)
 
 
 @pytest.mark.parametrize(

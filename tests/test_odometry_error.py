@@ -142,6 +142,17 @@ def test_yaml_numbers_include_exponents_without_a_point(value: object, expected:
     assert number(value) == expected
 
 
+def test_version_2_adds_keys_and_is_written_only_when_they_are_used(tmp_path: Path) -> None:
+    path = tmp_path / "odo.yaml"
+    path.write_text("gridmap-odometry-error: 2\nlateral_m_per_sqrt_m: 0.01\n")
+    model = load_odometry_error(path)
+    assert model == OdometryError(lateral_m_per_sqrt_m=0.01)
+    assert odometry_error_yaml(model).splitlines()[0] == "gridmap-odometry-error: 2"
+    plain = odometry_error_yaml(OdometryError(range_m_per_m=0.02))
+    assert plain.splitlines()[0] == "gridmap-odometry-error: 1"
+    assert "lateral" not in plain
+
+
 def test_missing_keys_take_their_defaults(tmp_path: Path) -> None:
     path = tmp_path / "odo.yaml"
     path.write_text("gridmap-odometry-error: 1\nrange_m_per_m: 0.02\nbearing_rad_per_rad: 3e-2\n")
@@ -152,10 +163,14 @@ def test_missing_keys_take_their_defaults(tmp_path: Path) -> None:
     ("text", "message"),
     [
         ("range_m_per_m: 0.02\n", "odo.yaml: missing 'gridmap-odometry-error: 1'"),
-        ("gridmap-odometry-error: 2\n", "odo.yaml:1: unsupported gridmap-odometry-error version 2"),
+        ("gridmap-odometry-error: 3\n", "odo.yaml:1: unsupported gridmap-odometry-error version 3"),
         (
             "gridmap-odometry-error: 1\nrange_per_m: 0.02\n",
-            "odo.yaml:2: unknown key 'range_per_m' (known: range_m_per_m,",
+            "odo.yaml:2: unknown key 'range_per_m' in version 1 (known: range_m_per_m,",
+        ),
+        (
+            "gridmap-odometry-error: 1\nlateral_m_per_sqrt_m: 0.02\n",
+            "odo.yaml:2: unknown key 'lateral_m_per_sqrt_m' in version 1 (known:",
         ),
         (
             "gridmap-odometry-error: 1\n\nrange_m_per_m: -0.02\n",
@@ -227,11 +242,13 @@ def test_the_simulators_errors_as_coefficients() -> None:
         "bearing_rad_per_sqrt_rad": 0.02,
         "heading_drift_rad_per_m": math.radians(0.2),
         "sonar_relative_error": 0.01,
+        "lateral_m_per_sqrt_m": 0.0,
+        "heading_rad_per_sqrt_m": 0.0,
     }
     for f in dataclasses.fields(OdometryErrorModel):
         one = dataclasses.replace(OdometryErrorModel().scaled(0.0), **{f.name: 0.5})
         coefficients = one.as_odometry_error().as_dict()
-        assert sorted(coefficients.values()) == [0.0] * 4 + [0.01, 0.5], f.name
+        assert sorted(coefficients.values()) == [0.0] * 6 + [0.01, 0.5], f.name
 
 
 def test_travelled_at_with_the_sums_made_once_gives_the_same_bits() -> None:

@@ -23,11 +23,9 @@ from gridmap_cli.mapping.grid import (
     LogOddsAccumulator,
     OccupancyMap,
 )
-from gridmap_cli.mapping.models.error_aware import (
-    ErrorAwareParams,
-    ErrorAwareSonarModel,
-    OdometrySpread,
-)
+from gridmap_cli.mapping.models.error_aware import ErrorAwareParams
+from gridmap_cli.mapping.models.error_aware_ray import ScanLayout
+from gridmap_cli.mapping.models.fading import FadedRayModel, FadedSonarModel, FadeParams, PoseSpread
 from gridmap_cli.mapping.models.ray import RayModel, RayParams
 from gridmap_cli.mapping.models.standard import StandardSonarModel, StandardSonarParams
 from gridmap_cli.mapping.plan import BuildPlan as BuildPlan
@@ -37,7 +35,8 @@ from gridmap_cli.mapping.shards import accumulate_frequencies, accumulate_log_od
 from gridmap_cli.mapping.shards import (
     batch_bounds as batch_bounds,  # callers cut batches as build does
 )
-from gridmap_cli.poses.odometry_error import travelled
+from gridmap_cli.poses.odometry_error import OdometryError, travelled
+from gridmap_cli.poses.pose_uncertainty import StepNoise, propagate
 from gridmap_cli.poses.sync import (
     SyncStats,
     sensors_for_log,
@@ -62,7 +61,7 @@ class BuildOptions:
     ray: RayParams = field(default_factory=RayParams)
     clamp_p: tuple[float, float] = DEFAULT_CLAMP_P
     error_aware: ErrorAwareParams = field(default_factory=ErrorAwareParams)
-    odometry_error: OdometrySpread | None = None
+    odometry_error: OdometryError | None = None
     prior_counts: tuple[float, float] = DEFAULT_PRIOR_COUNTS
     margin_m: float = 0.2
     max_cells: int = DEFAULT_MAX_CELLS
@@ -108,7 +107,7 @@ def plan_build(log: RangeLog, robot: RobotDescription | None, options: BuildOpti
         raise GridmapError(f"unknown mapping mode '{options.mode}' (known: {MAPPING_MODES})")
     sensors = sensors_for_log(log, robot)
     narrow = np.array([s.kind == "laser" or s.beam_width_rad <= 0.0 for s in sensors], dtype=bool)
-    bounding = _bounding_models(sensors, narrow, options)
+    bounding = _bounding_models(log, sensors, narrow, options)
     size = SYNC_CHUNK_READINGS
     driven = travelled(log.poses) if len(log.poses) else None
     chunks: list[tuple[int, int]] = []
@@ -140,7 +139,7 @@ def plan_build(log: RangeLog, robot: RobotDescription | None, options: BuildOpti
         )
     except MapSizeError as exc:
         raise MapSizeError(f"{log.source}: {exc}") from exc
-    models = _mapping_models(sensors, narrow, options, bool(kinds[0]), bool(kinds[1]))
+    models = _mapping_models(log, sensors, narrow, options, bool(kinds[0]), bool(kinds[1]))
     return BuildPlan(stats, models, spec, log, robot, chunks, narrow, size, driven)
 
 
@@ -161,13 +160,10 @@ def build_map(
     if between_passes is not None:
         between_passes()
     spec, stats = plan.spec, plan.sync
-    grid: LogOddsAccumulator | FrequencyAccumulator
-    grid = LogOddsAccumulator(spec) if options.mode == "standard" else FrequencyAccumulator(spec)
+    # both modes sum log-odds: the error-aware mode is the standard one with faded evidence
+    grid = LogOddsAccumulator(spec)
     updates = accumulate(plan, grid, options, progress)
-    if isinstance(grid, FrequencyAccumulator):
-        omap = grid.occupancy_map(options.prior_counts)
-    else:
-        omap = grid.occupancy_map(options.clamp_p)
+    omap = grid.occupancy_map(options.clamp_p)
     return BuildResult(map=omap, sync=stats, cell_updates=updates)
 
 
@@ -187,16 +183,19 @@ def accumulate(
 
 
 def _bounding_models(
-    sensors: tuple[RangeSensor, ...], narrow: npt.NDArray[np.bool_], options: BuildOptions
+    log: RangeLog,
+    sensors: tuple[RangeSensor, ...],
+    narrow: npt.NDArray[np.bool_],
+    options: BuildOptions,
 ) -> list[tuple[SensorModel, str]]:
     """The models whose bounds hold every cell the readings touch, whichever kinds of sensor
-    turn out to have readings (the error-aware mixed model bounds each kind by its own model)."""
-    if options.mode == "error-aware":
-        return [(_error_aware_model(sensors, narrow, options, bool(narrow.any()), True), "all")]
-    return _mapping_models(sensors, narrow, options, True, True)
+    turn out to have readings: the standard models' (the error-aware ones fade, never widen)."""
+    standard = dataclasses.replace(options, mode="standard")
+    return _mapping_models(log, sensors, narrow, standard, True, True)
 
 
 def _mapping_models(
+    log: RangeLog,
     sensors: tuple[RangeSensor, ...],
     narrow: npt.NDArray[np.bool_],
     options: BuildOptions,
@@ -208,45 +207,39 @@ def _mapping_models(
     Narrow-beam sensors (kind "laser" or beam width 0) go to the ray model, the others to the
     sonar model. Log-odds sums do not depend on order, so the models may run one after the other.
     """
-    if options.mode == "error-aware":
-        return [(_error_aware_model(sensors, narrow, options, any_ray, any_sonar), "all")]
     models: list[tuple[SensorModel, str]] = []
+    ray = RayModel(options.ray, options.resolution_m)
+    sonar = StandardSonarModel(options.sonar, options.resolution_m)
+    if options.mode == "error-aware":
+        spread = _pose_spread(log, options)
+        step = ScanLayout.of(sensors, narrow).step_rad
+        if any_ray:
+            models.append((FadedRayModel(ray, spread, step), "ray"))
+        if any_sonar:
+            models.append((FadedSonarModel(sonar, spread), "sonar"))
+        return models
     if any_ray:
-        models.append((RayModel(options.ray, options.resolution_m), "ray"))
+        models.append((ray, "ray"))
     if any_sonar:
-        models.append((StandardSonarModel(options.sonar, options.resolution_m), "sonar"))
+        models.append((sonar, "sonar"))
     return models
 
 
-def _error_aware_model(
-    sensors: tuple[RangeSensor, ...],
-    narrow: npt.NDArray[np.bool_],
-    options: BuildOptions,
-    any_ray: bool,
-    any_sonar: bool,
-) -> SensorModel:
-    """Sonar cones, laser rays, or both: the error-aware model for the log's sensors."""
+def _pose_spread(log: RangeLog, options: BuildOptions) -> PoseSpread:
+    """The pose covariance along the log's track, from the odometry-error model."""
     if options.odometry_error is None:
         raise GridmapError(
             "error-aware mode needs the odometry error model (gridmap calibrate writes one)"
         )
-    sonar = ErrorAwareSonarModel(
-        options.sonar, options.error_aware, options.odometry_error, options.resolution_m
+    model = options.odometry_error
+    noise = StepNoise.of(model)
+    params = FadeParams(
+        trust_length_m=options.error_aware.trust_length_m,
+        sonar_relative_error=model.sonar_relative_error,
+        laser_relative_error=options.error_aware.laser_relative_error,
+        max_heading_spread_rad=options.error_aware.max_heading_spread_rad,
     )
-    if not any_ray:
-        return sonar
-    from gridmap_cli.mapping.models.error_aware_mixed import ErrorAwareMixedModel
-    from gridmap_cli.mapping.models.error_aware_ray import ErrorAwareRayModel, ScanLayout
-
-    ray = ErrorAwareRayModel(
-        options.error_aware,
-        options.odometry_error,
-        ScanLayout.of(sensors, narrow),
-        options.sonar.band_half_m(options.resolution_m),
-    )
-    if not any_sonar:
-        return ray
-    return ErrorAwareMixedModel(sonar, ray, narrow)
+    return PoseSpread(propagate(log.poses, noise), params)
 
 
 def _why_empty(log: RangeLog, stats: SyncStats) -> str:

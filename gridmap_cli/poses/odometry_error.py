@@ -36,6 +36,9 @@ FloatArray = npt.NDArray[np.float64]
 #: Key and value that open an odometry-error file.
 FORMAT_KEY = "gridmap-odometry-error"
 FORMAT_VERSION = 1
+#: The newest version read and written: version 2 adds :data:`VERSION_2_KEYS`.
+LATEST_VERSION = 2
+VERSION_2_KEYS = ("lateral_m_per_sqrt_m", "heading_rad_per_sqrt_m")
 
 #: The Polaroid 6500 ranging module's stated accuracy, +-1 % of the range (seed paper, sec. 4).
 DEFAULT_SONAR_RELATIVE_ERROR = 0.01
@@ -58,6 +61,10 @@ class OdometryError:
         after turning 1 rad.
     heading_drift_rad_per_m
         Heading drift per metre driven (rad/m): unequal wheels curving every straight.
+    lateral_m_per_sqrt_m
+        Version 2: random-walk lateral position error (m/sqrt(m)), across the direction driven.
+    heading_rad_per_sqrt_m
+        Version 2: random-walk heading error with the distance driven (rad/sqrt(m)).
     sonar_relative_error
         k of eq. 11, the sonar's own relative range error (0.01: 1 %, the Polaroid 6500).
     """
@@ -68,6 +75,8 @@ class OdometryError:
     bearing_rad_per_sqrt_rad: float = 0.0
     heading_drift_rad_per_m: float = 0.0
     sonar_relative_error: float = DEFAULT_SONAR_RELATIVE_ERROR
+    lateral_m_per_sqrt_m: float = 0.0
+    heading_rad_per_sqrt_m: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -158,6 +167,7 @@ def travelled_at(
 
 
 _KEYS = tuple(f.name for f in fields(OdometryError))
+_KEYS_V1 = tuple(k for k in _KEYS if k not in VERSION_2_KEYS)
 
 
 def load_odometry_error(path: Path) -> OdometryError:
@@ -177,19 +187,23 @@ def load_odometry_error(path: Path) -> OdometryError:
     version = doc.get(FORMAT_KEY)
     if FORMAT_KEY not in doc:
         raise InputFileError(path, f"missing '{FORMAT_KEY}: {FORMAT_VERSION}' (format version)")
-    if isinstance(version, bool) or version != FORMAT_VERSION:
+    if isinstance(version, bool) or version not in (FORMAT_VERSION, LATEST_VERSION):
         raise InputFileError(
             path,
-            f"unsupported {FORMAT_KEY} version {version!r} (this gridmap reads {FORMAT_VERSION})",
+            f"unsupported {FORMAT_KEY} version {version!r} "
+            f"(this gridmap reads {FORMAT_VERSION} and {LATEST_VERSION})",
             line=lines.get(FORMAT_KEY),
         )
+    known = _KEYS if version == LATEST_VERSION else _KEYS_V1
     values: dict[str, Any] = {}
     for key, value in doc.items():
         if key == FORMAT_KEY:
             continue
-        if key not in _KEYS:
+        if key not in known:
             raise InputFileError(
-                path, f"unknown key {key!r} (known: {', '.join(_KEYS)})", line=lines.get(key)
+                path,
+                f"unknown key {key!r} in version {version} (known: {', '.join(known)})",
+                line=lines.get(key),
             )
         parsed = number(value)
         if parsed is None:
@@ -210,9 +224,13 @@ def odometry_error_yaml(model: OdometryError, comments: list[str] | None = None)
     ``comments`` become ``#`` lines at the top (where a calibration came from).
     """
     head = [f"# {c}" if c else "#" for c in comments or []]
-    body = [f"{FORMAT_KEY}: {FORMAT_VERSION}"]
-    for key, value in model.as_dict().items():
-        body.append(f"{key}: {format_float(value)}")
+    values = model.as_dict()
+    # version 1 while the version-2 terms are 0: older gridmaps read the file as before
+    v2 = any(values[k] for k in VERSION_2_KEYS)
+    body = [f"{FORMAT_KEY}: {LATEST_VERSION if v2 else FORMAT_VERSION}"]
+    for key, value in values.items():
+        if v2 or key not in VERSION_2_KEYS:
+            body.append(f"{key}: {format_float(value)}")
     return "\n".join([*head, *body]) + "\n"
 
 
