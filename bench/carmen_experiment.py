@@ -38,12 +38,14 @@ from gridmap_cli.evaluation.evaluate import (
     odometry_frame_in_world,
     sensed_region,
 )
+from gridmap_cli.mapping.pipeline import BuildOptions, build_map
 from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.poses.sync import sensors_for_log
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import robot_from_log
+from gridmap_cli.writers.map_image import write_map
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "carmen"
@@ -57,6 +59,9 @@ MODES: dict[str, list[str]] = {
     "error-aware-f0g0": ["--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=0"],
     "error-aware": ["--mode", "error-aware", "--odometry-error", "{cal}"],
     "error-aware-other-log": ["--mode", "error-aware", "--odometry-error", "{cross}"],
+    # the analytic model (the standard evidence faded by the pose spread), built in-process
+    # until build has an option for it (--error-samples 0)
+    "error-aware-analytic": ["{cal}"],
 }
 #: The claim: error-aware against the best of these drift-blind mappers.
 DRIFT_BLIND = ("standard", "error-aware-f0g0")
@@ -163,10 +168,17 @@ def run_log(
             ]
             stem = f"{name}_{part.name.replace(' ', '-')}_{mode}"
             image = out / f"{stem}.png"
-            gridmap(
-                "build", str(path), "-o", str(image), "--map-mode", "scale", "--force",
-                "--quiet", *window(part.start_s, part.end_s), *args,
-            )  # fmt: skip
+            if mode == "error-aware-analytic":
+                options = BuildOptions(
+                    mode="error-aware", odometry_error=load_odometry_error(Path(args[0])),
+                    error_samples=0,
+                )  # fmt: skip
+                write_map(image, build_map(selected, robot, options).map, mode="scale", force=True)
+            else:
+                gridmap(
+                    "build", str(path), "-o", str(image), "--map-mode", "scale", "--force",
+                    "--quiet", *window(part.start_s, part.end_s), *args,
+                )  # fmt: skip
             pmap = load_probability_map(image.with_suffix(".yaml"))
             e = evaluate_map(pmap, truth.walls, truth.spec, region, start, truth.known)
             runs.append(RealRun(name, part.name, mode, e, image.with_suffix(".yaml"), start))

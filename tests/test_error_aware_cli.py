@@ -32,11 +32,32 @@ def test_error_aware_build_from_a_calibrated_file(tmp_path: Path) -> None:
     standard = build(tmp_path, "standard")
     # with every coefficient 0 the error-aware map is the standard map
     assert np.array_equal(sonar_only, standard, equal_nan=True)
-    # the odometry terms fade late evidence: fewer cells are drawn occupied or free, and the
-    # same cells are known (nothing is widened)
-    assert np.count_nonzero(aware >= 0.65) < 0.95 * np.count_nonzero(standard >= 0.65)
-    assert np.count_nonzero(aware <= 0.25) < 0.95 * np.count_nonzero(standard <= 0.25)
-    assert np.array_equal(np.isnan(aware), np.isnan(standard))
+    # the expected map over the pose error is truer than the drift-blind map: lower NLL of the
+    # world (0.23 against 0.32 when measured), and fewer walls drawn where the tracks disagree
+    assert nll(tmp_path / "aware.yaml") < 0.85 * nll(tmp_path / "standard.yaml")
+    assert np.count_nonzero(aware >= 0.65) < np.count_nonzero(standard >= 0.65)
+
+
+def nll(map_yaml: Path) -> float:
+    """NLL of the corridor world under the map, as ``gridmap evaluate`` scores it."""
+    from gridmap_cli.evaluation.evaluate import (
+        evaluate_map,
+        load_probability_map,
+        load_truth,
+        odometry_frame_in_world,
+        sensed_region,
+    )
+    from gridmap_cli.poses.sync import sensors_for_log
+    from gridmap_cli.readers import read_log
+    from gridmap_cli.robot import load_robot
+
+    truth = load_truth(SAMPLES / "worlds" / "corridor_loop.yaml")
+    log = read_log(LOG)
+    assert log.truth is not None
+    region = sensed_region(truth.world, log.truth, sensors_for_log(log, load_robot("p3at")))
+    pmap = load_probability_map(map_yaml)
+    start = odometry_frame_in_world(log)
+    return evaluate_map(pmap, truth.walls, truth.spec, region, start).nll
 
 
 @pytest.mark.parametrize("log", ["csv", "laser"])
@@ -82,10 +103,7 @@ def test_coefficients_from_flags_override_the_file(tmp_path: Path) -> None:
         "range_m_per_m=0.05",
     )
 
-    def confident(prob: np.ndarray) -> int:
-        return int(np.count_nonzero(np.abs(prob - 0.5) > 0.2))
-
-    assert confident(spread) < 0.97 * confident(plain)
+    assert np.count_nonzero(spread >= 0.65) < np.count_nonzero(plain >= 0.65)
 
 
 @pytest.mark.parametrize(
