@@ -25,7 +25,6 @@ from gridmap_cli.mapping.grid import (
     OccupancyMap,
 )
 from gridmap_cli.mapping.models.error_aware import ErrorAwareParams
-from gridmap_cli.mapping.models.error_aware_ray import ScanLayout
 from gridmap_cli.mapping.models.fading import FadedRayModel, FadedSonarModel, FadeParams, PoseSpread
 from gridmap_cli.mapping.models.ray import RayModel, RayParams
 from gridmap_cli.mapping.models.standard import StandardSonarModel, StandardSonarParams
@@ -300,6 +299,9 @@ def _mapping_models(
     ray = RayModel(options.ray, options.resolution_m)
     sonar = StandardSonarModel(options.sonar, options.resolution_m)
     if options.mode == "error-aware":
+        # only an error-aware build loads the scan layout (a CSV build's imports stay few)
+        from gridmap_cli.mapping.models.error_aware_ray import ScanLayout
+
         spread = _pose_spread(log, options)
         step = ScanLayout.of(sensors, narrow).step_rad
         if any_ray:
