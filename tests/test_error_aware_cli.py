@@ -88,6 +88,18 @@ def test_a_perfect_odometry_file_gives_the_standard_map_byte_for_byte(
     assert outputs[0][1].replace("standard", "aware") == outputs[1][1]
 
 
+def test_error_samples_choose_the_map_and_repeat_it(tmp_path: Path) -> None:
+    flags = ("--mode", "error-aware", "--odometry-coefficient", "heading_drift_rad_per_m=0.005")
+    maps = {}
+    for name, k in (("a", "4"), ("b", "4"), ("analytic", "0")):
+        out = tmp_path / f"{name}.pgm"
+        code, _, stderr = run("build", str(LOG), "-o", str(out), *flags, "--error-samples", k)
+        assert code == 0, stderr
+        maps[name] = out.read_bytes()
+    assert maps["a"] == maps["b"]  # the same seed, the same tracks, the same map
+    assert maps["a"] != maps["analytic"]
+
+
 def test_coefficients_from_flags_override_the_file(tmp_path: Path) -> None:
     cal = tmp_path / "odometry.yaml"
     cal.write_text("gridmap-odometry-error: 1\nrange_m_per_m: 0.0\n")
@@ -112,6 +124,18 @@ def test_coefficients_from_flags_override_the_file(tmp_path: Path) -> None:
         (["--mode", "error-aware"], "needs the odometry error"),
         (["--odometry-coefficient", "range_m_per_m=0.01"], "apply to --mode error-aware"),
         (["--trust-length", "0.5"], "apply to --mode error-aware"),
+        (["--error-samples", "4"], "--error-samples applies to --mode error-aware"),
+        (
+            [
+                "--mode",
+                "error-aware",
+                "--odometry-coefficient",
+                "range_m_per_m=0",
+                "--error-samples",
+                "-1",
+            ],
+            "Invalid value for '--error-samples'",
+        ),
         (["--mode", "error-aware", "--odometry-coefficient", "speed=1"], "NAME one of"),
         (["--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=x"], "not a number"),
         (["--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=-1"], ">= 0"),

@@ -114,6 +114,15 @@ if TYPE_CHECKING:
               "map is the same bytes for every N; error-aware mode maps in one process when "
               "the compiled kernels are built), or with --fuse and the local executor, the "
               "logs.")  # fmt: skip
+@click.option(
+    "--error-samples",
+    type=click.IntRange(min=0),
+    default=None,
+    metavar="K",
+    help=f"Error-aware mode: average the standard maps of K tracks sampled from the odometry "
+    f"error (the expected map; default {BuildOptions.error_samples}); 0 fades each reading's "
+    f"evidence by its pose spread instead (faster, less true: docs/sensor-model.md).",
+)
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -146,6 +155,7 @@ def build(
     executor: str,
     scheduler: str | None,
     jobs: int,
+    error_samples: int | None,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -167,6 +177,9 @@ def build(
     error_aware, odometry_error = error_aware_settings(
         mode, odometry_file, coefficients, trust_length, max_spread_deg
     )
+    if error_samples is not None and mode != "error-aware":
+        raise UsageError("--error-samples applies to --mode error-aware")
+    samples = BuildOptions.error_samples if error_samples is None else error_samples
     selection = Selection.parse(sensor_patterns, start, end)
     to_stdout = output == STDIO
     if to_stdout:
@@ -239,6 +252,7 @@ def build(
         sonar=sonar,
         error_aware=error_aware,
         odometry_error=odometry_error,
+        error_samples=samples,
         jobs=jobs,
     )
     with progress_bar(data.reading_count, quiet, "mapping") as bar:
