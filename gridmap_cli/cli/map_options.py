@@ -108,7 +108,8 @@ ERROR_AWARE_OPTIONS = (
         type=float,
         default=ErrorAwareParams.trust_length_m,
         show_default=True,
-        help="Error-aware mode: pose error (m) at which a reading counts half.",
+        help="Error-aware mode, --error-samples 0: the smallest pose spread (m) a cell can tell "
+        "apart.",
     ),
     click.option(
         "--max-heading-spread",
@@ -116,9 +117,9 @@ ERROR_AWARE_OPTIONS = (
         type=float,
         default=math.degrees(ErrorAwareParams.max_heading_spread_rad),
         show_default=True,
-        help="Error-aware mode: degrees of heading spread g beyond which a reading is left out "
-        "(weight 0) instead of spread over a wider wedge (capped at 90 degrees); inf, the "
-        "default, keeps every reading.",
+        help="Error-aware mode: degrees of the propagated heading standard deviation beyond "
+        "which readings are left out (their cells stay unknown); inf, the default, keeps every "
+        "reading.",
     ),
 )
 
