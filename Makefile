@@ -4,8 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 DEMO_OUT := out/demo
 # the compiled mapping kernels: pip builds them, so a change to them reinstalls
-KERNELS := setup.py gridmap_cli/mapping/models/_ckernels.c gridmap_cli/readers/ros/_cwalk.c \
-	gridmap_cli/readers/ros/_cjson.c gridmap_cli/readers/ros/_cjson.h
+KERNELS := setup.py gridmap_cli/mapping/models/_ckernels.c gridmap_cli/readers/ros/_cwalk.c
 
 .PHONY: install dev demo test lint format bench samples goldens experiment corpus clean
 

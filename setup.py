@@ -2,9 +2,8 @@
 
 Two small C extensions (plain CPython API and the buffer protocol, no numpy headers): the
 mapping kernels of the sonar cone, the error-aware cone and the ray model; the record walks of
-the MCAP and bag integrity checks and the matcher of gridmap's compact JSON messages. Both are
-optional: where no C compiler is at hand, the install still succeeds and the numpy / Python
-reference paths do the work
+the MCAP and bag integrity checks. Both are optional: where no C compiler is at hand, the
+install still succeeds and the numpy / Python reference paths do the work
 (gridmap_cli/mapping/models/kernels.py and gridmap_cli/readers/ros/walk.py choose).
 """
 
@@ -20,11 +19,9 @@ setup(
             optional=True,
         ),
         # the MCAP and ROS 1 bag integrity checks' per-record walks (gridmap_cli/readers/ros/walk.py)
-        # and the matcher of gridmap's compact JSON messages (gridmap_cli/readers/ros/mcap/json_bulk.py)
         Extension(
             "gridmap_cli.readers.ros._cwalk",
-            sources=["gridmap_cli/readers/ros/_cwalk.c", "gridmap_cli/readers/ros/_cjson.c"],
-            depends=["gridmap_cli/readers/ros/_cjson.h"],
+            sources=["gridmap_cli/readers/ros/_cwalk.c"],
             extra_compile_args=["-O2"],
             optional=True,
         ),

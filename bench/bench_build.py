@@ -17,6 +17,8 @@ second too.
 ``--repeat N`` runs every command N times and reports the median (default 1: a few minutes).
 ``--quick`` leaves out the 8-hour log and the ROS 1 bag (their one-off preparation is slow).
 OctoMap (``octomap-python``) on the laser rays is timed when importable, and skipped otherwise.
+Last, ``bench/bench_json.py`` on the JSON MCAP (one core): JSON messages decoded per second by
+msgspec (the reader's way), the standard library's ``json`` and orjson (when importable).
 """
 
 from __future__ import annotations
@@ -315,6 +317,8 @@ def main() -> None:
         ours = cpus[("laser", "standard")]
         print(f"OctoMap 576k rays: {octo:.2f} s in-process; gridmap whole process {ours:.2f} s CPU")
         print(f"  OctoMap / gridmap: {octo / ours:.1f}x")
+    script = str(ROOT / "bench" / "bench_json.py")
+    subprocess.run(one_core([sys.executable, script, str(logs["mcap-json"])]), check=True)
 
 
 if __name__ == "__main__":

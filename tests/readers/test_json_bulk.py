@@ -12,7 +12,7 @@ import pytest
 from mcap.writer import Writer
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.readers.ros.bulk import Raw
+from gridmap_cli.readers.ros.bulk import Layout, Raw
 from gridmap_cli.readers.ros.mcap import json_bulk
 from gridmap_cli.readers.ros.mcap.bulk import DECODE_ENV
 from gridmap_cli.readers.ros.mcap.log import McapSource, read_mcap
@@ -20,14 +20,6 @@ from tests.readers.mcap_helpers import S
 from tests.readers.test_mcap_bulk import ROOT, assert_same, both
 
 TOPICS = ["/sensors", "/odom", "/ground_truth", "/range"]
-
-
-@pytest.fixture(params=["numpy", "compiled"])
-def kernels(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
-    """The compact layout matched by the numpy matcher (the reference), or by the compiled one
-    (gridmap_cli/readers/ros/_cjson.c, built by the dev install)."""
-    monkeypatch.setenv("GRIDMAP_KERNELS", request.param)
-    return str(request.param)
 
 
 def write_log(path: Path, odom: list[bytes], ranges: list[bytes], chunk_size: int = 1024) -> Path:
@@ -112,7 +104,7 @@ def test_bundled_json_sample(monkeypatch: pytest.MonkeyPatch) -> None:
 
 @pytest.mark.parametrize("compact", [True, False])
 def test_bulk_equals_message_by_message(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, compact: bool, kernels: str
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, compact: bool
 ) -> None:
     path = busy(tmp_path / "busy.mcap", compact)
     _, left = McapSource(path).bulk(TOPICS)
@@ -124,33 +116,41 @@ def test_bulk_equals_message_by_message(
 
 
 @pytest.mark.parametrize(
-    ("odd", "topic"),
+    ("odd", "topic", "bulk"),
     [
-        ({"odom30": b' {"timestamp":{"sec":4,"nsec":0},"x":1.0,"y":0.0,"theta":0.0} '}, "/odom"),
-        ({"odom30": pose(30, x="3.0")}, "/odom"),
-        ({"odom30": pose(30, timestamp={"sec": 4.0, "nsec": 0})}, "/odom"),
+        # JSON that msgspec takes: whitespace around, no frames, a name that is not ASCII
+        ({"odom30": b' {"timestamp":{"sec":4,"nsec":0},"x":1.0,"y":0.0,"theta":0.0} '}, "/odom",
+         True),
+        ({"odom30": pose(30, child_frame_id="b\u00e4se")}, "/odom", True),
+        # not on /range, whose NaN readings send every chunk to the json way, which takes ASCII
         ({"range40": b'{"timestamp":{"sec":5,"nsec":0},"sensor":"l\xc3\xa9ft","range":1.0}'},
-         "/range"),
+         "/range", False),
+        # and what msgspec refuses: a string or true for a number, a float stamp, two objects,
+        # bytes that are not UTF-8 in a field it skips (json refuses the message)
+        ({"odom30": pose(30, x="3.0")}, "/odom", False),
+        ({"odom30": pose(30).replace(b'"odom"', b'"od\x80om"')}, "/odom", False),
+        ({"odom30": pose(30, timestamp={"sec": 4.0, "nsec": 0})}, "/odom", False),
         ({"range40": b'{"timestamp":{"sec":5,"nsec":0},"sensor":"left","range":1.0},{}'},
-         "/range"),
-        ({"range40": b'{"timestamp":{"sec":5,"nsec":0},"sensor":"left","range":true}'}, "/range"),
+         "/range", False),
+        ({"range40": b'{"timestamp":{"sec":5,"nsec":0},"sensor":"left","range":true}'}, "/range",
+         False),
     ],
 )  # fmt: skip
-def test_unusual_messages_fall_back_to_message_by_message(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, odd: dict[str, bytes], topic: str
+def test_unusual_messages_same_log_as_message_by_message(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, odd: dict[str, bytes], topic: str, bulk: bool
 ) -> None:
-    path = busy(tmp_path / "odd.mcap", **odd)
+    path = busy(tmp_path / "odd.mcap", compact=True, **odd)
     _, left = McapSource(path).bulk(TOPICS)
-    assert topic in left
+    assert (topic not in left) == bulk, left
     try:
-        bulk, one_by_one = both(path, monkeypatch)
+        bulk_log, one_by_one = both(path, monkeypatch)
     except InputFileError as exc:  # not JSON at all: the message-by-message error, both ways
         monkeypatch.setenv(DECODE_ENV, "messages")
         with pytest.raises(InputFileError) as err:
             read_mcap(path)
         assert str(err.value) == str(exc)
         return
-    assert_same(bulk, one_by_one)
+    assert_same(bulk_log, one_by_one)
 
 
 def test_negative_range_same_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -178,7 +178,7 @@ def compact_reading(sec: str, nsec: str, sensor: str, value: str) -> bytes:
     return f'{stamp},"sensor":"{sensor}","range":{value}}}'.encode()
 
 
-def test_compact_layout_values(kernels: str) -> None:
+def test_compact_layout_values() -> None:
     texts = [
         compact_reading("1", "5", "s0", "NaN"),
         compact_reading("-12", "999999999", "a-b", "2"),
@@ -186,12 +186,21 @@ def test_compact_layout_values(kernels: str) -> None:
         compact_reading("-0", "7", "", "Infinity"),
         compact_reading("3", "0", "sonar_long_name", "0.942"),
     ]
-    cols = json_bulk._compact("gridmap.RangeReading", raw_of(texts))
-    assert cols is not None
-    assert cols.arrays["stamp_ns"].tolist() == [S + 5, -11 * S - 1, 0, 7, 3 * S]
-    assert cols.name_column("sensor") == ["s0", "a-b", "s0", "", "sonar_long_name"]
-    assert cols.arrays["range"].tolist()[1:] == [2.0, -0.0015, math.inf, 0.942]
-    assert math.isnan(cols.arrays["range"][0])
+    assert json_bulk._typed("gridmap.RangeReading", raw_of(texts)) is None  # NaN: json's
+    for cols in (
+        json_bulk.decode("gridmap.RangeReading", raw_of(texts)),
+        json_bulk._typed("gridmap.RangeReading", raw_of(texts[1:3] + texts[4:])),
+    ):
+        assert cols is not None
+        if len(cols.arrays["range"]) == 5:
+            assert cols.arrays["stamp_ns"].tolist() == [S + 5, -11 * S - 1, 0, 7, 3 * S]
+            assert cols.name_column("sensor") == ["s0", "a-b", "s0", "", "sonar_long_name"]
+            assert cols.arrays["range"].tolist()[1:] == [2.0, -0.0015, math.inf, 0.942]
+            assert math.isnan(cols.arrays["range"][0])
+        else:
+            assert cols.arrays["stamp_ns"].tolist() == [-11 * S - 1, 0, 3 * S]
+            assert cols.name_column("sensor") == ["a-b", "s0", "sonar_long_name"]
+            assert cols.arrays["range"].tolist() == [2.0, -0.0015, 0.942]
 
 
 @pytest.mark.parametrize(
@@ -203,26 +212,64 @@ def test_compact_layout_values(kernels: str) -> None:
         compact_reading("1", "5", "s0", "1e"),
         compact_reading("1", "5", "s0", "nan"),
         compact_reading("1", "5", "s0", "1.5\x00"),  # json stops at a NUL
-        compact_reading("1", "5", "s\\u0030", "1"),  # an escape
-        compact_reading("1", "5", "s,0", "1"),
-        compact_reading("1234567890", "5", "s0", "1"),  # beyond 9 digits
-        compact_reading("1", "5", "s0", "1") + b" ",
-        b'{"timestamp":{"nsec":5,"sec":1},"sensor":"s0","range":1}',
+        compact_reading("1", "5", "s0", "1") + b"{}",
+        b'{"timestamp":{"sec":1,"nsec":5},"sensor":"s0","range":1',
+        b'{"timestamp":{"sec":1,"nsec":5},"sensor":"s0","range":1,"frame_id":"\xc3("}',
     ],
 )
-def test_other_layouts_are_not_compact(odd: bytes, kernels: str) -> None:
+def test_what_json_refuses_is_not_decoded(odd: bytes) -> None:
     texts = [compact_reading("1", "5", "s0", "1"), odd]
-    assert json_bulk._compact("gridmap.RangeReading", raw_of(texts)) is None
+    assert json_bulk._typed("gridmap.RangeReading", raw_of(texts)) is None
+    with pytest.raises(Layout):
+        json_bulk.decode("gridmap.RangeReading", raw_of(texts))
 
 
-def test_compact_numbers_are_the_floats_json_gives(kernels: str) -> None:
-    """Every number as ``json.loads`` reads it, to the bit (the sign of zero included)."""
+@pytest.mark.parametrize(
+    "other",
+    [
+        compact_reading("1", "5", "s\\u0030", "1"),  # an escape
+        compact_reading("1", "5", "s,0", "1"),
+        compact_reading("1234567890", "5", "s0", "1"),  # 10 digits
+        compact_reading("1", "5", "s0", "1") + b" \n",
+        b'{"timestamp":{"nsec":5,"sec":1},"range":1,"sensor":"s0","frame_id":"x","more":[{}]}',
+        reading(3, "s0", 0.25),  # json.dumps' own separators
+    ],
+)
+def test_other_layouts_of_json_are_decoded_as_json_reads_them(other: bytes) -> None:
+    texts = [compact_reading("1", "5", "s0", "1"), other]
+    cols = json_bulk._typed("gridmap.RangeReading", raw_of(texts))
+    assert cols is not None
+    msgs = [json.loads(t) for t in texts]
+    assert cols.name_column("sensor") == [m["sensor"] for m in msgs]
+    assert cols.arrays["range"].tolist() == [float(m["range"]) for m in msgs]
+    stamps = [m["timestamp"]["sec"] * S + m["timestamp"]["nsec"] for m in msgs]
+    assert cols.arrays["stamp_ns"].tolist() == stamps
+
+
+def test_numbers_are_the_floats_json_gives() -> None:
+    """Every number as ``json.loads`` reads it, to the bit (the sign of zero included), by
+    msgspec or, for a chunk it refuses (1e400), by json."""
     spellings = ["0", "-0", "-0.0", "0.1", "1e5", "1E-300", "4.9e-324", "2.2250738585072011e-308",
                  "1.7976931348623157e308", "0.10000000000000000555", "-12.5e+3",
                  "123456789012345678901234567890", "17976931348623159e292", "9007199254740993",
                  "0.30000000000000004", "1e400", "-1e400"]  # fmt: skip
-    texts = [compact_reading("1", "5", "s0", v) for v in spellings]
-    cols = json_bulk._compact("gridmap.RangeReading", raw_of(texts))
-    assert cols is not None
     want = np.array([float(json.loads(v)) for v in spellings], dtype=np.float64)
+    texts = [compact_reading("1", "5", "s0", v) for v in spellings]
+    cols = json_bulk.decode("gridmap.RangeReading", raw_of(texts))
     assert cols.arrays["range"].view(np.int64).tolist() == want.view(np.int64).tolist()
+    finite = np.isfinite(want)  # json reads the others as infinities: msgspec refuses them
+    assert finite.sum() == len(spellings) - 3
+    kept = [t for t, f in zip(texts, finite.tolist(), strict=True) if f]
+    typed = json_bulk._typed("gridmap.RangeReading", raw_of(kept))
+    assert typed is not None
+    assert typed.arrays["range"].view(np.int64).tolist() == want[finite].view(np.int64).tolist()
+
+
+def test_stamps_beyond_int64_nanoseconds_are_not_decoded() -> None:
+    fits = compact_reading("9223372036", "854775807", "s0", "1")  # int64's largest
+    over = compact_reading("9223372036", "854775808", "s0", "1")
+    cols = json_bulk._typed("gridmap.RangeReading", raw_of([fits]))
+    assert cols is not None and cols.arrays["stamp_ns"].tolist() == [2**63 - 1]
+    for text in (over, compact_reading("1", "18446744073709551616", "s0", "1")):
+        with pytest.raises(Layout, match="beyond int64"):
+            json_bulk.decode("gridmap.RangeReading", raw_of([fits, text]))

@@ -5,15 +5,11 @@
  * 1 s (bag) of a 1 s build. These walks only find where the first problem is, or that there
  * is none: the Python walk then reads the damaged record again and words the error, so every
  * message stays the reference's own. gridmap_cli/readers/ros/walk.py is the Python side.
- *
- * The extension also holds the matcher of gridmap's compact JSON messages (_cjson.c).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <stdint.h>
 #include <string.h>
-
-#include "_cjson.h"
 
 static uint32_t u32(const unsigned char *p)
 {
@@ -145,15 +141,13 @@ static PyMethodDef methods[] = {
     {"bag_records", bag_records, METH_VARARGS,
      "(offset of the first unsound record of a bag chunk or -1, offsets of the other-op "
      "records before it)."},
-    {"json_compact", gridmap_json_compact, METH_VARARGS,
-     "gridmap's compact JSON layout matched message by message (see _cjson.c)."},
     {NULL, NULL, 0, NULL},
 };
 
 static struct PyModuleDef module = {
     .m_base = PyModuleDef_HEAD_INIT,
     .m_name = "_cwalk",
-    .m_doc = "gridmap's compiled record walks and JSON matcher (see gridmap_cli/readers/ros/walk.py).",
+    .m_doc = "gridmap's compiled record walks (see gridmap_cli/readers/ros/walk.py).",
     .m_size = -1,
     .m_methods = methods,
 };

@@ -2,8 +2,7 @@
 
 The MCAP and ROS 1 bag integrity checks walk every record of every chunk. The C walks only say
 whether a chunk is sound and where its first unsound record is; the Python walks, which stay the
-reference, then word the error, so messages are the same with or without the extension. The
-same module matches gridmap's compact JSON (:mod:`gridmap_cli.readers.ros.mcap.json_bulk`).
+reference, then word the error, so messages are the same with or without the extension.
 :mod:`gridmap_cli.extensions` says how the choice is made and overridden.
 """
 

@@ -17,6 +17,15 @@ file at the first damage it finds, naming the byte offset:
 - attachments' CRCs.
 
 A zero CRC means "not computed" (the specification's rule), so files written without CRCs pass.
+
+Why not the ``mcap`` reader's own ``validate_crcs`` (asked again in issue 18, mcap 1.6): it checks
+the chunk CRCs and, in its stream reader only, the data section's CRC, but not the rest of what
+this walk guarantees. ``Attachment.read`` skips the attachment's CRC unread, nothing reads
+``Footer.summary_crc``, and its ``CRCValidationError`` says "crc validation failed in Chunk,
+expected: X, calculated: Y" with no byte offset (its records do not know where they were read
+from). A changed byte in an attachment or in the summary passes it without a word; here they
+are "byte N: attachment CRC mismatch" and "byte N: summary CRC mismatch". The record walk
+stays ours, with its compiled loop (``_cwalk.c``).
 """
 
 from __future__ import annotations
