@@ -73,3 +73,24 @@ def test_a_missing_log_is_reported_before_an_existing_output(tmp_path: Path) -> 
     code, _, err = run("build", str(tmp_path / "missing.csv"), "-o", str(existing))
     assert (code, err.strip()) == (1, f"Error: {tmp_path / 'missing.csv'}: no such file")
     assert existing.read_bytes() == b"keep"
+
+
+@pytest.mark.parametrize("value", ["trinary", "scale", "raw"])
+def test_a_map_mode_given_to_mode_points_to_map_mode(tmp_path: Path, value: str) -> None:
+    code, err = build("-o", str(tmp_path / "map.pgm"), "--mode", value)
+    assert (code, err) == (
+        2,
+        f"Error: Invalid value for '--mode': '{value}' is a map mode (how the image stores "
+        f"occupancy): give --map-mode {value}; --mode is the mapping algorithm, one of "
+        "'standard', 'error-aware'\n",
+    )
+    assert names(tmp_path) == set()
+
+
+def test_another_bad_mode_keeps_clicks_message(tmp_path: Path) -> None:
+    code, err = build("-o", str(tmp_path / "map.pgm"), "--mode", "fast")
+    assert (code, err) == (
+        2,
+        "Error: Invalid value for '--mode': 'fast' is not one of 'standard', 'error-aware'.\n",
+    )
+    assert names(tmp_path) == set()

@@ -40,9 +40,26 @@ format_option = click.option(
 resolution_option = click.option(
     "--resolution", type=float, default=0.05, show_default=True, help="Cell size in metres."
 )
+
+
+class MappingModeChoice(click.Choice):  # type: ignore[type-arg]
+    """--mode's choices; a map mode (map_saver's ``--mode trinary``) is pointed to --map-mode."""
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, str) and value.lower() in MAP_MODES:
+            self.fail(
+                f"{value!r} is a map mode (how the image stores occupancy): give --map-mode "
+                f"{value.lower()}; --mode is the mapping algorithm, one of "
+                f"{', '.join(repr(m) for m in MAPPING_MODES)}",
+                param,
+                ctx,
+            )
+        return super().convert(value, param, ctx)
+
+
 mode_option = click.option(
     "--mode",
-    type=click.Choice(MAPPING_MODES),
+    type=MappingModeChoice(MAPPING_MODES),
     default="standard",
     show_default=True,
     help="Mapping algorithm.",
