@@ -94,3 +94,31 @@ def test_another_bad_mode_keeps_clicks_message(tmp_path: Path) -> None:
         "Error: Invalid value for '--mode': 'fast' is not one of 'standard', 'error-aware'.\n",
     )
     assert names(tmp_path) == set()
+
+
+@pytest.mark.parametrize("fmt", ["pgm", "png", "bmp"])
+def test_f_with_an_image_extension_picks_the_format_once(tmp_path: Path, fmt: str) -> None:
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    assert build("-f", str(tmp_path / "a" / f"map.{fmt}")) == (0, "")
+    assert names(tmp_path / "a") == {f"map.{fmt}", "map.yaml"}
+    assert build("-f", str(tmp_path / "b" / f"map.{fmt}"), "--fmt", fmt) == (0, "")
+    assert build("-f", str(tmp_path / "b" / "other"), "--fmt", fmt) == (0, "")
+    pillow_name = {"pgm": "PPM", "png": "PNG", "bmp": "BMP"}[fmt]
+    assert Image.open(tmp_path / "a" / f"map.{fmt}").format == pillow_name
+    other = (tmp_path / "b" / f"other.{fmt}").read_bytes()
+    assert other == (tmp_path / "a" / f"map.{fmt}").read_bytes()
+    assert f"image: map.{fmt}\n" in (tmp_path / "a" / "map.yaml").read_text()
+    for name in (f"map.{fmt}", "map.yaml"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+
+
+def test_f_with_another_extension_still_gets_one_added(tmp_path: Path) -> None:
+    assert build("-f", str(tmp_path / "run.2024")) == (0, "")
+    assert names(tmp_path) == {"run.2024.pgm", "run.2024.yaml"}
+
+
+def test_f_extension_and_a_different_fmt_are_a_usage_error(tmp_path: Path) -> None:
+    code, err = build("-f", str(tmp_path / "map.pgm"), "--fmt", "png")
+    assert (code, err) == (2, f"Error: --fmt png does not match -f {tmp_path / 'map.pgm'}\n")
+    assert names(tmp_path) == set()

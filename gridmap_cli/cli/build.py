@@ -330,14 +330,21 @@ def _check_stdout(image_format: str | None, as_json: bool, draw_path: bool) -> N
 
 
 def map_output(output: Path | None, basename: Path | None, image_format: str | None) -> Path:
-    """The map to write: ``-o`` as given, or map_saver_cli's ``-f BASENAME`` + ``--fmt``."""
+    """The map to write: ``-o`` as given, or map_saver_cli's ``-f BASENAME`` + ``--fmt`` (a
+    BASENAME ending in an image extension is the image itself)."""
     if (output is None) == (basename is None):
         raise UsageError("give the map to write: -o FILE or -f BASENAME (one of them)")
     if output == STDIO:
         return output
     check_not_folder(output if output is not None else basename)  # type: ignore[arg-type]
     if basename is not None:
-        return basename.with_name(f"{basename.name}.{image_format or 'pgm'}")
+        given = basename.suffix.lower().lstrip(".")
+        if given not in IMAGE_FORMATS:
+            return basename.with_name(f"{basename.name}.{image_format or 'pgm'}")
+        # -f map.pgm: the extension picks the format, and is not doubled (map.pgm.pgm)
+        if image_format is not None and image_format != given:
+            raise UsageError(f"--fmt {image_format} does not match -f {basename}")
+        return basename
     assert output is not None
     if image_format is not None and output.suffix.lower() != f".{image_format}":
         raise UsageError(f"--fmt {image_format} does not match -o {output}")
