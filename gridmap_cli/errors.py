@@ -47,6 +47,14 @@ class DamagedAtError(InputFileError):
         super().__init__(path, f"byte {offset}: {detail}")
 
 
+class NotRecordingFolderError(InputFileError):
+    """A folder given as one log that holds no rosbag2 recording (a folder of logs, say)."""
+
+
+class MixedLogsError(UsageError):
+    """Several logs to read as one recording, and one of them is not a ROS recording."""
+
+
 class UnknownFormatError(UsageError):
     """No reader claims the file: not the same thing as a file that is broken."""
 

@@ -1,4 +1,5 @@
-"""build takes map_saver_cli's habits: -f BASENAME, --fmt pgm|png|bmp, --occ/--free in 0..1."""
+"""build takes map_saver_cli's habits (-f BASENAME, --fmt pgm|png|bmp, --occ/--free in 0..1),
+and points a ROS user's habits (--mode trinary, a folder of logs) to gridmap's own words."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from PIL import Image
 from tests.helpers import names, run
 
 SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "corridor_loop.csv"
+ARIA = SAMPLE.with_suffix(".2d")
 
 
 def build(*args: str) -> tuple[int, str]:
@@ -121,4 +123,30 @@ def test_f_with_another_extension_still_gets_one_added(tmp_path: Path) -> None:
 def test_f_extension_and_a_different_fmt_are_a_usage_error(tmp_path: Path) -> None:
     code, err = build("-f", str(tmp_path / "map.pgm"), "--fmt", "png")
     assert (code, err) == (2, f"Error: --fmt png does not match -f {tmp_path / 'map.pgm'}\n")
+    assert names(tmp_path) == set()
+
+
+def test_a_folder_of_text_logs_points_to_batch(tmp_path: Path) -> None:
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    for log in (SAMPLE, ARIA):
+        (logs / log.name).write_bytes(log.read_bytes())
+    code, _, err = run("build", str(logs), "-o", str(tmp_path / "map.pgm"))
+    assert (code, err) == (
+        1,
+        f"Error: {logs}: a directory, but not a rosbag2 folder (no metadata.yaml in it); "
+        f"gridmap batch {logs} -o OUTDIR maps each log in a folder\n",
+    )
+    assert names(tmp_path) == {"logs"}
+    assert names(logs) == {SAMPLE.name, ARIA.name}
+
+
+def test_several_text_logs_point_to_batch_and_fuse(tmp_path: Path) -> None:
+    code, _, err = run("build", str(SAMPLE), str(ARIA), "-o", str(tmp_path / "map.pgm"))
+    assert (code, err) == (
+        2,
+        f"Error: {SAMPLE}: several logs are read as one only when all are ROS recordings "
+        "(MCAP, bag, rosbag2 folder); this is a csv log; gridmap batch maps each log on its own, "
+        "and build --fuse maps several runs through one place into one map\n",
+    )
     assert names(tmp_path) == set()

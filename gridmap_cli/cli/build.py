@@ -39,7 +39,7 @@ from gridmap_cli.cli.map_options import (
     map_options,
     sonar_params,
 )
-from gridmap_cli.errors import UsageError
+from gridmap_cli.errors import MixedLogsError, NotRecordingFolderError, UsageError
 from gridmap_cli.heap import TRIM_EVERY_BATCHES, TrimEvery, keep_scratch_memory, release_free_memory
 from gridmap_cli.mapping.pipeline import BuildOptions, build_map
 from gridmap_cli.mapping.selection import Selection, apply_selection
@@ -230,7 +230,7 @@ def build(
     # a long log's readings stay in its file, read again for each pass, unless scan matching
     # or a time window needs them held
     stream = pose != "scan-matched" and selection.start is None and selection.end is None
-    whole = read_input(logs, log_format, dataclasses.replace(read_options, stream=stream))
+    whole = _read_logs(logs, log_format, dataclasses.replace(read_options, stream=stream))
     data = whole
     if robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
@@ -293,6 +293,21 @@ def build(
     if match is not None:
         summary["scan_match"] = match.summary()
     report(summary, summary_line(summary), as_json, quiet)
+
+
+def _read_logs(logs: tuple[Path, ...], log_format: str | None, options: ReadOptions) -> RangeLog:
+    """The log(s) to map; a folder of logs or several text logs are pointed to batch (one map
+    per log) and --fuse (one map of several runs)."""
+    try:
+        return read_input(logs, log_format, options)
+    except NotRecordingFolderError as exc:
+        hint = f"gridmap batch {exc.path} -o OUTDIR maps each log in a folder"
+        raise NotRecordingFolderError(exc.path, f"{exc.detail}; {hint}") from exc
+    except MixedLogsError as exc:
+        raise MixedLogsError(
+            f"{exc}; gridmap batch maps each log on its own, and build --fuse maps several "
+            "runs through one place into one map"
+        ) from exc
 
 
 def _tracks(whole: RangeLog, mapped: RangeLog, pose: str) -> list[DrawnTrack]:

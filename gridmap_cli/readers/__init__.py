@@ -24,7 +24,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from gridmap_cli.errors import InputFileError, UnknownFormatError, UsageError
+from gridmap_cli.errors import (
+    InputFileError,
+    MixedLogsError,
+    NotRecordingFolderError,
+    UnknownFormatError,
+    UsageError,
+)
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.text import compressed, csv_log, csv_stream
 from gridmap_cli.records import RangeLog
@@ -237,7 +243,7 @@ def resolve_format(path: Path, name: str | None = None) -> LogFormat:
     if path.is_dir() or path.name == ROSBAG2_METADATA:
         if _is_rosbag2(_rosbag2_folder(path)):
             return _by_name("rosbag2")
-        raise InputFileError(
+        raise NotRecordingFolderError(
             path, f"a directory, but not a rosbag2 folder (no {ROSBAG2_METADATA} in it)"
         )
     gzipped = compressed.is_gzip(path)
@@ -321,7 +327,7 @@ def recording_sources(
 ) -> list[RecordingSource] | None:
     """The message sources of ROS recordings, or None for a single log of another format.
 
-    Several paths must all be ROS recordings (MCAP, bag, rosbag2): :class:`UsageError` names
+    Several paths must all be ROS recordings (MCAP, bag, rosbag2): :class:`MixedLogsError` names
     the first that is not.
     """
     formats = [resolve_format(p, format_name) for p in paths]
@@ -330,7 +336,7 @@ def recording_sources(
     out: list[RecordingSource] = []
     for path, fmt in zip(paths, formats, strict=True):
         if fmt.sources is None:
-            raise UsageError(
+            raise MixedLogsError(
                 f"{path}: several logs are read as one only when all are ROS recordings "
                 f"(MCAP, bag, rosbag2 folder); this is a {fmt.name} log"
             )

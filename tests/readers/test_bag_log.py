@@ -136,7 +136,8 @@ def test_several_logs_must_all_be_ros_recordings(tmp_path: Path) -> None:
     assert code == 2
     assert err.strip() == (
         f"Error: {csv}: several logs are read as one only when all are ROS recordings (MCAP, "
-        "bag, rosbag2 folder); this is a csv log"
+        "bag, rosbag2 folder); this is a csv log; gridmap batch maps each log on its own, and "
+        "build --fuse maps several runs through one place into one map"
     )
     assert names(tmp_path) == set()
 
@@ -171,7 +172,8 @@ def test_a_folder_that_is_no_rosbag2_is_refused(tmp_path: Path) -> None:
     code, _, err = run("build", str(folder), "-o", str(tmp_path / "map.png"))
     assert (code, err.strip()) == (
         1,
-        f"Error: {folder}: a directory, but not a rosbag2 folder (no metadata.yaml in it)",
+        f"Error: {folder}: a directory, but not a rosbag2 folder (no metadata.yaml in it); "
+        f"gridmap batch {folder} -o OUTDIR maps each log in a folder",
     )
     assert names(tmp_path) == {"logs"}
 
