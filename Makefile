@@ -6,7 +6,7 @@ DEMO_OUT := out/demo
 # the compiled mapping kernels: pip builds them, so a change to them reinstalls
 KERNELS := setup.py gridmap_cli/mapping/models/_ckernels.c gridmap_cli/readers/ros/_cwalk.c
 
-.PHONY: install dev demo test lint format bench samples goldens experiment corpus clean
+.PHONY: install dev demo test lint format bench samples goldens doc-outputs experiment corpus clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -62,6 +62,11 @@ experiment: dev
 # trinary map) from samples/corridor_loop.csv; only when a change to them is intended
 goldens: install
 	$(BIN)/python -m tests.golden
+
+# rewrite the docs' output blocks (fenced ``text output: gridmap ...``) with what their commands
+# print now; only when a change of output is intended (tests/test_readme.py compares them)
+doc-outputs: install
+	$(BIN)/python -m tests.doc_outputs
 
 # write the malformed-input corpus the tests run (tests/corpus/generate.py) to out/corpus, to
 # look at the broken files and cases.json

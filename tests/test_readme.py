@@ -2,8 +2,10 @@
 
 Code blocks fenced as ``sh`` are run, line by line, in a fresh folder that holds the repository's
 ``samples/`` (as a newcomer runs them from a clone); blocks fenced ``sh placeholders`` name files
-the reader has to supply and are not run. This is also the smoke test of the installed command:
-it runs through the shell, from the PATH the README tells users to set up.
+the reader has to supply and are not run. Blocks fenced ``text output: gridmap ...`` show what
+that command prints, and must show what it prints now (tests/doc_outputs.py; ``make doc-outputs``
+rewrites them). This is also the smoke test of the installed command: it runs through the shell,
+from the PATH the README tells users to set up.
 """
 
 from __future__ import annotations
@@ -15,6 +17,8 @@ import sys
 from pathlib import Path
 
 import pytest
+
+from tests.doc_outputs import normalised, output_blocks, run_command
 
 REPO = Path(__file__).resolve().parent.parent
 DOCS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
@@ -65,3 +69,23 @@ def test_examples_run_as_written(doc: Path, tmp_path: Path) -> None:
             assert done.stderr.strip().splitlines()[-1] == shown
     # run from a clone, the examples write only into out/, which git ignores
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "samples"]
+
+
+OUTPUT_DOCS = [d for d in DOCS if output_blocks(d.read_text(encoding="utf-8"))]
+
+
+def test_the_calibrate_figures_are_an_output_block() -> None:
+    """The sample output of docs/odometry-error.md is checked, not merely shown."""
+    blocks = output_blocks((REPO / "docs" / "odometry-error.md").read_text(encoding="utf-8"))
+    assert [b.command for b in blocks] == ["gridmap calibrate samples/corridor_loop.csv"]
+
+
+@pytest.mark.parametrize("doc", OUTPUT_DOCS, ids=[d.name for d in OUTPUT_DOCS])
+def test_output_blocks_show_what_the_command_prints(doc: Path, tmp_path: Path) -> None:
+    (tmp_path / "samples").symlink_to(REPO / "samples")
+    for block in output_blocks(doc.read_text(encoding="utf-8")):
+        printed = normalised(run_command(block.command, tmp_path))
+        assert printed == normalised(block.shown), (
+            f"{doc.name}: the block of `{block.command}` is stale (make doc-outputs rewrites it)"
+        )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["samples"]
