@@ -280,20 +280,29 @@ def test_map_rgb_draws_one_minus_p_and_unknown_pale_blue() -> None:
     assert rgb[1, 0].tolist() == [0.0] * 3 and rgb[1, 1].tolist() == [1.0] * 3
 
 
+@pytest.mark.parametrize(
+    ("flag", "others"),
+    [
+        ("--plot", ("--frame", "world")),
+        ("--spread-plot", ("--log", str(SAMPLES / "corridor_loop.csv"), "--odometry-error", "o")),
+    ],
+)
 def test_plot_without_matplotlib_is_a_clear_error(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, flag: str, others: tuple[str, ...]
 ) -> None:
     world = _write_world(tmp_path, WALLS3, WORLD3)
     write_map(tmp_path / "map.pgm", OccupancyMap(WORLD3, PROB3), mode="raw")
+    (tmp_path / "o").write_text("range_m_per_m: 0.01\n")  # present: checked before the plot
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib now fails
+    monkeypatch.chdir(tmp_path)
     before = names(tmp_path)
     code, _, err = run(
-        "evaluate", str(tmp_path / "map.yaml"), "--truth", str(world), "--frame", "world",
-        "--plot", str(tmp_path / "eval.png"),
+        "evaluate", str(tmp_path / "map.yaml"), "--truth", str(world), *others,
+        flag, str(tmp_path / "eval.png"),
     )  # fmt: skip
     assert code == 1
     assert err == (
-        "Error: --plot needs matplotlib, an optional extra: pip install 'gridmap-cli[plot]'\n"
+        f"Error: {flag} needs matplotlib, an optional extra: pip install 'gridmap-cli[plot]'\n"
     )
     assert names(tmp_path) == before
 

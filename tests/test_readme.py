@@ -14,6 +14,7 @@ import os
 import re
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -89,3 +90,13 @@ def test_output_blocks_show_what_the_command_prints(doc: Path, tmp_path: Path) -
             f"{doc.name}: the block of `{block.command}` is stale (make doc-outputs rewrites it)"
         )
     assert sorted(p.name for p in tmp_path.iterdir()) == ["samples"]
+
+
+def test_the_plot_examples_say_how_to_install_the_plot_extra() -> None:
+    install = "pip install 'gridmap-cli[plot]'"
+    with open(REPO / "pyproject.toml", "rb") as handle:
+        extras = tomllib.load(handle)["project"]["optional-dependencies"]
+    assert any(dep.startswith("matplotlib") for dep in extras["plot"])
+    for doc in (REPO / "README.md", REPO / "docs" / "evaluation.md"):
+        text = doc.read_text(encoding="utf-8")
+        assert install in text.replace("\n", " "), doc.name

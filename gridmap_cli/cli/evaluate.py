@@ -156,7 +156,7 @@ def evaluate(
             continue
         from gridmap_cli.evaluation.plot import check_plotting
 
-        check_plotting()
+        check_plotting(flag)
         if out.suffix.lower() != ".png":
             raise UsageError(f"{out}: {flag} writes a PNG; name it .png")
         check_output(out, force)

@@ -19,13 +19,14 @@ class PlotUnavailableError(GridmapError):
     """matplotlib is not installed."""
 
 
-def check_plotting() -> None:
-    """Raise :class:`PlotUnavailableError` unless matplotlib can be imported."""
+def check_plotting(flag: str = "--plot") -> None:
+    """Raise :class:`PlotUnavailableError` unless matplotlib can be imported; the message names
+    ``flag``, the option that asked for a figure, and how to install the extra."""
     try:
         import matplotlib  # noqa: F401
     except ImportError:
         raise PlotUnavailableError(
-            "--plot needs matplotlib, an optional extra: pip install 'gridmap-cli[plot]'"
+            f"{flag} needs matplotlib, an optional extra: pip install 'gridmap-cli[plot]'"
         ) from None
 
 
