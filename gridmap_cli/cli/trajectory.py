@@ -16,6 +16,8 @@ from gridmap_cli.cli.common import (
     handle_errors,
     topic_options,
 )
+from gridmap_cli.errors import GridmapError
+from gridmap_cli.evaluation.relations import read_relations, score_track
 from gridmap_cli.poses.scan_match import STATUS_NAMES, match_log
 from gridmap_cli.poses.sync import POSE_SOURCES, select_poses
 from gridmap_cli.readers import format_names, read_logs
@@ -48,6 +50,20 @@ from gridmap_cli.writers.trajectory import trajectory_format, write_trajectory
     help="Robot preset, robot YAML or ARIA .p file (the laser's mounting); default: the log's "
     "own '# robot:' line.",
 )
+@click.option(
+    "--relations",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Score the track against a SLAM-benchmark relations file ('t1 t2 x y z roll pitch "
+    "yaw' per line): mean and std of the translational (m) and rotational (deg) error.",
+)
+@click.option(
+    "--relations-offset",
+    type=float,
+    default=0.0,
+    show_default=True,
+    help="Seconds to add to the track's stamps to reach the relations' clock (for a log "
+    "republished with times from its start).",
+)
 @click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
 @topic_options
 @click.option("--force", is_flag=True, help="Overwrite an existing output.")
@@ -59,6 +75,8 @@ def trajectory(
     output: Path,
     pose: str,
     robot: str | None,
+    relations: Path | None,
+    relations_offset: float,
     log_format: str | None,
     topics: ReadOptions,
     force: bool,
@@ -77,20 +95,32 @@ def trajectory(
     robot_desc = load_robot(robot) if robot else None
     for log in logs:
         check_input(log)
+    if relations is not None:
+        check_input(relations)
+        truth = read_relations(relations)
     read_options = dataclasses.replace(topics, robot=robot_desc)
     data = read_logs(logs, log_format, read_options)
     summary: dict[str, object] = {"output": str(output), "pose": pose}
+    status: list[str] | None = None
     if pose == "scan-matched":
         if robot_desc is None:
             robot_desc = robot_from_log(logs[0], data.metadata)
         match = match_log(data, robot_desc)
         track = match.track
-        write_trajectory(output, track, [STATUS_NAMES[int(s)] for s in match.status])
+        status = [STATUS_NAMES[int(s)] for s in match.status]
         summary["scan_match"] = match.summary()
     else:
         track = select_poses(data, pose).poses
-        write_trajectory(output, track)
     summary["poses"] = len(track)
+    if relations is not None:
+        score = score_track(track, truth, data.poses, offset_s=relations_offset)
+        if score.count == 0:
+            raise GridmapError(
+                f"{relations}: no relation lies within the track's time span; is the clock "
+                "offset right (--relations-offset)?"
+            )
+        summary["relations"] = score.summary()
+    write_trajectory(output, track, status)
     summary["seconds"] = round(time.perf_counter() - started, 3)
     if as_json:
         click.echo(json.dumps(summary, indent=2))
@@ -103,3 +133,11 @@ def trajectory(
                 "degenerate)"
             )
         click.echo(line + f" in {summary['seconds']:.1f} s", err=True)
+        if relations is not None:
+            r = score.summary()
+            click.echo(
+                f"gridmap: relations {r['relations']:,} (skipped {r['skipped']:,}): "
+                f"translation {r['trans_mean_m']:.3f} +/- {r['trans_std_m']:.3f} m, "
+                f"rotation {r['rot_mean_deg']:.2f} +/- {r['rot_std_deg']:.2f} deg",
+                err=True,
+            )

@@ -1,0 +1,154 @@
+"""The SLAM benchmark's relations: reading them, scoring a track, and `trajectory --relations`."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gridmap_cli.errors import InputFileError
+from gridmap_cli.evaluation.relations import read_relations, score_track
+from gridmap_cli.records import PoseTrack
+from tests.helpers import names, run
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+
+
+def _circle(n: int = 50) -> PoseTrack:
+    """A robot driving a circle of radius 5 m, one pose a second from t = 100 s."""
+    a = np.linspace(0.0, 1.5 * math.pi, n)
+    return PoseTrack(
+        stamp_ns=(100 + np.arange(n)).astype(np.int64) * 1_000_000_000,
+        x_m=5 * np.cos(a),
+        y_m=5 * np.sin(a),
+        theta_rad=np.asarray((a + math.pi / 2 + math.pi) % (2 * math.pi) - math.pi),
+    )
+
+
+def _relations_of(track: PoseTrack, pairs: list[tuple[int, int]], dx: float = 0.0) -> str:
+    lines = []
+    for i, j in pairs:
+        c, s = math.cos(track.theta_rad[i]), math.sin(track.theta_rad[i])
+        ex, ey = track.x_m[j] - track.x_m[i], track.y_m[j] - track.y_m[i]
+        rx, ry = c * ex + s * ey, -s * ex + c * ey
+        rth = (track.theta_rad[j] - track.theta_rad[i] + math.pi) % (2 * math.pi) - math.pi
+        t1, t2 = track.stamp_ns[i] / 1e9, track.stamp_ns[j] / 1e9
+        lines.append(f"{t1:.6f} {t2:.6f} {rx + dx:.9f} {ry:.9f} 0 0 0 {rth:.9f}")
+    return "\n".join(lines) + "\n"
+
+
+PAIRS = [(0, 1), (3, 10), (10, 40), (5, 6), (20, 49)]
+
+
+def test_a_perfect_track_scores_zero() -> None:
+    track = _circle()
+    score = score_track(track, read_relations(io.StringIO(_relations_of(track, PAIRS))))
+    assert score.count == 5 and score.skipped == 0
+    assert score.trans_mean_m == pytest.approx(0.0, abs=1e-6)
+    assert score.rot_mean_deg == pytest.approx(0.0, abs=1e-5)
+
+
+def test_a_known_offset_scores_that_offset() -> None:
+    track = _circle()
+    score = score_track(track, read_relations(io.StringIO(_relations_of(track, PAIRS, dx=0.25))))
+    assert score.trans_mean_m == pytest.approx(0.25, abs=1e-6)
+    assert score.trans_std_m == pytest.approx(0.0, abs=1e-6)
+
+
+def test_a_clock_offset_shifts_the_relations_onto_the_track() -> None:
+    track = _circle()
+    text = _relations_of(track, PAIRS)
+    shifted = "\n".join(
+        " ".join([f"{float(v) + 1000:.6f}" if k < 2 else v for k, v in enumerate(line.split())])
+        for line in text.splitlines()
+    )
+    relations = read_relations(io.StringIO(shifted))
+    assert score_track(track, relations).count == 0
+    score = score_track(track, relations, offset_s=1000.0)
+    assert score.count == 5 and score.trans_mean_m == pytest.approx(0.0, abs=1e-5)
+
+
+def test_a_stamp_between_poses_is_moved_on_by_the_odometry() -> None:
+    # the track has a pose every 2 s; the relation's stamps fall between them (1 s away, beyond
+    # 0.1 s): the odometry, here the full 1 Hz circle, carries the nearest pose to the stamp
+    full = _circle()
+    sparse = PoseTrack(full.stamp_ns[::2], full.x_m[::2], full.y_m[::2], full.theta_rad[::2])
+    relations = read_relations(io.StringIO(_relations_of(full, [(1, 9), (3, 27)])))
+    assert score_track(sparse, relations, full).trans_mean_m == pytest.approx(0.0, abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("1 2 0 0 0 0 0 0\n1 2 3\n", "<relations>:2: expected 8 fields"),
+        ("# header\n1 2 0 0 0 0 0 x\n", "<relations>:2: not a number: 'x'"),
+        ("1 2 0 0 0 0 0 nan\n", "<relations>:1: values must be finite"),
+        ("\n", "<relations>: holds no relation"),
+    ],
+)
+def test_malformed_lines_name_the_line(text: str, message: str) -> None:
+    with pytest.raises(InputFileError) as caught:
+        read_relations(io.StringIO(text), "<relations>")
+    assert str(caught.value).startswith(message)
+
+
+def _sample_relations(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "run.relations"
+    path.write_text(text)
+    return path
+
+
+def test_trajectory_prints_the_relations_error(tmp_path: Path) -> None:
+    log = SAMPLES / "corridor_loop.csv"
+    out = tmp_path / "ref.tum"
+    code, _, _ = run("trajectory", str(log), "--pose", "global", "-o", str(out))
+    assert code == 0
+    rows = np.loadtxt(out)
+    track = PoseTrack.from_rows(
+        np.round(rows[:, 0] * 1e9).astype(np.int64),
+        [(r[1], r[2], 2 * math.atan2(r[6], r[7])) for r in rows],
+    )
+    rel = _sample_relations(tmp_path, _relations_of(track, [(0, 10), (10, 50), (30, 31)]))
+    out.unlink()
+    args = ["trajectory", str(log), "--pose", "global", "-o", str(out), "--relations", str(rel)]
+    code, stdout, stderr = run(*args, "--json")
+    assert code == 0, stderr
+    summary = json.loads(stdout)["relations"]
+    assert summary["relations"] == 3 and summary["trans_mean_m"] < 1e-3
+    assert "gridmap: relations 3 (skipped 0): translation 0.000 +/- 0.000 m" in stderr
+
+
+def test_bad_relations_write_nothing(tmp_path: Path) -> None:
+    log = SAMPLES / "corridor_loop.csv"
+    rel = _sample_relations(tmp_path, "1 2 3\n")
+    out = tmp_path / "t.tum"
+    code, _, stderr = run("trajectory", str(log), "--pose", "odometry", "-o", str(out),
+                          "--relations", str(rel))  # fmt: skip
+    assert code == 1 and f"Error: {rel}:1: expected 8 fields" in stderr
+    assert names(tmp_path) == {"run.relations"}
+    rel.write_text("1e6 1.1e6 0 0 0 0 0 0\n")
+    code, _, stderr = run("trajectory", str(log), "--pose", "odometry", "-o", str(out),
+                          "--relations", str(rel))  # fmt: skip
+    assert code == 1 and "no relation lies within the track's time span" in stderr
+    assert names(tmp_path) == {"run.relations"}
+
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+@pytest.mark.skipif(not (DATA / "slam-benchmark" / "aces.relations").exists(), reason="no data")
+def test_aces_odometry_scores_the_published_figure() -> None:
+    from gridmap_cli.poses.sync import select_poses
+    from gridmap_cli.readers import read_logs
+    from gridmap_cli.readers.options import ReadOptions
+
+    data = read_logs((DATA / "carmen" / "aces-corrected.log.gz",), None, ReadOptions())
+    relations = read_relations(DATA / "slam-benchmark" / "aces.relations")
+    odometry = select_poses(data, "odometry").poses
+    score = score_track(odometry, relations, data.poses, offset_s=70.185)
+    # the issue's measurement: 0.549 m for the odometry
+    assert score.count == len(relations) and score.trans_mean_m == pytest.approx(0.549, abs=0.01)
