@@ -39,11 +39,12 @@ from gridmap_cli.writers.trajectory import trajectory_format, write_trajectory
 )
 @click.option(
     "--pose",
-    type=click.Choice(POSE_SOURCES),
+    type=click.Choice((*POSE_SOURCES, "slam")),
     default="scan-matched",
     show_default=True,
-    help="Which track: the odometry, the log's reference (global) or the odometry corrected by "
-    "the laser (one pose per scan).",
+    help="Which track: the odometry, the log's reference (global), the odometry corrected by "
+    "the laser (scan-matched, one pose per scan) or that with loop closures on a pose graph "
+    "(slam, one pose per scan).",
 )
 @click.option(
     "--robot",
@@ -109,6 +110,15 @@ def trajectory(
         track = match.track
         status = [STATUS_NAMES[int(s)] for s in match.status]
         summary["scan_match"] = match.summary()
+    elif pose == "slam":
+        from gridmap_cli.poses.slam import slam_log  # gtsam: only here
+
+        if robot_desc is None:
+            robot_desc = robot_from_log(logs[0], data.metadata)
+        result = slam_log(data, robot_desc)
+        track = result.track
+        status = [STATUS_NAMES[int(s)] for s in result.scan_matched.status]
+        summary["slam"] = result.summary()
     else:
         track = select_poses(data, pose).poses
     summary["poses"] = len(track)
@@ -132,7 +142,15 @@ def trajectory(
                 f" ({sm['fallbacks']:,} scans fell back to odometry, {sm['degenerate']:,} "
                 "degenerate)"
             )
+        if "slam" in summary:
+            sl = result.summary()
+            line += (
+                f" ({sl['closures_accepted']:,} loop closures accepted, "
+                f"{sl['closures_rejected']:,} rejected)"
+            )
         click.echo(line + f" in {summary['seconds']:.1f} s", err=True)
+        if "slam" in summary and result.warning:
+            click.echo(f"gridmap: warning: {result.warning}", err=True)
         if relations is not None:
             r = score.summary()
             click.echo(

@@ -1,0 +1,239 @@
+"""Loop closures between keyframes: candidates by proximity, each verified by registration.
+
+A *candidate* pairs keyframe ``i`` with an earlier keyframe ``j`` that lies far back along the
+path (``min_path_m``) but near in the current estimate: within a radius that grows with the path
+between them (the scan matcher's drift, ``drift_per_m``), capped at ``max_search_m``.
+
+A candidate is *verified* by GICP (small_gicp) of keyframe ``i``'s local submap (its scan and
+its neighbours', placed by the scan-matched track, which is locally consistent) against ``j``'s,
+starting from the estimate; where that start is poor, a coarse search over offsets in x, y and
+heading finds a start. It is *accepted* when enough of the source's points land within
+``inlier_m`` of the target (``min_inlier_fraction``), the match constrains both directions (not
+a featureless corridor), and the correction from the estimate lies within the search radius.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import small_gicp
+from scipy.spatial import cKDTree
+
+from gridmap_cli.geometry import compose, inverse, wrap_angle
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ClosureParams:
+    """How closures are sought and judged; metres and radians. See the module text."""
+
+    min_path_m: float = 8.0
+    drift_per_m: float = 0.05
+    min_search_m: float = 1.0
+    max_search_m: float = 6.0
+    submap_scans: int = 10
+    voxel_m: float = 0.1
+    correspondence_m: float = 0.8
+    inlier_m: float = 0.15
+    min_inlier_fraction: float = 0.45
+    degenerate_ratio: float = 0.05
+    coarse_step_m: float = 0.8
+    coarse_steps: int = 1
+    coarse_from_m: float = 100.0
+    coarse_headings_rad: tuple[float, ...] = (0.0, math.radians(-12.0), math.radians(12.0))
+    max_candidates_per_node: int = 2
+
+
+@dataclass(frozen=True)
+class Closure:
+    """An accepted closure: node ``j``'s pose in node ``i``'s frame and its inlier fraction."""
+
+    i: int
+    j: int
+    dx_m: float
+    dy_m: float
+    dtheta_rad: float
+    inlier_fraction: float
+
+
+def path_length(poses: FloatArray) -> FloatArray:
+    """Distance travelled up to each pose, shape (N,), metres."""
+    steps = np.hypot(np.diff(poses[:, 0]), np.diff(poses[:, 1]))
+    return np.concatenate([[0.0], np.cumsum(steps)])
+
+
+def candidates(
+    poses: FloatArray, queries: npt.NDArray[np.intp], params: ClosureParams
+) -> list[tuple[int, int]]:
+    """Pairs (i, j), j < i, of nodes near in ``poses`` (N, 3) but far along the path."""
+    path = path_length(poses)
+    tree = cKDTree(poses[:, :2])
+    pairs: list[tuple[int, int]] = []
+    for i in queries:
+        near = tree.query_ball_point(poses[i, :2], params.max_search_m)
+        found: list[tuple[float, int]] = []
+        for j in near:
+            gap = path[i] - path[j]
+            if j >= i or gap < params.min_path_m:
+                continue
+            radius = min(params.max_search_m, params.min_search_m + params.drift_per_m * gap)
+            d = math.hypot(poses[i, 0] - poses[j, 0], poses[i, 1] - poses[j, 1])
+            if d <= radius:
+                found.append((d, int(j)))
+        found.sort()
+        taken: list[int] = []
+        for _, j in found:
+            # one candidate per stretch of path: skip j near an already taken one
+            if all(abs(path[j] - path[k]) > 2.0 for k in taken):
+                taken.append(j)
+            if len(taken) >= params.max_candidates_per_node:
+                break
+        pairs.extend((int(i), j) for j in taken)
+    return pairs
+
+
+def _matrix(x: float, y: float, theta: float) -> FloatArray:
+    m = np.eye(4)
+    c, s = math.cos(theta), math.sin(theta)
+    m[0, 0], m[0, 1], m[1, 0], m[1, 1] = c, -s, s, c
+    m[0, 3], m[1, 3] = x, y
+    return m
+
+
+def _sheet(points: FloatArray, voxel_m: float) -> FloatArray:
+    layers = [np.column_stack([points, np.full(len(points), z)]) for z in (-voxel_m, 0.0, voxel_m)]
+    return np.vstack(layers)
+
+
+class Submaps:
+    """Each keyframe's local submap in its own frame, built on demand and kept.
+
+    ``points``: the scans' end points (K_s, 2) in the robot frame; ``local`` (S, 3): the
+    scan-matched poses of the scans; ``nodes``: the scan index of each keyframe.
+    """
+
+    def __init__(
+        self,
+        points: list[FloatArray],
+        local: FloatArray,
+        nodes: npt.NDArray[np.intp],
+        params: ClosureParams,
+    ) -> None:
+        self.points, self.local, self.nodes, self.params = points, local, nodes, params
+        self._cache: dict[int, tuple[small_gicp.PointCloud, small_gicp.KdTree, cKDTree, FloatArray]]
+        self._cache = {}
+
+    def get(
+        self, node: int
+    ) -> tuple[small_gicp.PointCloud, small_gicp.KdTree, cKDTree, FloatArray]:
+        if node in self._cache:
+            return self._cache[node]
+        s = int(self.nodes[node])
+        w = self.params.submap_scans
+        lo, hi = max(0, s - w), min(len(self.points), s + w + 1)
+        ix, iy, ith = inverse(self.local[s, 0], self.local[s, 1], self.local[s, 2])
+        parts = []
+        for k in range(lo, hi):
+            pts = self.points[k]
+            if len(pts) == 0:
+                continue
+            rx, ry, rth = compose(ix, iy, ith, self.local[k, 0], self.local[k, 1], self.local[k, 2])
+            c, sn = math.cos(float(rth)), math.sin(float(rth))
+            parts.append(
+                np.column_stack(
+                    [rx + c * pts[:, 0] - sn * pts[:, 1], ry + sn * pts[:, 0] + c * pts[:, 1]]
+                )
+            )
+        flat = np.vstack(parts) if parts else np.zeros((0, 2))
+        voxel = self.params.voxel_m
+        cloud, tree = small_gicp.preprocess_points(
+            _sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
+        )
+        planar = np.asarray(cloud.points())[:, :2]
+        entry = (cloud, tree, cKDTree(planar), planar)
+        self._cache[node] = entry
+        return entry
+
+
+def verify(
+    i: int, j: int, guess: tuple[float, float, float], submaps: Submaps, radius_m: float
+) -> Closure | None:
+    """Register node ``i``'s submap onto node ``j``'s from ``guess`` (i in j's frame); the
+    accepted closure (j's pose in i's frame) or None."""
+    p = submaps.params
+    target, target_tree, target_2d, _ = submaps.get(j)
+    source, _, _, source_2d = submaps.get(i)
+    if len(source_2d) < 50 or target.size() < 50:
+        return None
+    best = _align(target, target_tree, target_2d, source, source_2d, guess, p)
+    if (best is None or best[0] < p.min_inlier_fraction) and radius_m > p.coarse_from_m:
+        reach = min(radius_m, p.coarse_step_m * p.coarse_steps)
+        steps = np.linspace(-reach, reach, 2 * p.coarse_steps + 1)
+        for ox in steps:
+            for oy in steps:
+                for oth in p.coarse_headings_rad:
+                    if ox == 0 and oy == 0 and oth == 0:
+                        continue
+                    gx, gy, gth = (np.asarray(v) for v in guess)
+                    start = compose(gx, gy, gth, ox, oy, oth)
+                    trial = _align(
+                        target, target_tree, target_2d, source, source_2d,
+                        (float(start[0]), float(start[1]), float(start[2])), p,
+                    )  # fmt: skip
+                    if trial is not None and (best is None or trial[0] > best[0]):
+                        best = trial
+    if best is None or best[0] < p.min_inlier_fraction:
+        return None
+    fraction, pose, hessian = best
+    if math.hypot(pose[0] - guess[0], pose[1] - guess[1]) > radius_m + p.correspondence_m:
+        return None
+    values = np.linalg.eigvalsh(hessian[3:5, 3:5])
+    if values[1] <= 0 or values[0] / values[1] < p.degenerate_ratio:
+        return None
+    px, py, pth = (np.asarray(v) for v in pose)
+    rx, ry, rth = inverse(px, py, pth)
+    return Closure(i, j, float(rx), float(ry), float(rth), fraction)
+
+
+def _align(
+    target: small_gicp.PointCloud,
+    target_tree: small_gicp.KdTree,
+    target_2d: cKDTree,
+    source: small_gicp.PointCloud,
+    source_2d: FloatArray,
+    start: tuple[float, float, float],
+    p: ClosureParams,
+) -> tuple[float, tuple[float, float, float], FloatArray] | None:
+    result = small_gicp.align(
+        target,
+        source,
+        target_tree,
+        init_T_target_source=_matrix(*start),
+        registration_type="GICP",
+        max_correspondence_distance=p.correspondence_m,
+        max_iterations=30,
+        num_threads=1,
+    )
+    m = np.asarray(result.T_target_source)
+    pose = (float(m[0, 3]), float(m[1, 3]), math.atan2(float(m[1, 0]), float(m[0, 0])))
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    moved = np.column_stack(
+        [
+            pose[0] + c * source_2d[:, 0] - s * source_2d[:, 1],
+            pose[1] + s * source_2d[:, 0] + c * source_2d[:, 1],
+        ]
+    )
+    dist, _ = target_2d.query(moved, distance_upper_bound=p.inlier_m)
+    fraction = float(np.mean(np.isfinite(dist)))
+    return fraction, pose, np.asarray(result.H)
+
+
+def relative(poses: FloatArray, i: int, j: int) -> tuple[float, float, float]:
+    """Node ``i``'s pose in node ``j``'s frame."""
+    ix, iy, ith = inverse(poses[j, 0], poses[j, 1], poses[j, 2])
+    x, y, th = compose(ix, iy, ith, poses[i, 0], poses[i, 1], poses[i, 2])
+    return float(x), float(y), float(wrap_angle(th))

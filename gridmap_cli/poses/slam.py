@@ -1,0 +1,297 @@
+"""``--pose slam``: the scan-matched track with loop closures, optimised as a pose graph.
+
+1. The scan matcher (:mod:`.scan_match`) gives every scan a locally consistent pose.
+2. Keyframes are the scans where the robot has moved ``keyframe_m`` or turned ``keyframe_rad``
+   since the last one; consecutive keyframes are joined by the scan-matched relative pose, with a
+   standard deviation growing with the distance between them (larger where a scan fell back to
+   odometry).
+3. Loop closures (:mod:`.loop_closure`) are sought among keyframes near each other in the current
+   estimate but far along the path, verified by registration, and added with a robust kernel; the
+   graph is optimised (:mod:`.pose_graph`, gtsam), closures whose residual stays large are
+   dropped (the consistency check) and the search is repeated from the better estimate, for up
+   to ``rounds`` rounds.
+4. Every scan's pose is the scan-matched one carried by the correction of the keyframes around it
+   (interpolated in time); every other pose of the log likewise (:func:`.corrected_track`).
+
+The honesty check: the accepted closures are scored on the odometry and on the optimised track;
+when the optimised track does not agree with them better than the odometry does, or no loop
+closed, :attr:`SlamResult.warning` says so.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from gridmap_cli.geometry import compose, inverse
+from gridmap_cli.poses.loop_closure import (
+    Closure,
+    ClosureParams,
+    Submaps,
+    candidates,
+    path_length,
+    relative,
+    verify,
+)
+from gridmap_cli.poses.pose_graph import Edge, PoseGraph, edge_residuals
+from gridmap_cli.poses.scan_match import (
+    FALLBACK,
+    NoLaserError,
+    ScanMatch,
+    ScanMatchParams,
+    Scans,
+    corrected_track,
+    laser_scans,
+    match_scans,
+)
+from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
+from gridmap_cli.records import PoseTrack, RangeLog
+from gridmap_cli.robot import RobotDescription
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SlamParams:
+    """Keyframes, edge noise and the closure search; metres and radians."""
+
+    keyframe_m: float = 0.5
+    keyframe_rad: float = math.radians(20.0)
+    sigma_xy_m: float = 0.02
+    sigma_xy_per_m: float = 0.02
+    sigma_theta_rad: float = math.radians(0.5)
+    sigma_theta_per_m: float = math.radians(0.5)
+    fallback_scale: float = 5.0
+    closure_sigma_xy_m: float = 0.05
+    closure_sigma_theta_rad: float = math.radians(1.0)
+    reject_m: float = 0.3
+    reject_rad: float = math.radians(5.0)
+    rounds: int = 3
+    covariance: bool = False
+    closure: ClosureParams = field(default_factory=ClosureParams)
+
+
+@dataclass(frozen=True)
+class SlamResult:
+    """The optimised track and how it was obtained.
+
+    ``match``: the scan match with its track replaced by the optimised scan poses;
+    ``scan_matched``: the scan match as it was. ``keyframes`` (K,): scan index of each node;
+    ``poses`` (K, 3) the optimised keyframe poses; ``covariance`` (K, 3, 3) their marginal
+    covariances (node frame; None unless asked). ``closures``: the accepted closures.
+    """
+
+    match: ScanMatch
+    scan_matched: ScanMatch
+    keyframes: npt.NDArray[np.intp]
+    poses: FloatArray
+    covariance: FloatArray | None
+    closures: list[Closure]
+    candidates: int
+    rejected: int
+    dropped: int
+    odometry_residual_m: float
+    residual_m: float
+    seconds: float
+
+    @property
+    def track(self) -> PoseTrack:
+        """The optimised pose of every scan."""
+        return self.match.track
+
+    @property
+    def warning(self) -> str | None:
+        """Why the track may be no better than the scan-matched or the odometry one."""
+        if not self.closures:
+            return "no loop closed: the track is the scan-matched one, with its drift"
+        if self.residual_m >= self.odometry_residual_m:
+            return (
+                f"the optimised track fits its loop closures no better than the odometry "
+                f"({self.residual_m:.3f} m against {self.odometry_residual_m:.3f} m)"
+            )
+        return None
+
+    def summary(self) -> dict[str, object]:
+        """Counts and residuals for people and JSON."""
+        return {
+            "keyframes": len(self.keyframes),
+            "candidates": self.candidates,
+            "closures_accepted": len(self.closures),
+            "closures_rejected": self.rejected + self.dropped,
+            "closures_dropped_by_consistency": self.dropped,
+            "closure_residual_m": round(self.residual_m, 4),
+            "closure_residual_odometry_m": round(self.odometry_residual_m, 4),
+            "scan_match": self.scan_matched.summary(),
+            "seconds": round(self.seconds, 3),
+            "warning": self.warning,
+        }
+
+
+def keyframes(poses: FloatArray, params: SlamParams) -> npt.NDArray[np.intp]:
+    """Indices of the keyframe poses (N, 3): the first, then each far enough from the last."""
+    keep = [0]
+    for k in range(1, len(poses)):
+        last = poses[keep[-1]]
+        turn = abs(math.remainder(float(poses[k, 2] - last[2]), 2 * math.pi))
+        if math.hypot(*(poses[k, :2] - last[:2])) >= params.keyframe_m or turn >= (
+            params.keyframe_rad
+        ):
+            keep.append(k)
+    if keep[-1] != len(poses) - 1:
+        keep.append(len(poses) - 1)
+    return np.array(keep, dtype=np.intp)
+
+
+def sequential_edges(
+    local: FloatArray, status: npt.NDArray[np.int8], nodes: npt.NDArray[np.intp], p: SlamParams
+) -> list[Edge]:
+    """Edges between consecutive keyframes from the scan-matched poses ``local`` (S, 3)."""
+    edges = []
+    for a in range(len(nodes) - 1):
+        s, t = int(nodes[a]), int(nodes[a + 1])
+        dx, dy, dth = relative(local, t, s)
+        dist = math.hypot(dx, dy)
+        scale = p.fallback_scale if (status[s + 1 : t + 1] == FALLBACK).any() else 1.0
+        edges.append(
+            Edge(
+                a, a + 1, dx, dy, dth,
+                scale * (p.sigma_xy_m + p.sigma_xy_per_m * dist),
+                scale * (p.sigma_theta_rad + p.sigma_theta_per_m * dist),
+            )
+        )  # fmt: skip
+    return edges
+
+
+def optimise_with_closures(
+    scans: Scans, match: ScanMatch, params: SlamParams
+) -> tuple[npt.NDArray[np.intp], FloatArray, PoseGraph, list[Closure], int, int, int]:
+    """Keyframes, their optimised poses, the graph, accepted closures and the counts of
+    candidates tried, rejected by verification and dropped by the consistency check."""
+    m = match.track
+    local = np.column_stack([m.x_m, m.y_m, m.theta_rad])
+    nodes = keyframes(local, params)
+    graph = PoseGraph(local[nodes].copy(), sequential_edges(local, match.status, nodes, params))
+    submaps = Submaps(scans.points, local, nodes, params.closure)
+    estimate = graph.initial.copy()
+    tried: set[tuple[int, int]] = set()
+    accepted: dict[tuple[int, int], Closure] = {}
+    rejected = dropped = 0
+    path = path_length(estimate)
+    for _ in range(params.rounds):
+        new = 0
+        for i, j in candidates(estimate, np.arange(len(nodes)), params.closure):
+            if (i, j) in tried:
+                continue
+            tried.add((i, j))
+            gap = path[i] - path[j]
+            c = params.closure
+            radius = min(c.max_search_m, c.min_search_m + c.drift_per_m * gap)
+            closure = verify(i, j, relative(estimate, i, j), submaps, radius)
+            if closure is None:
+                rejected += 1
+                continue
+            accepted[(i, j)] = closure
+            new += 1
+        if new == 0:
+            break
+        while True:
+            graph.edges = [e for e in graph.edges if not e.closure] + [
+                _closure_edge(c, params) for c in accepted.values()
+            ]
+            estimate = graph.optimise(estimate)
+            closure_edges = [e for e in graph.edges if e.closure]
+            res = edge_residuals(estimate, closure_edges)
+            bad = (res[:, 0] > params.reject_m) | (res[:, 1] > params.reject_rad)
+            if not bad.any():
+                break
+            # drop the worst one at a time: one false closure can make true ones look bad
+            worst = int(np.argmax(res[:, 0] / params.reject_m + res[:, 1] / params.reject_rad))
+            e = closure_edges[worst]
+            del accepted[(e.i, e.j)]
+            dropped += 1
+    return nodes, estimate, graph, list(accepted.values()), len(tried), rejected, dropped
+
+
+def _closure_edge(c: Closure, p: SlamParams) -> Edge:
+    return Edge(
+        c.i, c.j, c.dx_m, c.dy_m, c.dtheta_rad, p.closure_sigma_xy_m, p.closure_sigma_theta_rad,
+        closure=True,
+    )  # fmt: skip
+
+
+def carried(match: ScanMatch, nodes: npt.NDArray[np.intp], poses: FloatArray) -> PoseTrack:
+    """Every scan's pose: its scan-matched pose carried by the keyframes' correction."""
+    m = match.track
+    kx, ky, kth = m.x_m[nodes], m.y_m[nodes], m.theta_rad[nodes]
+    ix, iy, ith = inverse(kx, ky, kth)
+    cx, cy, cth = compose(poses[:, 0], poses[:, 1], poses[:, 2], ix, iy, ith)
+    correction = PoseTrack(stamp_ns=m.stamp_ns[nodes], x_m=cx, y_m=cy, theta_rad=cth)
+    ax, ay, ath, _ = interpolate_pose(correction, m.stamp_ns)
+    x, y, th = compose(ax, ay, ath, m.x_m, m.y_m, m.theta_rad)
+    return PoseTrack(stamp_ns=m.stamp_ns.copy(), x_m=x, y_m=y, theta_rad=th)
+
+
+def slam_scans(
+    scans: Scans,
+    odometry: PoseTrack,
+    params: SlamParams | None = None,
+    match_params: ScanMatchParams | None = None,
+) -> SlamResult:
+    """Scan-match ``scans`` seeded by ``odometry``, close loops, optimise; see the module."""
+    params = params or SlamParams()
+    started = time.perf_counter()
+    match = match_scans(scans, odometry, match_params)
+    nodes, poses, graph, closures, tried, rejected, dropped = optimise_with_closures(
+        scans, match, params
+    )
+    track = carried(match, nodes, poses)
+    odo = match.odometry
+    odo_nodes = np.column_stack([odo.x_m, odo.y_m, odo.theta_rad])[nodes]
+    closure_edges = [_closure_edge(c, params) for c in closures]
+    before = edge_residuals(odo_nodes, closure_edges)
+    after = edge_residuals(poses, closure_edges)
+    covariance = graph.marginals(poses) if params.covariance else None
+    return SlamResult(
+        match=dataclasses.replace(match, track=track),
+        scan_matched=match,
+        keyframes=nodes,
+        poses=poses,
+        covariance=covariance,
+        closures=closures,
+        candidates=tried,
+        rejected=rejected,
+        dropped=dropped,
+        odometry_residual_m=float(before[:, 0].mean()) if len(before) else float("nan"),
+        residual_m=float(after[:, 0].mean()) if len(after) else float("nan"),
+        seconds=time.perf_counter() - started,
+    )
+
+
+def slam_log(
+    log: RangeLog, robot: RobotDescription | None, params: SlamParams | None = None
+) -> SlamResult:
+    """:func:`slam_scans` on the laser scans of ``log`` within its odometry's time span."""
+    match_params = ScanMatchParams()
+    scans = laser_scans(log, sensors_for_log(log, robot), match_params)
+    t = log.poses.stamp_ns
+    inside = (scans.stamp_ns >= t[0]) & (scans.stamp_ns <= t[-1])
+    if not inside.any():
+        raise NoLaserError(f"{log.source}: no laser scan lies within the odometry's time span")
+    kept = Scans(
+        stamp_ns=scans.stamp_ns[inside],
+        points=[p for p, ok in zip(scans.points, inside, strict=True) if ok],
+    )
+    return slam_scans(kept, log.poses, params, match_params)
+
+
+def slam_corrected_log(
+    log: RangeLog, robot: RobotDescription | None, params: SlamParams | None = None
+) -> tuple[RangeLog, SlamResult]:
+    """``log`` with its poses replaced by the optimised track, and the result."""
+    result = slam_log(log, robot, params)
+    return dataclasses.replace(log, poses=corrected_track(log.poses, result.match)), result

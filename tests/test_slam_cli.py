@@ -1,0 +1,50 @@
+"""gridmap trajectory --pose slam: a simulated loop, the summary, and the ACES benchmark."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gridmap_cli.writers.csv_log import save_csv_log
+from tests.helpers import run
+from tests.test_scan_match import room_world
+from tests.test_scan_match import run as simulate_run
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+def test_a_simulated_loop_gives_a_slam_track_and_its_counts(tmp_path: Path) -> None:
+    log = simulate_run(room_world(), [[2, 1.5], [10, 1.5], [10, 6.5], [2, 6.5], [2, 1.5]],
+                       drift=3.0)  # fmt: skip
+    log.metadata["robot"] = "p3at-lms200"
+    csv = tmp_path / "run.csv"
+    save_csv_log(log, csv)
+    out = tmp_path / "slam.tum"
+    code, stdout, stderr = run("trajectory", str(csv), "--pose", "slam", "-o", str(out), "--json")
+    assert code == 0, stderr
+    summary = json.loads(stdout)["slam"]
+    assert summary["keyframes"] > 10 and summary["scan_match"]["scans"] > 100
+    assert summary["closures_accepted"] + summary["closures_rejected"] == summary["candidates"]
+    assert "loop closures accepted" in stderr
+    assert np.loadtxt(out).shape[0] == summary["scan_match"]["scans"]
+
+
+@pytest.mark.skipif(not (DATA / "slam-benchmark").is_dir(), reason="../shared/data is not present")
+def test_aces_slam_beats_scan_matching_on_the_benchmark() -> None:
+    from gridmap_cli.evaluation.relations import read_relations, score_track
+    from gridmap_cli.poses.slam import slam_log
+    from gridmap_cli.readers import read_logs
+    from gridmap_cli.readers.options import ReadOptions
+    from gridmap_cli.robot import robot_from_log
+
+    path = DATA / "carmen" / "aces-corrected.log.gz"
+    data = read_logs((path,), None, ReadOptions())
+    result = slam_log(data, robot_from_log(path, data.metadata))
+    relations = read_relations(DATA / "slam-benchmark" / "aces.relations")
+    slam = score_track(result.track, relations, data.poses, offset_s=70.185)
+    matched = score_track(result.scan_matched.track, relations, data.poses, offset_s=70.185)
+    assert len(result.closures) > 50 and result.warning is None
+    assert slam.trans_mean_m < matched.trans_mean_m
