@@ -48,3 +48,33 @@ def test_aces_slam_beats_scan_matching_on_the_benchmark() -> None:
     matched = score_track(result.scan_matched.track, relations, data.poses, offset_s=70.185)
     assert len(result.closures) > 50 and result.warning is None
     assert slam.trans_mean_m < matched.trans_mean_m
+
+
+def test_build_maps_with_the_slam_track(tmp_path: Path) -> None:
+    """`build --pose slam` maps with the optimised track: the map differs from the odometry's
+    and the scan-matched one's, and the summary says what the graph did."""
+    log = simulate_run(room_world(), [[2, 1.5], [10, 1.5], [10, 6.5], [2, 6.5], [2, 1.5]],
+                       drift=3.0)  # fmt: skip
+    log.metadata["robot"] = "p3at-lms200"
+    csv = tmp_path / "run.csv"
+    save_csv_log(log, csv)
+    maps = {}
+    for pose in ("odometry", "scan-matched", "slam"):
+        out = tmp_path / f"{pose}.png"
+        code, stdout, stderr = run("build", str(csv), "--pose", pose, "-o", str(out), "--json")
+        assert code == 0, stderr
+        maps[pose] = out.read_bytes()
+        summary = json.loads(stdout)
+    assert "slam" in summary and summary["slam"]["closures_accepted"] >= 1
+    assert "loop closures accepted" in stderr
+    assert maps["slam"] != maps["odometry"] and maps["slam"] != maps["scan-matched"]
+
+
+def test_fuse_refuses_the_slam_pose(tmp_path: Path) -> None:
+    csv = Path(__file__).resolve().parents[1] / "samples" / "corridor_loop.csv"
+    out = tmp_path / "site.png"
+    placed = ("--initial-pose", "0,0,0", "--initial-pose", "1,1,0")
+    code, _, stderr = run("build", str(csv), str(csv), "--fuse", "--pose", "slam", *placed,
+                          "-o", str(out))  # fmt: skip
+    assert code == 2 and "--pose global or odometry" in stderr.strip().splitlines()[-1]
+    assert not out.exists()

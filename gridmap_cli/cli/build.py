@@ -56,6 +56,9 @@ if TYPE_CHECKING:
     from gridmap_cli.poses.scan_match import ScanMatch
     from gridmap_cli.writers.preview import DrawnTrack
 
+#: --pose values whose track the laser makes: the readings are held, and --fuse refuses them
+LASER_POSES = ("scan-matched", "slam")
+
 
 @click.command()
 @click.argument("logs", metavar="LOG...", nargs=-1, required=True, type=click.Path(path_type=Path))
@@ -185,7 +188,7 @@ def build(
     if to_stdout:
         _check_stdout(image_format, as_json, draw_path)
     placed = _fuse_options(fuse, logs, initial_poses, pose, mode, executor, scheduler, jobs)
-    if fuse and (to_stdout or draw_path or pose == "scan-matched"):
+    if fuse and (to_stdout or draw_path or pose in LASER_POSES):
         raise UsageError(
             "--fuse writes one map file from placed logs: give -o FILE, no --draw-path, and "
             "--pose global or odometry"
@@ -229,16 +232,24 @@ def build(
     keep_scratch_memory()  # every check passed: from here on, the build's own process
     # a long log's readings stay in its file, read again for each pass, unless scan matching
     # or a time window needs them held
-    stream = pose != "scan-matched" and selection.start is None and selection.end is None
+    stream = pose not in LASER_POSES and selection.start is None and selection.end is None
     whole = _read_logs(logs, log_format, dataclasses.replace(read_options, stream=stream))
     data = whole
     if robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
     match: ScanMatch | None = None
+    slam_summary: dict[str, object] | None = None
     if pose == "scan-matched":
         from gridmap_cli.poses.scan_match import scan_matched_log  # scipy, small_gicp: only here
 
         data, match = scan_matched_log(data, robot_desc)
+    elif pose == "slam":
+        from gridmap_cli.poses.slam import slam_corrected_log  # gtsam: only here
+
+        data, slam = slam_corrected_log(data, robot_desc)
+        slam_summary = slam.summary()
+        if slam.warning:
+            warn((f"--pose slam: {slam.warning}",), quiet)
     else:
         data = select_poses(data, pose)
     if preview is None:  # the other tracks are drawn only; let them go (56 bytes a row)
@@ -292,6 +303,8 @@ def build(
         summary["preview"] = str(preview)
     if match is not None:
         summary["scan_match"] = match.summary()
+    if slam_summary is not None:
+        summary["slam"] = slam_summary
     report(summary, summary_line(summary), as_json, quiet)
 
 

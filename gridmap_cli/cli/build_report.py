@@ -89,6 +89,12 @@ def summary_line(s: dict[str, Any]) -> str:
             f"; {sm['scans']:,} scans matched in {sm['seconds']:.1f} s, {sm['fallbacks']:,} fell "
             f"back to odometry, {sm['degenerate']:,} degenerate (odometry along the corridor)"
         )
+    if "slam" in s:
+        sl = s["slam"]
+        matched = (
+            f"; slam: {sl['closures_accepted']:,} loop closures accepted, "
+            f"{sl['closures_rejected']:,} rejected"
+        )
     skipped = ""
     if r["skipped"]:
         skipped = (

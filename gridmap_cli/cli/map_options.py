@@ -96,12 +96,12 @@ no_echo_free_option = click.option(
 )
 pose_option = click.option(
     "--pose",
-    type=click.Choice(POSE_SOURCES),
+    type=click.Choice((*POSE_SOURCES, "slam")),
     default="odometry",
     show_default=True,
     help="Map with the odometry, with the log's global pose (ARIA robotGlobal, CSV true_*, "
-    "CARMEN's corrected poses or TRUEPOS), or with the odometry corrected by matching the laser "
-    "scans (scan-matched).",
+    "CARMEN's corrected poses or TRUEPOS), with the odometry corrected by matching the laser "
+    "scans (scan-matched), or with that and loop closures on a pose graph (slam).",
 )
 
 #: The error-aware model's options; :func:`error_aware_settings` checks them.
