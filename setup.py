@@ -1,8 +1,8 @@
 """The one thing pyproject.toml cannot say: gridmap's compiled inner loops (issue 10).
 
 Two small C extensions (plain CPython API and the buffer protocol, no numpy headers): the
-mapping kernels of the sonar cone, the error-aware cone and the ray model; the record walks of
-the MCAP and bag integrity checks. Both are optional: where no C compiler is at hand, the
+mapping kernels of the sonar cone and the ray model; the record walks of the MCAP and bag
+integrity checks. Both are optional: where no C compiler is at hand, the
 install still succeeds and the numpy / Python reference paths do the work
 (gridmap_cli/mapping/models/kernels.py and gridmap_cli/readers/ros/walk.py choose).
 """

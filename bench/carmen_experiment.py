@@ -3,9 +3,9 @@
 For each corrected log of ``../shared/data/carmen`` (Intel, ACES, Freiburg 079):
 
 * the **reference map** is built from the corrected (SLAM) poses, ``gridmap build --pose global
-  --mode error-aware`` with f = g = 0 (the frequency form with known poses), trinary: it draws
-  the walls, where the standard mode's reference of the same poses keeps under a tenth of them
-  (its 0.55 hit probability loses each wall cell to the rays that graze it);
+  --mode error-aware`` with f = g = 0, trinary: with no pose error the error-aware mode maps as
+  the standard one, so this is the standard map of the corrected poses (the frequency-count
+  error-aware model this was chosen for, when it drew walls the standard map lost, is gone);
 * the log is cut in two halves by time; f and g are calibrated (``gridmap calibrate``) on one
   half and the maps of the *other* half are built with them, so no reported half is ever
   calibrated on; the first minutes of the log (where the drift is still small) are built with

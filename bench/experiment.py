@@ -76,8 +76,8 @@ ROBOT = "p3at"
 #: odometry-error file of the run's drift level. Modes not listed run as ``--mode NAME``.
 MODE_ARGS: dict[str, list[str]] = {
     "standard": ["--mode", "standard"],
-    # the error-aware model with every f and g coefficient 0: only the sonar's own spread (k z,
-    # beta / 2); what the frequency form gives by itself, without the odometry terms
+    # the error-aware mode with every f and g coefficient 0: no pose error, so the standard
+    # models' map (the row checks that the mode adds nothing without the odometry terms)
     "error-aware-f0g0": ["--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=0"],
     "error-aware": ["--mode", "error-aware", "--odometry-error", "{calibration}"],
 }

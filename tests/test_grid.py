@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gridmap_cli.errors import MapSizeError
-from gridmap_cli.mapping.grid import FrequencyAccumulator, GridSpec
+from gridmap_cli.mapping.grid import GridSpec
 
 # Map-sized values: coordinates within 100 km, cells from 1 mm to 10 m.
 coords = st.floats(min_value=-1e5, max_value=1e5, allow_nan=False)
@@ -124,42 +124,3 @@ def test_covering_a_single_point_gives_one_cell() -> None:
     assert (spec.width, spec.height) == (1, 1)
     col, row = spec.world_to_cell(np.array([2.0]), np.array([3.0]))
     assert (int(col[0]), int(row[0])) == (0, 0)
-
-
-def test_frequency_map_is_the_beta_posterior_mean() -> None:
-    """Cell 0: 2 hits in 3 looks -> (2 + 0.5) / (3 + 1) = 0.625; cell 1: 0 in 1 -> 0.25."""
-    spec = GridSpec(0.0, 0.0, 1.0, 3, 1)
-    acc = FrequencyAccumulator(spec)
-    r = np.zeros(1, dtype=np.int64)
-    one, none = np.ones(1), np.zeros(1)
-    for _ in range(3):
-        acc.add(r, r, r, look=one, hit=none, seen=np.ones(1, dtype=np.int64))
-    acc.add(r, r + 1, r + 1, look=one, hit=none, seen=np.ones(1, dtype=np.int64))
-    acc.add(r, r, r, look=none, hit=np.full(1, 2.0), seen=np.zeros(1, dtype=np.int64))
-    prob = acc.occupancy_map().prob
-    assert prob[0, 0] == pytest.approx(0.625)
-    assert prob[0, 1] == pytest.approx(0.25)
-    assert np.isnan(prob[0, 2])
-    assert acc.occupancy_map((1.0, 3.0)).prob[0, 0] == pytest.approx(3.0 / 7.0)
-    with pytest.raises(ValueError, match="prior counts"):
-        acc.occupancy_map((0.0, 1.0))
-
-
-def test_a_group_of_looks_is_capped_keeping_its_frequency() -> None:
-    """100 looks with 50 hits in a group capped at 10 count as 10 looks and 5 hits:
-    p = (5 + 0.5) / (10 + 1) = 0.5; a second group (cap 4) of 8 looks, 0 hits adds 4 looks:
-    p = (5 + 0.5) / (14 + 1) = 0.3667. An uncapped group would have given (50.5) / 101."""
-    spec = GridSpec(0.0, 0.0, 1.0, 1, 1)
-    acc = FrequencyAccumulator(spec)
-    r = np.zeros(1, dtype=np.int64)
-    one = np.ones(1, dtype=np.int64)
-    for i in range(100):
-        acc.add(r, r, r, look=np.ones(1), hit=np.full(1, float(i % 2)), seen=one, cap=10.0)
-    assert acc.occupancy_map().prob[0, 0] == pytest.approx(0.5)
-    assert acc.looks()[0, 0] == pytest.approx(10.0) and acc.hits()[0, 0] == pytest.approx(5.0)
-    for _ in range(8):
-        acc.add(r, r, r, look=np.ones(1), hit=np.zeros(1), seen=one, cap=4.0)
-    assert acc.occupancy_map().prob[0, 0] == pytest.approx(5.5 / 15.0)
-    assert acc.observations()[0, 0] == 108  # the counts of looks are not capped
-    with pytest.raises(ValueError, match="after it was closed"):
-        acc.add(r, r, r, look=np.ones(1), hit=np.zeros(1), seen=one, cap=10.0)

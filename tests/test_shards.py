@@ -42,7 +42,7 @@ def test_jobs_give_the_map_of_one_job_byte_for_byte(
 def test_error_aware_jobs_give_the_map_of_one_job_byte_for_byte(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, kernels: str
 ) -> None:
-    # compiled: the main process maps alone whatever --jobs is; numpy: workers compute the runs
+    # both error-aware maps (sampled tracks, analytic fade) are log-odds shards, on either kernels
     monkeypatch.setenv("GRIDMAP_KERNELS", kernels)
     log = tmp_path / "laser.2d"
     code, _, stderr = run(
@@ -50,16 +50,14 @@ def test_error_aware_jobs_give_the_map_of_one_job_byte_for_byte(
         "--robot", "p3at-lms200", "--duration", "3", "-o", str(log),
     )  # fmt: skip
     assert code == 0, stderr
-    whole = pipeline.accumulate_frequencies
-
-    def small_batches(plan, grid, batch_size, jobs, progress=None):  # type: ignore[no-untyped-def]
-        return whole(plan, grid, 500, jobs, progress)  # many batches, caps closing between them
-
-    monkeypatch.setattr(pipeline, "accumulate_frequencies", small_batches)
     flags = ("--robot", "p3at-lms200", "--mode", "error-aware",
              "--odometry-coefficient", "range_m_per_m=0.01")  # fmt: skip
     one = built(tmp_path, log, "one", *flags, "--jobs", "1")
     assert built(tmp_path, log, "two", *flags, "--jobs", "2") == one
+    fade = (*flags, "--error-samples", "0")
+    faded = built(tmp_path, log, "faded", *fade, "--jobs", "1")
+    assert faded != one
+    assert built(tmp_path, log, "faded2", *fade, "--jobs", "2") == faded
 
 
 def test_a_log_of_one_shard_maps_as_one_grid_batch_by_batch() -> None:

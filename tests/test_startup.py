@@ -41,11 +41,10 @@ def test_a_csv_build_imports_no_decoder_plotting_or_scipy(tmp_path: Path) -> Non
     loaded = {m.split(".")[0] for m in modules} & set(HEAVY)
     assert not loaded
     assert not {m for m in modules if m.startswith(("gridmap_cli.readers.ros", "gridmap_cli.sim"))}
-    # nor what only batch runs, error-aware lasers or --draw-path use, nor numpy.ma (np.unique
+    # nor what only batch runs, scan matching or --draw-path use, nor numpy.ma (np.unique
     # loads it); the compiled kernels are there
     assert not modules & {
-        "gridmap_cli.runs.batch", "gridmap_cli.mapping.models.error_aware_ray",
-        "gridmap_cli.poses.scan_match",
+        "gridmap_cli.runs.batch", "gridmap_cli.poses.scan_match",
         "gridmap_cli.writers.preview", "numpy.ma",
     }  # fmt: skip
     assert "gridmap_cli.mapping.models._ckernels" in modules

@@ -18,7 +18,7 @@ from gridmap_cli.cli.common import (
     warn,
 )
 from gridmap_cli.errors import InputFileError, UsageError
-from gridmap_cli.mapping.models.error_aware import ErrorAwareParams
+from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.readers import format_names, resolve_format

@@ -19,7 +19,7 @@ import click
 
 from gridmap_cli.cli.common import selection_options, topic_options
 from gridmap_cli.errors import UsageError
-from gridmap_cli.mapping.models.error_aware import ErrorAwareParams
+from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.models.standard import StandardSonarParams
 from gridmap_cli.mapping.pipeline import MAPPING_MODES, MAX_RESOLUTION_M
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error

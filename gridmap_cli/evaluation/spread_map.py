@@ -1,27 +1,42 @@
 """Where a map's uncertainty comes from: the pose spread at which each cell was seen.
 
-The error-aware model widens and discounts a reading by the odometry error accumulated when it
-was taken: f(d), the position spread (metres), and g(d, phi), the heading spread (radians).
-A cell that only late readings looked at stays grey however many of them there were. This
-module draws, per cell, the *smallest* f of the readings whose beam crossed the cell (and the g
-of those readings), so a user can tell a region that is grey because the pose was lost there
-from one that is grey because the sensors disagree. No file I/O: :mod:`gridmap_cli.cli.evaluate`
-reads the log and the odometry error, :mod:`gridmap_cli.evaluation.plot` draws the result.
+The odometry-error model gives the spread of a reading's pose from the odometry error
+accumulated when it was taken: f(d), the position spread (metres), and g(d, phi), the heading
+spread (radians). In an error-aware map a cell that only late readings looked at stays grey
+however many of them there were. This module draws, per cell, the *smallest* f of the readings
+whose beam crossed the cell (and the g of those readings), so a user can tell a region that is
+grey because the pose was lost there from one that is grey because the sensors disagree. No
+file I/O: :mod:`gridmap_cli.cli.evaluate` reads the log and the odometry error,
+:mod:`gridmap_cli.evaluation.plot` draws the result.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.mapping.grid import GridSpec, SpanSums
-from gridmap_cli.mapping.models.error_aware import OdometrySpread
 from gridmap_cli.mapping.models.ray import RaySegments, row_runs
 from gridmap_cli.poses.sync import SensorReadings, select_readings
 
 FloatArray = npt.NDArray[np.float64]
+
+
+class OdometrySpread(Protocol):
+    """What the map needs of an odometry-error model (eq. 11 and 12 of docs/odometry-error.md):
+    :class:`~gridmap_cli.poses.odometry_error.OdometryError` is one."""
+
+    def f(self, distance_m: FloatArray) -> FloatArray:
+        """Position spread (metres) after driving ``distance_m``."""
+        ...
+
+    def g(self, distance_m: FloatArray, rotation_rad: FloatArray) -> FloatArray:
+        """Heading spread (radians) after driving ``distance_m`` and turning ``rotation_rad``."""
+        ...
+
 
 #: Levels f and g are each cut into: a cell's spread is exact to within one level, and the
 #: cost is one cumulative sum of the grid per level.

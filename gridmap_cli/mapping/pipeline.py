@@ -18,20 +18,24 @@ from gridmap_cli.errors import GridmapError, MapSizeError, NoDataError
 from gridmap_cli.mapping.grid import (
     DEFAULT_CLAMP_P,
     DEFAULT_MAX_CELLS,
-    DEFAULT_PRIOR_COUNTS,
-    FrequencyAccumulator,
     GridSpec,
     LogOddsAccumulator,
     OccupancyMap,
 )
-from gridmap_cli.mapping.models.error_aware import ErrorAwareParams
-from gridmap_cli.mapping.models.fading import FadedRayModel, FadedSonarModel, FadeParams, PoseSpread
+from gridmap_cli.mapping.models.fading import (
+    ErrorAwareParams,
+    FadedRayModel,
+    FadedSonarModel,
+    FadeParams,
+    PoseSpread,
+    scan_steps,
+)
 from gridmap_cli.mapping.models.ray import RayModel, RayParams
 from gridmap_cli.mapping.models.standard import StandardSonarModel, StandardSonarParams
 from gridmap_cli.mapping.plan import BuildPlan as BuildPlan
 from gridmap_cli.mapping.plan import SensorModel as SensorModel
 from gridmap_cli.mapping.plan import split_by_kind
-from gridmap_cli.mapping.shards import accumulate_frequencies, accumulate_log_odds
+from gridmap_cli.mapping.shards import accumulate_log_odds
 from gridmap_cli.mapping.shards import (
     batch_bounds as batch_bounds,  # callers cut batches as build does
 )
@@ -64,7 +68,6 @@ class BuildOptions:
     clamp_p: tuple[float, float] = DEFAULT_CLAMP_P
     error_aware: ErrorAwareParams = field(default_factory=ErrorAwareParams)
     odometry_error: OdometryError | None = None
-    prior_counts: tuple[float, float] = DEFAULT_PRIOR_COUNTS
     margin_m: float = 0.2
     max_cells: int = DEFAULT_MAX_CELLS
     batch_size: int = 20_000
@@ -257,17 +260,14 @@ class _Before:
 
 def accumulate(
     plan: BuildPlan,
-    grid: LogOddsAccumulator | FrequencyAccumulator,
+    grid: LogOddsAccumulator,
     options: BuildOptions,
     progress: Callable[[int], object] | None = None,
 ) -> int:
     """Add every reading of ``plan`` to ``grid`` on ``options.jobs`` processes; returns the cell
     updates. The grid is the same to the byte for every number of jobs
-    (:mod:`gridmap_cli.mapping.shards`
-    says how)."""
-    if isinstance(grid, LogOddsAccumulator):
-        return accumulate_log_odds(plan, grid, options.batch_size, options.jobs, progress)
-    return accumulate_frequencies(plan, grid, options.batch_size, options.jobs, progress)
+    (:mod:`gridmap_cli.mapping.shards` says how)."""
+    return accumulate_log_odds(plan, grid, options.batch_size, options.jobs, progress)
 
 
 def _bounding_models(
@@ -299,11 +299,8 @@ def _mapping_models(
     ray = RayModel(options.ray, options.resolution_m)
     sonar = StandardSonarModel(options.sonar, options.resolution_m)
     if options.mode == "error-aware":
-        # only an error-aware build loads the scan layout (a CSV build's imports stay few)
-        from gridmap_cli.mapping.models.error_aware_ray import ScanLayout
-
         spread = _pose_spread(log, options)
-        step = ScanLayout.of(sensors, narrow).step_rad
+        step = scan_steps(sensors, narrow)
         if any_ray:
             models.append((FadedRayModel(ray, spread, step), "ray"))
         if any_sonar:

@@ -30,11 +30,8 @@ class SensorModel(Protocol):
         ...
 
     def accumulate(self, grid: Any, readings: SensorReadings) -> int:
-        """Add the readings' evidence to ``grid``; returns the number of cell updates.
-
-        ``grid`` is the accumulator of the mode: :class:`LogOddsAccumulator` (standard) or
-        :class:`FrequencyAccumulator` (error-aware).
-        """
+        """Add the readings' evidence to ``grid`` (a :class:`LogOddsAccumulator`); returns the
+        number of cell updates."""
         ...
 
 

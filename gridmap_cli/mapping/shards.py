@@ -1,7 +1,8 @@
 """A build's readings mapped on one process or several (``gridmap build --jobs N``), the map
 the same to the byte whatever N is.
 
-Log-odds (standard mode): each sensor model's share of each chunk of synchronised readings
+Both modes sum log-odds (the error-aware maps are standard maps, of sampled tracks or with faded
+evidence). Each sensor model's share of each chunk of synchronised readings
 (:meth:`~gridmap_cli.mapping.plan.BuildPlan.parts`) is cut into shards of at most
 :data:`SHARD_READINGS` readings (at a change of stamp, as batches are), the same shards for every
 N. Each shard is mapped into zeroed difference arrays of the whole grid (:func:`log_odds_shard`,
@@ -12,13 +13,6 @@ log-odds are clamped once, when the map is finished
 (:meth:`~gridmap_cli.mapping.grid.LogOddsAccumulator.occupancy_map`), as ``--fuse`` clamps its
 total.
 A log of one shard maps exactly as it did before shards.
-
-Frequency counts (error-aware mode): a trust class's looks are capped when the class closes,
-which is not a sum of shards. With the compiled kernels (:mod:`gridmap_cli.mapping.models.kernels`)
-the main process maps every batch itself, whatever N is: the kernel is faster alone than
-workers handing it runs. Without them, with N > 1 the workers compute each batch's weighted
-runs (the model's work) and the main process adds them to its one accumulator in batch order,
-exactly as the model's own ``accumulate`` does with ``--jobs 1``; the caps happen there.
 """
 
 from __future__ import annotations
@@ -27,17 +21,15 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from itertools import islice
-from typing import TYPE_CHECKING, Any, TypeVar, cast
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.mapping.grid import FrequencyAccumulator, GridSpec, LogOddsAccumulator
-from gridmap_cli.mapping.models import kernels
+from gridmap_cli.mapping.grid import GridSpec, LogOddsAccumulator
 from gridmap_cli.poses.sync import SensorReadings, select_readings
 
 if TYPE_CHECKING:
-    from gridmap_cli.mapping.models.error_aware import WeightedRuns
     from gridmap_cli.mapping.plan import BuildPlan
 
 #: Readings per log-odds shard. Fixed, not derived from N: the shards decide the order of the
@@ -54,9 +46,8 @@ T = TypeVar("T")
 
 def batch_bounds(stamp_ns: npt.NDArray[np.int64], size: int) -> list[tuple[int, int]]:
     """Consecutive [start, stop) batches of about ``size`` readings, each cut where the stamp
-    changes, so a scan's beams (one stamp) stay in one batch: the error-aware laser model
-    compares a beam with its neighbours. A single stamp holding more than ``size`` readings
-    is kept whole."""
+    changes, so a scan's beams (one stamp) stay in one batch. A single stamp holding more than
+    ``size`` readings is kept whole."""
     n = stamp_ns.shape[0]
     bounds = []
     start = 0
@@ -104,14 +95,6 @@ def log_odds_shard(
     return values, counts, updates, len(readings)
 
 
-def batch_runs(
-    spec: GridSpec, model: Any, readings: SensorReadings
-) -> tuple[WeightedRuns, int, int]:
-    """An error-aware model's weighted runs of one batch, its cell updates and readings."""
-    runs, updates = model.runs(spec, readings)
-    return runs, updates, len(readings)
-
-
 def accumulate_log_odds(
     plan: BuildPlan,
     grid: LogOddsAccumulator,
@@ -133,43 +116,6 @@ def accumulate_log_odds(
     for shard_values, shard_counts, n, mapped in in_order(log_odds_shard, tasks, jobs):
         values += shard_values
         counts += shard_counts
-        updates += n
-        if progress is not None:
-            progress(mapped)
-    return updates
-
-
-def accumulate_frequencies(
-    plan: BuildPlan,
-    grid: FrequencyAccumulator,
-    batch_size: int,
-    jobs: int,
-    progress: Callable[[int], object] | None = None,
-) -> int:
-    """Add every reading of ``plan`` to ``grid`` batch by batch, the runs computed on ``jobs``
-    processes and added here in order; returns the cell updates."""
-    from gridmap_cli.mapping.models.error_aware import add_runs
-
-    ((model, _),) = plan.models  # error-aware mode maps with one model
-    tasks = (
-        (grid.spec, model, select_readings(part, slice(start, stop)))
-        for _, part in plan.parts()
-        for start, stop in batch_bounds(part.stamp_ns, batch_size)
-    )
-    updates = 0
-    # the model's own accumulate, in this process: the compiled kernel where it is built
-    # (one process with it maps an hour of sonar in about 0.4 s; N processes computing numpy
-    # runs for it to add took 6x longer), and always for one job
-    if jobs == 1 or kernels.compiled() is not None:
-        for _, part in plan.parts():
-            for start, stop in batch_bounds(part.stamp_ns, batch_size):
-                updates += model.accumulate(grid, select_readings(part, slice(start, stop)))
-                if progress is not None:
-                    progress(stop - start)
-        return updates
-    cap = cast(Any, model).params.redundant_looks
-    for runs, n, mapped in in_order(batch_runs, tasks, jobs):
-        add_runs(grid, runs, cap)
         updates += n
         if progress is not None:
             progress(mapped)

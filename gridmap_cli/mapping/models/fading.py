@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from gridmap_cli.mapping.grid import LogOddsAccumulator
 from gridmap_cli.mapping.models.ray import RayModel, RaySegments, accumulate_rays
@@ -33,10 +34,61 @@ from gridmap_cli.mapping.models.standard import (
 )
 from gridmap_cli.poses.pose_uncertainty import PoseUncertainty, project
 from gridmap_cli.poses.sync import SensorReadings, select_readings
+from gridmap_cli.robot import RangeSensor
 
 #: Ray weights are rounded to multiples of 1 / RAY_WEIGHT_LEVELS, so that a batch's rays map in a
 #: few groups of one weight each through the standard ray kernel.
 RAY_WEIGHT_LEVELS = 64
+#: The angular step assumed for a laser beam that belongs to no scan (a lone ray sensor): one
+#: degree, the coarsest step of the SICK LMS 200 that the CARMEN logs use.
+LONE_BEAM_STEP_RAD = math.radians(1.0)
+
+
+@dataclass(frozen=True)
+class ErrorAwareParams:
+    """The error-aware mode's settings beyond the odometry-error model; see docs/sensor-model.md.
+
+    ``trust_length_m``: L of the module docstring (``--trust-length``), the analytic model's.
+    ``max_heading_spread_rad``: readings taken after the heading standard deviation passes it
+    are left out, in both error-aware maps (``--max-heading-spread``; ``inf`` keeps every
+    reading). ``laser_relative_error``: k of eq. 11 for laser rays (the sonar's is in the
+    odometry-error file, where the seed paper put it).
+    """
+
+    trust_length_m: float = 0.3
+    max_heading_spread_rad: float = math.inf
+    laser_relative_error: float = 0.005
+
+    def __post_init__(self) -> None:
+        if not (self.trust_length_m > 0 and math.isfinite(self.trust_length_m)):
+            raise ValueError("the trust length must be a positive number of metres")
+        if not self.max_heading_spread_rad > 0:
+            raise ValueError("the heading-spread limit must be a positive angle")
+        if not (self.laser_relative_error >= 0 and math.isfinite(self.laser_relative_error)):
+            raise ValueError("the laser's relative range error must be a finite number >= 0")
+
+
+def scan_steps(sensors: tuple[RangeSensor, ...], narrow: npt.NDArray[np.bool_]) -> F64:
+    """Per sensor, shape (S,): the angular step of the scan its beam belongs to (beta of eq. 12,
+    at least the beam's own width), radians; 0 for a sensor that is no narrow beam.
+
+    The narrow-beam sensors ``<laser>_<i>`` at one mounting position are one scan; its step is
+    the median gap between their yaws (:data:`LONE_BEAM_STEP_RAD` for a beam alone)."""
+    groups: dict[tuple[str, float, float], list[int]] = {}
+    for i, s in enumerate(sensors):
+        if narrow[i]:
+            base, sep, index = s.name.rpartition("_")
+            key = (base if sep and index.isdigit() else s.name, s.x_m, s.y_m)
+            groups.setdefault(key, []).append(i)
+    step = np.zeros(len(sensors), dtype=np.float64)
+    for members in groups.values():
+        yaw = np.unwrap(np.array([sensors[i].yaw_rad for i in members]))
+        gaps = np.diff(yaw[np.argsort(yaw, kind="stable")])
+        gaps = gaps[gaps > 1e-9]
+        scan_step = float(np.median(gaps)) if gaps.size else LONE_BEAM_STEP_RAD
+        for i in members:
+            step[i] = max(scan_step, sensors[i].beam_width_rad)
+    return step
 
 
 @dataclass(frozen=True)
