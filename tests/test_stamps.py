@@ -1,4 +1,4 @@
-"""Stamps that never advance or jump by years: warned once, and no --start/--end on them (issue 21)."""
+"""Stamps that never advance or jump by years: warned once, and no window on them (issue 21)."""
 
 from __future__ import annotations
 

@@ -23,10 +23,10 @@ from fnmatch import fnmatchcase
 import numpy as np
 
 from gridmap_cli.errors import InputFileError, UsageError
+from gridmap_cli.mapping.stamps import stamp_problem
 from gridmap_cli.readers.text.csv_log import seconds_to_ns
 from gridmap_cli.records import EPOCH_FROM_NS, PoseTrack, RangeLog, RangeReadings, span_text
 from gridmap_cli.records import stamp_text as _stamp_text
-from gridmap_cli.mapping.stamps import stamp_problem
 from gridmap_cli.robot import RobotDescription
 
 #: A ``--sensors`` pattern starting with this leaves the sensors it matches out.
