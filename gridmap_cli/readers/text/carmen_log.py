@@ -342,6 +342,7 @@ class _Parser:
             sensors=tuple(sensors),
             truth=tracks.truth,
             metadata=metadata,
+            odometry_missing=tracks.odometry_missing,
         )
 
     def choose_lasers(self, last_line: int) -> dict[int, str]:
