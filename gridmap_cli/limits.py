@@ -30,7 +30,7 @@ class LimitError(InputFileError):
 _PIECE_CHARS = 1 << 22
 
 
-def _too_long(path: str, line: int) -> LimitError:
+def too_long(path: str, line: int) -> LimitError:
     return LimitError(
         path,
         f"line longer than {MAX_LINE_CHARS:,} characters, gridmap's limit for one line "
@@ -53,17 +53,17 @@ def read_bounded_text(handle: TextIO, path: str) -> str:
             return "".join(pieces)
         runs = piece.replace("\r", "\n").split("\n")
         if run + len(runs[0]) > MAX_LINE_CHARS:
-            raise _too_long(path, newlines + 1)
+            raise too_long(path, newlines + 1)
         if len(runs) > 1:
             longest = max(range(1, len(runs) - 1), key=lambda i: len(runs[i]), default=None)
             if longest is not None and len(runs[longest]) > MAX_LINE_CHARS:
-                raise _too_long(path, newlines + piece.count("\n", 0, _offset(runs, longest)) + 1)
+                raise too_long(path, newlines + piece.count("\n", 0, _offset(runs, longest)) + 1)
             run = len(runs[-1])
         else:
             run += len(runs[0])
         newlines += piece.count("\n")
         if run > MAX_LINE_CHARS:
-            raise _too_long(path, newlines + 1)
+            raise too_long(path, newlines + 1)
         pieces.append(piece)
 
 
@@ -82,7 +82,7 @@ def numbered_lines(handle: TextIO, path: str, start: int = 1) -> Iterator[tuple[
             return
         number += 1
         if len(line) > MAX_LINE_CHARS:
-            raise _too_long(path, number)
+            raise too_long(path, number)
         yield number, line
 
 

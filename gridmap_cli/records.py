@@ -183,6 +183,9 @@ class RangeLog:
     ``stream``: set when the readings are not held but read again from the file at each pass
     (a long log, :data:`gridmap_cli.readers.ReadOptions.stream`); ``readings`` is then empty,
     and :attr:`reading_count`, :meth:`reading_span` and :meth:`reading_chunks` are the ways in.
+
+    ``odometry_missing``: set (to the reason) when ``poses`` holds no odometry a map could be
+    built from (a corrected CARMEN log whose ODOM lines only repeat its corrected poses).
     Only a caller that asked for a stream gets one.
     """
 
@@ -195,6 +198,7 @@ class RangeLog:
     metadata: dict[str, str] = field(default_factory=dict)
     names_are_columns: bool = False
     stream: ReadingStream | None = None
+    odometry_missing: str | None = None
 
     @property
     def reading_count(self) -> int:

@@ -1,6 +1,7 @@
 """Mapping: synchronised readings -> sensor models -> grid -> finished map.
 
-:mod:`.selection` picks the sensors and the time window (``--sensors``, ``--start``, ``--end``);
+:mod:`.selection` picks the sensors and the time window (``--sensors``, ``--start``, ``--end``),
+:mod:`.stamps` the stamps such a window cannot trust;
 :mod:`.pipeline` plans a build (:mod:`.plan`) and runs it, on one process or several
 (:mod:`.shards`); :mod:`.models` hold the sensor models (standard, error-aware, ray) and their
 compiled kernels; :mod:`.grid` is the log-odds accumulator and the finished

@@ -23,6 +23,7 @@ from fnmatch import fnmatchcase
 import numpy as np
 
 from gridmap_cli.errors import InputFileError, UsageError
+from gridmap_cli.mapping.stamps import stamp_problem
 from gridmap_cli.readers.text.csv_log import seconds_to_ns
 from gridmap_cli.records import EPOCH_FROM_NS, PoseTrack, RangeLog, RangeReadings, span_text
 from gridmap_cli.records import stamp_text as _stamp_text
@@ -169,8 +170,14 @@ def apply_selection(
     if selection.sensors:
         log = select_sensors(log, selection.sensors)
     log, notes = ignore_other_columns(log, robot)
+    problem = stamp_problem(log)
+    if problem is not None:
+        notes = (*notes, f"{log.source}: {problem}")
     start_ns = end_ns = None
     if selection.start is not None or selection.end is not None:
+        if problem is not None:
+            asked = " ".join(f"{b.flag} {b.text}" for b in (selection.start, selection.end) if b)
+            raise InputFileError(log.source, f"{asked} cannot be honoured: {problem}")
         origin = _log_span(log)[0]
         if selection.start is not None:
             start_ns = selection.start.stamp_ns(log, origin)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.errors import GridmapError
+from gridmap_cli.errors import GridmapError, InputFileError
 from gridmap_cli.geometry import compose, wrap_angle
 from gridmap_cli.poses.odometry_error import travelled_at
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
@@ -96,6 +96,8 @@ def select_poses(log: RangeLog, source: str) -> RangeLog:
     odometry shows what the robot's own data gives.
     """
     if source == "odometry":
+        if log.odometry_missing is not None:
+            raise InputFileError(log.source, f"--pose odometry: odometry {log.odometry_missing}")
         return log
     if source == "scan-matched":
         raise GridmapError(

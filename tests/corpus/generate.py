@@ -13,6 +13,7 @@ exactly what the case's name says.
 from __future__ import annotations
 
 import dataclasses
+import gzip
 import json
 import shutil
 import struct
@@ -196,6 +197,30 @@ for _name, _text, _line, _fragment in [
      "MAX_LINE_CHARS"),
 ]:  # fmt: skip
     text_case(f"carmen-{_name}", "carmen", "run.log", _text, _line, _fragment)
+
+
+def _repeating_odometry(twice: bool) -> str:
+    """A corrected log whose ODOM lines only restart at (and repeat) each scan's pose."""
+    lines = []
+    for k in range(6):
+        t, pose = 1.0 + k / 10, f"{k * 0.3:.9f} {k * 0.01:.9f} 0.000000000"
+        lines.append(f"FLASER 5 1 2 3 2 1 {pose} {pose} {t:.6f} host {t:.6f}\n")
+        lines += [f"ODOM {pose} 0 0 0 {t:.6f} host {t:.6f}\n"] * (2 if twice else 1)
+    return CARMEN_HEAD + "".join(lines)
+
+
+for _name, _data, _line, _fragment in [  # issue 21: gzip bombs fail while decompressing
+    ("gzip-nul-bomb", gzip.compress(b"\0" * (16 << 20)), 1, "MAX_LINE_CHARS"),
+    ("gzip-endless-line", gzip.compress(CARMEN_HEAD.encode() + b"FLASER 1 " * (2 << 20)), 4,
+     "MAX_LINE_CHARS"),
+    ("gzip-bomb-second-member", gzip.compress(CARMEN_HEAD.encode()) +
+     gzip.compress(b"\r" + b"\0" * (16 << 20)), 4, "MAX_LINE_CHARS"),
+]:  # fmt: skip
+    text_case(f"carmen-{_name}", "carmen", "run.log.gz", _data, _line, _fragment)
+
+for _name, _twice in [("odometry-only-restarts", False), ("odometry-only-repeats", True)]:
+    text_case(f"carmen-{_name}", "carmen", "run.log", _repeating_odometry(_twice), None,
+              "--pose odometry: odometry missing")  # fmt: skip
 
 
 # ----------------------------------------------------------------------------------- robot YAML

@@ -28,6 +28,7 @@ import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.limits import numbered_lines
+from gridmap_cli.readers.text.carmen_layout import layout_from_params
 from gridmap_cli.readers.text.carmen_tracks import Event, build_tracks
 from gridmap_cli.readers.text.csv_log import seconds_to_ns
 from gridmap_cli.readers.text.source import parse_text
@@ -94,6 +95,7 @@ class _Laser:
     layout_line: int = 0
     max_range_m: float = DEFAULT_MAX_RANGE_M
     max_from: str = "CARMEN's default"
+    params_read: str = ""  # how the fov/resolution PARAM lines were read
 
 
 def read_carmen_log(source: str | Path | TextIO, name: str | None = None) -> RangeLog:
@@ -326,6 +328,7 @@ class _Parser:
                 f"{lasers[number]}, {count} beams from {math.degrees(start):g} deg every "
                 f"{math.degrees(step):g} deg, max range {laser.max_range_m:g} m "
                 f"({laser.max_from}); {no_echo[number]} readings at or beyond it left out"
+                + (f"; PARAM {laser.params_read}" if laser.params_read else "")
             )
         skipped = [f"{m} {c}" for m, c in sorted(self.skipped.items())]
         skipped += self.duplicates
@@ -339,6 +342,7 @@ class _Parser:
             sensors=tuple(sensors),
             truth=tracks.truth,
             metadata=metadata,
+            odometry_missing=tracks.odometry_missing,
         )
 
     def choose_lasers(self, last_line: int) -> dict[int, str]:
@@ -377,8 +381,9 @@ class _Parser:
             if scan.start_rad is None or scan.step_rad is None:
                 fov = self.param(f"laser_{word}_laser_fov") if word else None
                 res = self.param(f"laser_{word}_laser_resolution") if word else None
-                start = -math.radians(fov if fov else 180.0) / 2.0
-                step = math.radians(res) if res else _guess_step(n)
+                read = layout_from_params(fov, res, n, _guess_step(n))
+                start, step = read.start_rad, read.step_rad
+                laser.params_read = read.read
             else:
                 start, step = scan.start_rad, scan.step_rad
             if laser.layout is None:

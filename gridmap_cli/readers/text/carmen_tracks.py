@@ -71,6 +71,7 @@ class Tracks:
     truth: PoseTrack | None
     event_stamps_ns: list[int]
     notes: dict[str, str] = field(default_factory=dict)
+    odometry_missing: str | None = None  # why ``odometry`` is no odometry (see RangeLog)
 
 
 def _same(a: tuple[float, float, float], b: tuple[float, float, float]) -> bool:
@@ -196,7 +197,8 @@ def build_tracks(path: str, events: list[Event], last_line: int) -> Tracks:
                 odo_stamps.append(stamps[i])
                 odo_rows.append(current)
         n_restarts = sum(restart)
-        notes["odometry"] = (
+        missing = _only_repeats(events, restart) if corrected else None
+        notes["odometry"] = missing or (
             f"the robot's own: the chain of the increments between {len(odom_idx)} ODOM lines"
             + (f", none across the {n_restarts} restarts at scans" if n_restarts else "")
         )
@@ -233,4 +235,34 @@ def build_tracks(path: str, events: list[Event], last_line: int) -> Tracks:
             "increases in file order"
         )
     return Tracks(odometry=_track(odo_stamps, odo_rows), truth=truth, event_stamps_ns=stamps,
-                  notes=notes)  # fmt: skip
+                  notes=notes, odometry_missing=missing if odom_idx else None)  # fmt: skip
+
+
+def _only_repeats(events: list[Event], restart: list[bool]) -> str | None:
+    """Why a corrected log has no recoverable odometry, or None: every ODOM line is a restart,
+    the pose of the laser line after it or the ODOM line before it repeated, so no increment
+    is the robot's own motion."""
+    next_scan: list[tuple[float, float, float] | None] = [None] * len(events)
+    pose: tuple[float, float, float] | None = None
+    for i in range(len(events) - 1, -1, -1):  # the pose of the first laser line after each
+        next_scan[i] = pose
+        if events[i].kind == "scan" and events[i].pose is not None:
+            pose = events[i].pose
+    count = 0
+    before: tuple[float, float, float] | None = None
+    for i, event in enumerate(events):
+        if event.kind != "odom":
+            continue
+        count += 1
+        after = next_scan[i]
+        assert event.pose is not None
+        repeats = (after is not None and _same(event.pose, after)) or (
+            before is not None and _same(event.pose, before)
+        )
+        if not restart[i] and not repeats:
+            return None
+        before = event.pose
+    return (
+        f"missing: the {count} ODOM lines only repeat the laser lines' corrected poses, so no "
+        "odometry is recoverable (--pose global maps with the corrected poses)"
+    )

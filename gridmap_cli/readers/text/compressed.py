@@ -8,12 +8,14 @@ not valid gzip (truncated, corrupt, not gzip at all) is an :class:`InputFileErro
 
 from __future__ import annotations
 
-import gzip
 import io
 import zlib
+from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import BinaryIO
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.limits import MAX_LINE_CHARS, too_long
 
 MAGIC = b"\x1f\x8b"
 SUFFIX = ".gz"
@@ -37,15 +39,86 @@ def inner_suffix(path: Path) -> str:
     return Path(path.stem).suffix.lower()
 
 
+#: Decompressed bytes produced per step, and the input read per step.
+_PIECE_BYTES = 1 << 20
+#: A run of more bytes than this without a line break holds a line longer than the readers'
+#: limit in any encoding (a character is at most 4 bytes): refused while decompressing, so a
+#: gzip bomb (gigabytes of NULs, one endless line) stops after a few MiB.
+MAX_RUN_BYTES = 4 * MAX_LINE_CHARS
+
+
+def _inflate(chunks: Iterable[bytes], name: str, limit: int | None = None) -> bytes:
+    """The gzip members in ``chunks`` decompressed, refusing an over-long line as it is made.
+
+    ``limit``: stop after that many bytes (a head to sniff). Raises :class:`LimitError` naming
+    the line, :class:`InputFileError` for data that are not gzip or end early.
+    """
+    inflater = zlib.decompressobj(wbits=31)
+    out: list[bytes] = []
+    size = run = 0
+    lines = 1
+    started = False
+    for chunk in chunks:
+        data = chunk
+        while data:
+            started = True
+            piece = inflater.decompress(data, _PIECE_BYTES)
+            data = inflater.unconsumed_tail
+            if inflater.eof:
+                rest = inflater.unused_data  # at the end, the input left (the tail repeats it)
+                data = b"" if not rest.strip(b"\0") else rest  # padding, or the next member
+                if data:
+                    inflater = zlib.decompressobj(wbits=31)
+            elif not data and len(piece) == _PIECE_BYTES:
+                piece += _drain(inflater)
+            run = _check(piece, run, name, lines)
+            lines += piece.count(b"\n")
+            out.append(piece)
+            size += len(piece)
+            if limit is not None and size >= limit:
+                return b"".join(out)[:limit]
+    if started and not inflater.eof:
+        raise InputFileError(name, "not a valid gzip file: compressed data end early (truncated?)")
+    return b"".join(out)
+
+
+def _drain(inflater: zlib._Decompress) -> bytes:
+    """Output ``inflater`` still holds once its input is all taken (a piece filled exactly)."""
+    more = []
+    while not inflater.eof:
+        piece = inflater.decompress(b"", _PIECE_BYTES)
+        if not piece:
+            break
+        more.append(piece)
+        if sum(map(len, more)) > MAX_RUN_BYTES:
+            break  # checked by the caller; the rest comes with the next input
+    return b"".join(more)
+
+
+def _check(piece: bytes, run: int, name: str, lines: int) -> int:
+    """The run without a line break (``\n`` or a lone ``\r``) at the end of ``piece``, given
+    ``run`` before it; raises :class:`LimitError` at the first run over the bound."""
+    parts = piece.replace(b"\r", b"\n").split(b"\n")
+    offset = 0
+    for j, part in enumerate(parts):
+        run = run + len(part) if j == 0 else len(part)
+        if run > MAX_RUN_BYTES:
+            raise too_long(name, lines + piece.count(b"\n", 0, offset))
+        offset += len(part) + 1
+    return run
+
+
+def _file_chunks(handle: BinaryIO) -> Iterator[bytes]:
+    while chunk := handle.read(_PIECE_BYTES):
+        yield chunk
+
+
 def _decompress(path: Path, limit: int | None) -> bytes:
     try:
-        with gzip.open(path, "rb") as handle:
-            return handle.read() if limit is None else handle.read(limit)
-    except (gzip.BadGzipFile, EOFError, zlib.error) as exc:
-        detail = str(exc) or type(exc).__name__
-        if isinstance(exc, EOFError):
-            detail = "compressed data end early (truncated file?)"
-        raise InputFileError(path, f"not a valid gzip file: {detail}") from None
+        with open(path, "rb") as handle:
+            return _inflate(_file_chunks(handle), str(path), limit)
+    except zlib.error as exc:
+        raise InputFileError(path, f"not a valid gzip file: {exc}") from None
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
 
@@ -53,12 +126,11 @@ def _decompress(path: Path, limit: int | None) -> bytes:
 def decompress_bytes(data: bytes, name: str) -> bytes:
     """gzip data held in memory (a log on standard input), decompressed."""
     try:
-        return gzip.decompress(data)
-    except (gzip.BadGzipFile, EOFError, zlib.error) as exc:
-        detail = str(exc) or type(exc).__name__
-        if isinstance(exc, EOFError):
-            detail = "compressed data end early (truncated?)"
-        raise InputFileError(name, f"not a valid gzip stream: {detail}") from None
+        view = memoryview(data)
+        pieces = (bytes(view[i : i + _PIECE_BYTES]) for i in range(0, len(data), _PIECE_BYTES))
+        return _inflate(pieces, name)
+    except zlib.error as exc:
+        raise InputFileError(name, f"not a valid gzip stream: {exc}") from None
 
 
 def head(path: Path, size: int) -> bytes:
