@@ -220,3 +220,15 @@ def test_evaluate_scores_the_window_of_its_log(tmp_path: Path) -> None:
                           "--frame", "world", "--start", "10")  # fmt: skip
     assert code == 2
     assert stderr.strip() == "Error: --sensors, --start and --end choose part of --log; give --log"
+
+
+@pytest.mark.parametrize("flag", ["--start", "--end"])
+def test_a_window_bound_no_stamp_holds_is_a_usage_error(tmp_path: Path, flag: str) -> None:
+    csv = Path(__file__).resolve().parents[1] / "samples" / "corridor_loop.csv"
+    out = tmp_path / "m.png"
+    code, stdout, stderr = run("build", str(csv), "-o", str(out), flag, "1e300")
+    assert (code, stdout) == (2, "") and not names(tmp_path)
+    assert stderr == (
+        f"Error: {flag} 1e300: '1e300' s is beyond what a nanosecond stamp holds "
+        "(about 292 years from zero)\n"
+    )

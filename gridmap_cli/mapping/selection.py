@@ -73,8 +73,9 @@ def parse_time(text: str, flag: str) -> TimeBound:
     value = text.strip()
     try:
         offset = seconds_to_ns(value)
-    except ValueError:
-        pass
+    except ValueError as exc:
+        if not str(exc).startswith("not a number"):  # a number, but no stamp holds it
+            raise UsageError(f"{flag} {text}: {exc}") from None
     else:
         if offset < 0:
             raise UsageError(f"{flag} {text}: seconds from the log's start cannot be negative")

@@ -241,6 +241,8 @@ def test_corrupt_gzip_is_one_line_error(tmp_path: Path) -> None:
         ("ODOM 1 two 3 0 0 0 1.0 host 1.0", "ODOM: pose y: not a number: 'two'"),
         ("ODOM 1 2 nan 0 0 0 1.0 host 1.0", "ODOM: pose theta: not a finite number: 'nan'"),
         ("ODOM 1 2 3 0 0 0 soon host 1.0", "ODOM: ipc_timestamp: not a number: 'soon'"),
+        ("ODOM 1 2 3 0 0 0 1e300 host 1.0", "ODOM: ipc_timestamp: '1e300' s is beyond what a "
+         "nanosecond stamp holds (about 292 years from zero)"),
         ("FLASER 3 1 2 0 0 0 0 0 0 1.0 host 1.0", "FLASER: num_readings 3 means 14 fields "
          "(ranges, laser and robot pose, ipc_timestamp hostname logger_timestamp), found 13"),
         ("FLASER three 1 2 3", "FLASER: num_readings: not a whole number: 'three'"),

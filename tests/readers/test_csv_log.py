@@ -14,6 +14,7 @@ from gridmap_cli.errors import InputFileError
 from gridmap_cli.readers.text import csv_log
 from gridmap_cli.readers.text.csv_log import read_csv_log, seconds_to_ns, sniff
 from gridmap_cli.records import RangeLog
+from tests.helpers import run
 
 GOOD = """\
 # gridmap-csv: 1
@@ -132,8 +133,30 @@ def test_seconds_to_ns_forms() -> None:
     assert seconds_to_ns(".5") == 500_000_000
     assert seconds_to_ns("1e-3") == 1_000_000
     for bad in ("", "nan", "inf", "1.2.3", "--1"):
-        with pytest.raises(ValueError):
+        with pytest.raises(ValueError, match=r"^not a number: "):
             seconds_to_ns(bad)
+    # more than nine decimals round through float, keeping the sign once (it was negated twice)
+    assert seconds_to_ns("-0.1234567891") == -123_456_789
+    assert seconds_to_ns("0.1234567891") == 123_456_789
+
+
+@pytest.mark.parametrize("huge", ["1e300", "-1e300", "1e10", "9" * 40, "1" + "0" * 12 + ".5"])
+def test_seconds_no_int64_stamp_holds_are_refused_by_name(huge: str) -> None:
+    with pytest.raises(ValueError, match="beyond what a nanosecond stamp holds"):
+        seconds_to_ns(huge)
+    assert seconds_to_ns("9e9") == 9 * 10**18  # 285 years: still a stamp
+
+
+def test_a_csv_time_beyond_any_stamp_is_one_line(tmp_path: Path) -> None:
+    log = tmp_path / "run.csv"
+    log.write_text("time,x,y,theta\n0,0,0,0\n1e300,1,0,0\n")
+    out = tmp_path / "m.png"
+    code, stdout, stderr = run("build", str(log), "-o", str(out))
+    assert (code, stdout) == (1, "") and not out.exists()
+    assert stderr == (
+        f"Error: {log}:3: column 'time': '1e300' s is beyond what a nanosecond stamp holds "
+        "(about 292 years from zero)\n"
+    )
 
 
 def test_empty_sensor_set_is_allowed() -> None:

@@ -224,8 +224,8 @@ class _Parser:
     def start_block(self, line: int, tag: str, values: str) -> _Block:
         try:
             stamp = seconds_to_ns(values.strip())
-        except ValueError:
-            raise self.error(line, f"{tag}: not a number: {values.strip()!r}") from None
+        except ValueError as exc:
+            raise self.error(line, f"{tag}: {exc}") from None
         block = _Block(line=line, stamp_ns=stamp)
         self.blocks.append(block)
         return block

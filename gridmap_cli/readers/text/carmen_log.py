@@ -151,8 +151,8 @@ class _Parser:
         token = tokens[-_TRAILER]
         try:
             return seconds_to_ns(token)
-        except ValueError:
-            raise self.error(line, f"{message}: ipc_timestamp: not a number: {token!r}") from None
+        except ValueError as exc:
+            raise self.error(line, f"{message}: ipc_timestamp: {exc}") from None
 
     def ranges(self, line: int, message: str, tokens: list[str]) -> npt.NDArray[np.float64]:
         try:

@@ -38,28 +38,43 @@ def sniff(head: bytes) -> bool:
     return False
 
 
+#: Nanoseconds an int64 stamp holds: about 292 years either side of its zero.
+_MAX_STAMP_NS = 2**63 - 1
+
+
 def seconds_to_ns(text: str) -> int:
     """Parse a decimal number of seconds into integer nanoseconds, exactly where it can.
 
     Plain decimals (``12.3``, ``-0.5``, ``1700000000.123456789``) are converted digit by digit, so
     epoch stamps keep their nanoseconds; other float spellings (``1e3``) go through float.
-    Raises ValueError for text that is not a finite number.
+    Raises ValueError, whose message is what a caller shows after the field's name, for text
+    that is not a finite number (``not a number: 'x'``) or a time no int64 nanosecond stamp
+    holds (``1e300``).
     """
     s = text.strip()
     neg = s.startswith("-")
     body = s[1:] if s[:1] in "+-" else s
     whole, _, frac = body.partition(".")
     plain = (whole or frac) and all(part.isdigit() or not part for part in (whole, frac))
-    if plain and body.isascii():
-        if len(frac) > 9 and frac[9:].strip("0"):
-            value = round(float(s) * 1e9)
+    try:
+        if plain and body.isascii():
+            if len(frac) > 9 and frac[9:].strip("0"):
+                value = round(float(s) * 1e9)
+            else:
+                value = int(whole or "0") * 1_000_000_000 + int((frac + "000000000")[:9])
+                value = -value if neg else value
         else:
-            value = int(whole or "0") * 1_000_000_000 + int((frac + "000000000")[:9])
-        return -value if neg else value
-    f = float(s)
-    if not math.isfinite(f):
-        raise ValueError(f"not a finite time: {text!r}")
-    return round(f * 1e9)
+            f = float(s)
+            if not math.isfinite(f):
+                raise ValueError
+            value = round(f * 1e9) if math.isfinite(f * 1e9) else _MAX_STAMP_NS + 1
+    except (ValueError, OverflowError):
+        raise ValueError(f"not a number: {text!r}") from None
+    if abs(value) > _MAX_STAMP_NS:
+        raise ValueError(
+            f"{text!r} s is beyond what a nanosecond stamp holds (about 292 years from zero)"
+        )
+    return value
 
 
 def read_csv_log(source: str | Path | TextIO, name: str | None = None) -> RangeLog:
@@ -251,10 +266,8 @@ def _read_rows(handle: TextIO, path: str) -> RangeLog:
             )
         try:
             stamp = seconds_to_ns(fields[pose_idx[0]])
-        except ValueError:
-            raise InputFileError(
-                path, f"not a number: {fields[pose_idx[0]]!r}", line_no, "time"
-            ) from None
+        except ValueError as exc:
+            raise InputFileError(path, str(exc), line_no, "time") from None
         if stamps and stamp <= stamps[-1]:
             what = "repeats" if stamp == stamps[-1] else "goes backwards"
             raise InputFileError(
