@@ -1,5 +1,6 @@
 """Many builds at once: :mod:`.batch` maps a folder of logs, :mod:`.fuse` maps several
-recordings into one map, :mod:`.executors` runs either on local processes or a Dask cluster.
+recordings into one map, :mod:`.executors` runs either on local processes or a Dask cluster;
+:mod:`.content` keys a log by its content.
 
 May import: everything below the CLI (readers, poses, mapping, writers, the core).
 """

@@ -36,13 +36,13 @@ import numpy as np
 from gridmap_cli import __version__
 from gridmap_cli.atomic import atomic_write
 from gridmap_cli.errors import GridmapError, UsageError
+from gridmap_cli.runs.content import content_hash
 
 #: The sidecar beside each map, holding the key of what it was built from.
 SIDECAR_SUFFIX = ".batch.json"
 LOCK_NAME = ".gridmap-batch.lock"
 REPORT_NAME = "batch-report.jsonl"
 _GLOB_CHARS = "*?["
-_HASH_BLOCK = 1 << 20
 
 
 @dataclass(frozen=True)
@@ -175,22 +175,6 @@ def _stem(log: Path) -> str:
 
 
 # ------------------------------------------------------------------------------ up to date
-
-
-def content_hash(log: Path) -> tuple[str, int]:
-    """SHA-256 of a log's content and its size in bytes; a folder (rosbag2) hashes each file's
-    relative name and content, in name order."""
-    digest = hashlib.sha256()
-    total = 0
-    files = sorted(p for p in log.rglob("*") if p.is_file()) if log.is_dir() else [log]
-    for path in files:
-        if log.is_dir():
-            digest.update(str(path.relative_to(log)).encode() + b"\0")
-        with open(path, "rb") as handle:
-            while block := handle.read(_HASH_BLOCK):
-                digest.update(block)
-                total += len(block)
-    return digest.hexdigest(), total
 
 
 def job_key(content: str, options: BatchOptions) -> str:

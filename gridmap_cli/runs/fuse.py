@@ -19,7 +19,6 @@ or a Dask cluster reducing the tree on its workers), gives the same map.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -42,8 +41,7 @@ from gridmap_cli.mapping.pipeline import BuildOptions, accumulate, plan_build
 from gridmap_cli.mapping.selection import Selection
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import PoseTrack, RangeLog
-
-_HASH_BLOCK = 1 << 20
+from gridmap_cli.runs.content import content_hash
 
 
 @dataclass(frozen=True)
@@ -103,15 +101,7 @@ def place(track: PoseTrack, first: tuple[float, float, float]) -> PoseTrack:
 
 def content_key(log: Path) -> str:
     """SHA-256 of a log's content (a rosbag2 folder: its files' names and contents)."""
-    digest = hashlib.sha256()
-    files = sorted(p for p in log.rglob("*") if p.is_file()) if log.is_dir() else [log]
-    for path in files:
-        if log.is_dir():
-            digest.update(str(path.relative_to(log)).encode() + b"\0")
-        with open(path, "rb") as handle:
-            while block := handle.read(_HASH_BLOCK):
-                digest.update(block)
-    return digest.hexdigest()
+    return content_hash(log)[0]
 
 
 def partial_of(job: FuseJob) -> Partial:
