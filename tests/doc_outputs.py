@@ -47,14 +47,11 @@ def normalised(text: str) -> str:
     return "\n".join(line.rstrip() for line in text.splitlines()).strip("\n")
 
 
-def run_command(command: str, cwd: Path) -> str:
-    """Standard output of ``command`` (a ``gridmap ...`` line) run through bash in ``cwd``,
-    with the ``gridmap`` installed beside this Python first on the PATH; raises
-    :class:`AssertionError` naming the command when it fails."""
-    if not command.startswith("gridmap "):
-        raise AssertionError(f"an output block shows a gridmap command, not {command!r}")
+def shell(command: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    """``command`` run through bash in ``cwd`` as a reader of the docs runs it, with the
+    ``gridmap`` installed beside this Python first on the PATH."""
     env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
-    done = subprocess.run(
+    return subprocess.run(
         ["bash", "-o", "pipefail", "-c", command],
         cwd=cwd,
         env=env,
@@ -63,6 +60,14 @@ def run_command(command: str, cwd: Path) -> str:
         timeout=300,
         check=False,
     )
+
+
+def run_command(command: str, cwd: Path) -> str:
+    """Standard output of ``command`` (a ``gridmap ...`` line) run by :func:`shell`; raises
+    :class:`AssertionError` naming the command when it fails."""
+    if not command.startswith("gridmap "):
+        raise AssertionError(f"an output block shows a gridmap command, not {command!r}")
+    done = shell(command, cwd)
     if done.returncode != 0:
         raise AssertionError(f"{command}: exit {done.returncode}\n{done.stderr}")
     return done.stdout

@@ -10,16 +10,14 @@ from the PATH the README tells users to set up.
 
 from __future__ import annotations
 
-import os
 import re
-import subprocess
 import sys
 import tomllib
 from pathlib import Path
 
 import pytest
 
-from tests.doc_outputs import normalised, output_blocks, run_command
+from tests.doc_outputs import normalised, output_blocks, run_command, shell
 
 REPO = Path(__file__).resolve().parent.parent
 DOCS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
@@ -54,17 +52,8 @@ def test_examples_run_as_written(doc: Path, tmp_path: Path) -> None:
     if not commands:
         pytest.skip(f"{doc.name} has no runnable examples")
     (tmp_path / "samples").symlink_to(REPO / "samples")
-    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
     for command, shown in commands:
-        done = subprocess.run(
-            ["bash", "-o", "pipefail", "-c", command],
-            cwd=tmp_path,
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=300,
-            check=False,
-        )
+        done = shell(command, tmp_path)
         assert done.returncode == 0, f"{doc.name}: {command}\n{done.stderr}"
         if shown is not None:  # the doc shows what the command says: it must say that
             assert done.stderr.strip().splitlines()[-1] == shown
