@@ -8,9 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli.evaluation.spread_map import pose_spread_map
+from gridmap_cli.evaluation.spread_map import pose_spread_map, reading_spreads
 from gridmap_cli.mapping.grid import GridSpec
 from gridmap_cli.poses.odometry_error import OdometryError, save_odometry_error
+from gridmap_cli.poses.pose_uncertainty import PoseUncertainty, StepNoise, propagate
 from gridmap_cli.poses.sync import SensorReadings, select_readings, synchronise
 from gridmap_cli.readers import read_log
 from gridmap_cli.robot import RangeSensor, robot_from_log
@@ -29,8 +30,8 @@ DRIFT1 = OdometryError(
 
 
 def test_two_readings_by_hand() -> None:
-    # a laser at the origin looking along +x (2 m, echo) after 0 m driven, and one from (0, 1)
-    # after 4 m driven: f = 0.1 d, g = 0.01 d
+    # a laser at the origin looking along +x (2 m, echo) with a known pose, and one looking up
+    # when the pose's standard deviations are 0.4 m (x; 0.3 m in y) and 0.04 rad
     laser = RangeSensor(name="laser", x_m=0.0, y_m=0.0, yaw_rad=0.0, beam_width_rad=0.0,
                         min_range_m=0.0, max_range_m=5.0)  # fmt: skip
     readings = SensorReadings(
@@ -44,38 +45,62 @@ def test_two_readings_by_hand() -> None:
         distance_m=np.array([0.0, 4.0]),
         rotation_rad=np.zeros(2),
     )
-    odo = OdometryError(range_m_per_m=0.1, heading_drift_rad_per_m=0.01)
-    spread = pose_spread_map(GridSpec(0.0, 0.0, 0.1, 30, 30), readings, odo)
-    # the first reading's row: f = 0; its start cell is also on the second's column: still 0
+    cov = np.zeros((2, 3, 3))
+    cov[1] = np.diag([0.4**2, 0.3**2, 0.04**2])
+    cov[1, 0, 1] = cov[1, 1, 0] = 0.0
+    known = PoseUncertainty(np.array([0, 1], dtype=np.int64), np.zeros(2), np.zeros(2), cov)
+    spread = pose_spread_map(GridSpec(0.0, 0.0, 0.1, 30, 30), readings, known)
+    # the first reading's row: 0 m; its start cell is also on the second's column: still 0
     assert np.all(spread.position_m[0, :21] == 0.0)
-    # the second reading's column above the shared cell: f = 0.4 m, g = 0.04 rad
+    # the second reading's column above the shared cell: 0.4 m (the ellipse's long axis), 0.04 rad
     assert spread.position_m[1:21, 0] == pytest.approx(np.full(20, 0.4), abs=spread.levels_m)
     assert spread.heading_rad[1:21, 0] == pytest.approx(np.full(20, 0.04), abs=spread.levels_rad)
     # nothing else was crossed
     assert np.count_nonzero(~np.isnan(spread.position_m)) == 21 + 20
 
 
+def test_the_position_spread_is_the_long_axis_of_a_tilted_ellipse() -> None:
+    laser = RangeSensor(name="laser", x_m=0.0, y_m=0.0, yaw_rad=0.0, beam_width_rad=0.0,
+                        min_range_m=0.0, max_range_m=5.0)  # fmt: skip
+    readings = SensorReadings(
+        stamp_ns=np.array([5], dtype=np.int64), sensor=np.zeros(1, dtype=np.int32),
+        range_m=np.array([1.0]), x_m=np.zeros(1), y_m=np.zeros(1), theta_rad=np.zeros(1),
+        sensors=(laser,),
+    )  # fmt: skip
+    # axes 0.5 m and 0.1 m, turned 30 degrees
+    a = math.radians(30.0)
+    r = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    cov = np.zeros((2, 3, 3))
+    cov[1, :2, :2] = r @ np.diag([0.25, 0.01]) @ r.T
+    cov[1, 2, 2] = 0.09
+    track = PoseUncertainty(np.array([0, 10], dtype=np.int64), np.zeros(2), np.zeros(2), cov)
+    position, heading = reading_spreads(readings, track)
+    # half way in time: half the variance
+    assert position[0] == pytest.approx(math.sqrt(0.125))
+    assert heading[0] == pytest.approx(math.sqrt(0.045))
+
+
 @pytest.mark.skipif(not SAMPLE.exists(), reason="no samples")
 def test_cells_seen_late_in_a_drifting_run_have_more_spread() -> None:
     log = read_log(SAMPLE)
     readings, _ = synchronise(log, robot_from_log(SAMPLE, log.metadata))
+    track = propagate(log.poses, StepNoise.of(DRIFT1))
     spec = GridSpec(-15.0, -15.0, 0.1, 300, 300)
     n = len(readings)
-    early = pose_spread_map(spec, select_readings(readings, slice(0, n // 10)), DRIFT1)
-    first_half = pose_spread_map(spec, select_readings(readings, slice(0, n // 2)), DRIFT1)
-    whole = pose_spread_map(spec, readings, DRIFT1)
+    early = pose_spread_map(spec, select_readings(readings, slice(0, n // 10)), track)
+    first_half = pose_spread_map(spec, select_readings(readings, slice(0, n // 2)), track)
+    whole = pose_spread_map(spec, readings, track)
+    position, _ = reading_spreads(readings, track)
     seen_early = ~np.isnan(early.position_m)
     only_late = np.isnan(first_half.position_m) & ~np.isnan(whole.position_m)
     assert seen_early.sum() > 100 and only_late.sum() > 100
     f_early = whole.position_m[seen_early]
     f_late = whole.position_m[only_late]
-    assert readings.distance_m is not None
-    d_tenth = float(readings.distance_m[n // 10 - 1])
     # a cell seen in the first tenth keeps the spread it was seen with, never a later one
-    assert f_early.max() <= float(DRIFT1.f(d_tenth)) + whole.levels_m
-    # cells only the second half saw were seen with more spread, all of them
-    d_half = float(readings.distance_m[n // 2])
-    assert f_late.min() >= float(DRIFT1.f(d_half)) - whole.levels_m
+    assert f_early.max() <= float(position[: n // 10].max()) + whole.levels_m
+    # cells only the second half saw were seen with the second half's spread, all of them
+    assert f_late.min() >= float(position[n // 2 :].min()) - whole.levels_m
+    # and the pose error grows along the run: the late cells' spread is several times more
     assert np.median(f_late) > 2 * np.median(f_early)
 
 

@@ -76,8 +76,9 @@ if TYPE_CHECKING:
     "--spread-plot",
     type=click.Path(path_type=Path),
     help="Write a PNG of where the map's uncertainty comes from: per cell, the smallest "
-    "odometry position spread f (and its heading spread g) at which a reading of --log "
-    "crossed it, from --odometry-error (needs --log and matplotlib).",
+    "position spread (and its heading spread) of the pose at which a reading of --log crossed "
+    "it, the pose covariance carried along the odometry from --odometry-error (needs --log and "
+    "matplotlib).",
 )
 @click.option(
     "--odometry-error",
@@ -249,10 +250,12 @@ def _spread_in_world(
     position spread (m) and the heading spread (deg), shape ``world.shape``."""
     from gridmap_cli.evaluation import evaluate as ev
     from gridmap_cli.evaluation.spread_map import pose_spread_map
+    from gridmap_cli.poses.pose_uncertainty import StepNoise, propagate
     from gridmap_cli.poses.sync import synchronise
 
     readings, _ = synchronise(log, robot)
-    spread = pose_spread_map(pmap.spec, readings, odometry)
+    uncertainty = propagate(log.poses, StepNoise.of(odometry))
+    spread = pose_spread_map(pmap.spec, readings, uncertainty)
     placed = [
         ev.map_in_world(ev.ProbabilityMap(pmap.spec, values, 0.5), world, map_to_world)
         for values in (spread.position_m, np.degrees(spread.heading_rad))

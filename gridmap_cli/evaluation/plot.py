@@ -133,11 +133,12 @@ def plot_pose_spread(
     max_heading_deg: float | None = None,
 ) -> None:
     """Write a PNG of where the map's uncertainty comes from, three panels on the world grid:
-    the map (grey = 1 - p, unknown pale blue, true walls in red); the smallest position spread f
-    (metres) at which a reading's beam crossed each cell; the heading spread g (degrees) of
-    those readings, with ``max_heading_deg`` (the build's limit, if any) marked on its colour
-    bar. Cells the map knows that no beam axis crossed (reached only by a reading's wedge,
-    widened by g) are mid grey; cells the map does not know are pale blue. Arrays shape
+    the map (grey = 1 - p, unknown pale blue, true walls in red); the smallest position spread
+    (metres, one standard deviation) of the pose at which a reading's beam crossed each cell;
+    the heading spread (degrees) of those readings, with ``max_heading_deg`` (the build's limit,
+    if any) marked on its colour bar. Cells the map knows that none of the drawn rays crossed
+    (between a sonar cone's rays, or reached only by the expected map's sampled tracks) are mid
+    grey; cells the map does not know are pale blue. Arrays shape
     ``world.shape``, row 0 at the bottom.
     """
     check_plotting()
@@ -159,8 +160,8 @@ def plot_pose_spread(
     rgb[walls] = 0.5 * rgb[walls] + 0.5 * np.array([0.95, 0.1, 0.1])
     ax_map.imshow(rgb, origin="lower", extent=extent, interpolation="nearest")
     ax_map.set_title(
-        "map (grey = 1 - p), true walls red\nspread panels: mid grey = reached only through a "
-        "wedge widened by g",
+        "map (grey = 1 - p), true walls red\nspread panels: mid grey = known, but crossed by "
+        "no drawn ray",
         fontsize=9,
     )
     if title:
@@ -169,10 +170,10 @@ def plot_pose_spread(
         (
             ax_f,
             position_m,
-            "smallest position spread f (m)\nof the readings that crossed a cell",
+            "smallest position spread (m, 1 sigma)\nof the readings that crossed a cell",
             None,
         ),
-        (ax_g, heading_deg, "heading spread g (deg) of those readings", max_heading_deg),
+        (ax_g, heading_deg, "heading spread (deg, 1 sigma) of those readings", max_heading_deg),
     )
     for ax, values, label, limit in panels:
         ax.set_facecolor(UNKNOWN_RGB)

@@ -1,45 +1,34 @@
 """Where a map's uncertainty comes from: the pose spread at which each cell was seen.
 
-The odometry-error model gives the spread of a reading's pose from the odometry error
-accumulated when it was taken: f(d), the position spread (metres), and g(d, phi), the heading
-spread (radians). In an error-aware map a cell that only late readings looked at stays grey
-however many of them there were. This module draws, per cell, the *smallest* f of the readings
-whose beam crossed the cell (and the g of those readings), so a user can tell a region that is
-grey because the pose was lost there from one that is grey because the sensors disagree. No
-file I/O: :mod:`gridmap_cli.cli.evaluate` reads the log and the odometry error,
-:mod:`gridmap_cli.evaluation.plot` draws the result.
+The error-aware map carries the pose covariance along the odometry track
+(:mod:`gridmap_cli.poses.pose_uncertainty`); each reading was taken with the covariance of its
+stamp. Its spread is drawn as two numbers: the position spread (metres, the standard deviation
+along the covariance ellipse's long axis) and the heading spread (radians, the standard deviation
+of theta). In an error-aware map a cell that only poorly placed readings looked at stays grey
+however many of them there were. This module draws, per cell, the *smallest* position spread of
+the readings whose beam crossed the cell (and the heading spread of those readings), so a user
+can tell a region that is grey because the pose was lost there from one that is grey because the
+sensors disagree. No file I/O: :mod:`gridmap_cli.cli.evaluate` reads the log and the odometry
+error, :mod:`gridmap_cli.evaluation.plot` draws the result.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.mapping.grid import GridSpec, SpanSums
 from gridmap_cli.mapping.models.ray import RaySegments, row_runs
+from gridmap_cli.poses.pose_uncertainty import PoseUncertainty
 from gridmap_cli.poses.sync import SensorReadings, select_readings
 
 FloatArray = npt.NDArray[np.float64]
 
 
-class OdometrySpread(Protocol):
-    """What the map needs of an odometry-error model (eq. 11 and 12 of docs/odometry-error.md):
-    :class:`~gridmap_cli.poses.odometry_error.OdometryError` is one."""
-
-    def f(self, distance_m: FloatArray) -> FloatArray:
-        """Position spread (metres) after driving ``distance_m``."""
-        ...
-
-    def g(self, distance_m: FloatArray, rotation_rad: FloatArray) -> FloatArray:
-        """Heading spread (radians) after driving ``distance_m`` and turning ``rotation_rad``."""
-        ...
-
-
-#: Levels f and g are each cut into: a cell's spread is exact to within one level, and the
-#: cost is one cumulative sum of the grid per level.
+#: Levels the position and the heading spread are each cut into: a cell's spread is exact to
+#: within one level, and the cost is one cumulative sum of the grid per level.
 SPREAD_LEVELS = 128
 #: Rays drawn across a wide beam (a sonar's cone), at most; one for a laser.
 MAX_RAYS_PER_BEAM = 9
@@ -50,8 +39,8 @@ _READINGS_PER_CHUNK = 50_000
 @dataclass(frozen=True)
 class PoseSpreadMap:
     """Per cell of ``spec`` (shape ``spec.shape``, row 0 at the bottom, NaN where no reading's
-    beam crossed the cell): ``position_m``, the smallest position spread f of the readings that
-    crossed it, and ``heading_rad``, the heading spread g of those readings. ``levels_m`` and
+    beam crossed the cell): ``position_m``, the smallest position spread of the readings that
+    crossed it, and ``heading_rad``, the heading spread of those readings. ``levels_m`` and
     ``levels_rad`` are the step of each, the precision of the values."""
 
     spec: GridSpec
@@ -101,32 +90,44 @@ def _beam_rays(
     )
 
 
+def reading_spreads(
+    readings: SensorReadings, uncertainty: PoseUncertainty
+) -> tuple[FloatArray, FloatArray]:
+    """Each reading's position spread (metres: the square root of the larger eigenvalue of the
+    covariance's x-y block) and heading spread (radians: the standard deviation of theta), from
+    the covariance at its stamp; shape (M,) each."""
+    if len(readings) == 0 or uncertainty.stamp_ns.shape[0] == 0:
+        zero = np.zeros(len(readings))
+        return zero, zero.copy()
+    cov = uncertainty.at(readings.stamp_ns)
+    a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
+    largest = 0.5 * (a + c) + np.sqrt((0.25 * (a - c) ** 2) + b * b)
+    return np.sqrt(np.maximum(largest, 0.0)), np.sqrt(np.maximum(cov[:, 2, 2], 0.0))
+
+
 def pose_spread_map(
     spec: GridSpec,
     readings: SensorReadings,
-    odometry: OdometrySpread,
+    uncertainty: PoseUncertainty,
     levels: int = SPREAD_LEVELS,
 ) -> PoseSpreadMap:
     """The smallest pose spread at which each cell of ``spec`` was crossed by a reading's beam.
 
-    ``readings`` in the map's (odometry) frame, with ``distance_m`` and ``rotation_rad``; f and
-    g from ``odometry`` (eq. 11 and 12 of docs/sensor-model.md). Readings are cut into groups
-    of one level of f and one of g (``levels`` each, from 0 to the largest); groups are drawn
-    from the smallest f up and each cell keeps the first group that crossed it, so its values
-    are exact to within one level (f and g only grow along a log, so groups are runs of it).
+    ``readings`` in the map's (odometry) frame; ``uncertainty`` the pose covariance along the
+    same track (:func:`~gridmap_cli.poses.pose_uncertainty.propagate`). Readings are cut into
+    groups of one level of the position spread and one of the heading spread (``levels`` each,
+    from 0 to the largest); groups are drawn from the smallest position spread up and each cell
+    keeps the first group that crossed it, so its values are exact to within one level.
     """
-    d, phi = readings.distance_m, readings.rotation_rad
-    if d is None or phi is None:
-        raise ValueError("the pose spread needs the distance driven for each reading")
-    f = np.asarray(odometry.f(d), dtype=np.float64)
-    g = np.asarray(odometry.g(d, phi), dtype=np.float64)
+    f, g = reading_spreads(readings, uncertainty)
     qf, step_f = _quantise(f, levels)
     qg, step_g = _quantise(g, levels)
     position = np.full(spec.shape, np.nan)
     heading = np.full(spec.shape, np.nan)
     if len(readings) == 0:
         return PoseSpreadMap(spec, position, heading, step_f, step_g)
-    # one group per (level of f, level of g); drawn in increasing f, then g
+    # one group per (level of position, level of heading); drawn in increasing position, then
+    # heading
     key = qf * (int(qg.max()) + 1) + qg
     for k in np.unique(key):
         members = np.flatnonzero(key == k)
