@@ -14,6 +14,7 @@ import pytest
 from gridmap_cli.errors import GridmapError, UsageError
 from gridmap_cli.runs.batch import (
     LOCK_NAME,
+    OVERVIEW_NAME,
     REPORT_NAME,
     BatchLock,
     BatchOptions,
@@ -56,7 +57,7 @@ def test_a_folder_with_one_corrupt_log_writes_every_other_map_the_report_and_exi
     assert names(out) == {
         "corridor_loop-2d.png", "corridor_loop-2d.yaml", ".corridor_loop-2d.batch.json",
         "corridor_loop-csv.png", "corridor_loop-csv.yaml", ".corridor_loop-csv.batch.json",
-        "hall.png", "hall.yaml", ".hall.batch.json", REPORT_NAME, LOCK_NAME,
+        "hall.png", "hall.yaml", ".hall.batch.json", REPORT_NAME, LOCK_NAME, OVERVIEW_NAME,
     }  # fmt: skip
     lines = report(out)
     assert [(Path(str(r["log"])).name, r["status"]) for r in lines] == [
@@ -116,11 +117,9 @@ def test_local_processes_give_the_same_bytes(logs: Path, tmp_path: Path) -> None
     assert run("batch", str(logs), "-o", str(two), "-q", "--jobs", "3")[0] == 1
     for name in ("corridor_loop-2d.png", "corridor_loop-csv.yaml", "hall.png"):
         assert (one / name).read_bytes() == (two / name).read_bytes()
-    strip = [{k: v for k, v in r.items() if k not in ("seconds", "map", "log")}
-             for r in report(one)]  # fmt: skip
-    assert strip == [
-        {k: v for k, v in r.items() if k not in ("seconds", "map", "log")} for r in report(two)
-    ]
+    varying = ("seconds", "map", "log", "built_at")
+    strip = [{k: v for k, v in r.items() if k not in varying} for r in report(one)]
+    assert strip == [{k: v for k, v in r.items() if k not in varying} for r in report(two)]
 
 
 def test_a_second_run_on_a_locked_folder_stops_at_once(logs: Path, tmp_path: Path) -> None:

@@ -1,30 +1,54 @@
-"""``gridmap batch``: one map per log for unattended runs (cron)."""
+"""``gridmap batch``: one map per log for unattended runs (cron), with build's map options."""
 
 from __future__ import annotations
 
+import contextlib
 import sys
+import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import click
 from tqdm import tqdm
 
-from gridmap_cli.cli.common import handle_errors
-from gridmap_cli.cli.map_options import check_resolution
+from gridmap_cli.cli.common import Interrupted, handle_errors
+from gridmap_cli.cli.map_options import (
+    check_resolution,
+    check_thresholds,
+    error_aware_settings,
+    image_format_option,
+    map_options,
+    sonar_params,
+)
 from gridmap_cli.errors import GridmapError, UsageError
-from gridmap_cli.poses.sync import POSE_SOURCES
-from gridmap_cli.readers import format_names
+from gridmap_cli.mapping.pipeline import BuildOptions
+from gridmap_cli.mapping.selection import Selection
+from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot, preset_names
 from gridmap_cli.runs.batch import (
+    OVERVIEW_NAME,
     REPORT_NAME,
     BatchLock,
     BatchOptions,
+    BatchSummary,
     JobResult,
     find_logs,
     plan_jobs,
     run_batch,
+    write_overview,
 )
-from gridmap_cli.runs.executors import EXECUTORS, check_dask, dask_cluster, local_processes
-from gridmap_cli.writers.map_image import MAP_MODES
+from gridmap_cli.runs.executors import (
+    EXECUTORS,
+    Submit,
+    check_dask,
+    check_scheduler,
+    dask_cluster,
+    local_processes,
+)
+from gridmap_cli.writers.map_image import check_map_outputs
+
+#: Maps named in the Ctrl-C line; more are counted.
+NAMED_IN_INTERRUPT = 10
 
 
 @click.command()
@@ -35,21 +59,11 @@ from gridmap_cli.writers.map_image import MAP_MODES
     "outdir",
     required=True,
     type=click.Path(path_type=Path, file_okay=False),
-    help="Folder for the maps (created if missing): LOG's map is <stem>.png with its YAML.",
+    help="Folder for the maps (created if missing): LOG's map is <stem>.png (or --fmt) with "
+    f"its YAML, and {OVERVIEW_NAME} shows them all.",
 )
-@click.option("--robot", help="Robot preset, robot YAML or ARIA .p for every log; default: "
-              "each log's own '# robot:' line.")  # fmt: skip
-@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
-@click.option("--resolution", type=float, default=0.05, show_default=True,
-              help="Cell size in metres.")  # fmt: skip
-@click.option("--pose", type=click.Choice(POSE_SOURCES), default="odometry", show_default=True,
-              help="Map with the odometry or the log's global pose.")  # fmt: skip
-@click.option("--map-mode", type=click.Choice(MAP_MODES), default="trinary", show_default=True,
-              help="How occupancy is stored in the images.")  # fmt: skip
-@click.option("--occupied", type=float, default=0.65, show_default=True,
-              help="Probability at or above which a cell is occupied.")  # fmt: skip
-@click.option("--free", type=float, default=0.25, show_default=True,
-              help="Probability at or below which a cell is free.")  # fmt: skip
+@image_format_option("Image format of every map [default: png].")
+@map_options
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
               help="Logs built at once, each in its own local process.")  # fmt: skip
 @click.option(
@@ -74,13 +88,24 @@ from gridmap_cli.writers.map_image import MAP_MODES
 def batch(
     inputs: tuple[str, ...],
     outdir: Path,
+    image_format: str | None,
     robot: str | None,
     log_format: str | None,
     resolution: float,
-    pose: str,
+    mode: str,
     map_mode: str,
     occupied: float,
     free: float,
+    no_echo_free: float,
+    pose: str,
+    topics: ReadOptions,
+    sensor_patterns: tuple[str, ...],
+    start: str | None,
+    end: str | None,
+    odometry_file: Path | None,
+    coefficients: tuple[str, ...],
+    trust_length: float,
+    max_spread_deg: float,
     jobs: int,
     executor: str,
     scheduler: str | None,
@@ -90,53 +115,138 @@ def batch(
     """Build one map per log of INPUTS into a folder, skipping logs whose map is up to date.
 
     INPUTS are log files, folders of logs (files with a log extension and rosbag2 folders) and
-    globs (quote them; '**' recurses). A map is up to date when its sidecar holds the hash of
-    the log's content and of the options; it is then left alone. A log that fails is reported
-    and the batch goes on; the exit code is 1 if any log failed. Two batch runs never write one
-    folder at once: the second stops at once with exit 1.
+    globs (quote them; '**' recurses). The map options are build's. A map is up to date when
+    its sidecar holds the hash of the log's content and of every option that changes the map;
+    it is then left alone. A log that fails is reported and the batch goes on; the exit code is
+    1 if any log failed. OUTDIR/index.html shows every map, its status and warnings, for a
+    browser. Two batch runs never write one folder at once: the second stops at once with
+    exit 1. A refused run writes nothing, not even OUTDIR.
     """
-    if not (0.0 <= free < occupied <= 1.0):
-        raise UsageError(f"need 0 <= --free < --occupied <= 1, got {free} and {occupied}")
-    check_resolution(resolution)
+    started = time.perf_counter()
+    options = _batch_options(image_format or "png", robot, log_format, resolution, mode,
+                             map_mode, occupied, free, no_echo_free, pose, topics,
+                             sensor_patterns, start, end, odometry_file, coefficients,
+                             trust_length, max_spread_deg)  # fmt: skip
     if executor == "dask":
         if scheduler is None:
             raise UsageError("--executor dask needs --scheduler ADDRESS (tcp://host:8786)")
         if jobs != 1:
             raise UsageError("--jobs is for local processes; a Dask cluster has its own workers")
+        check_scheduler(scheduler)
         check_dask()
     elif scheduler is not None:
         raise UsageError("--scheduler applies to --executor dask")
-    if robot is not None:
-        load_robot(robot)  # a bad robot is a usage error before any log is read
-        if robot not in preset_names():
-            robot = str(Path(robot).resolve())
     if outdir.exists() and not outdir.is_dir():
         raise UsageError(f"{outdir}: not a folder")
     if not outdir.parent.is_dir():
         raise GridmapError(f"{outdir}: its parent folder {outdir.parent} does not exist")
-    logs = [log.resolve() for log in find_logs(inputs)]
-    outdir.mkdir(exist_ok=True)
+    report_path = (report or outdir / REPORT_NAME).resolve()
+    if report is not None and not report.parent.is_dir():
+        raise GridmapError(f"--report {report}: its folder {report.parent} does not exist")
+    logs = find_logs(inputs)
     outdir = outdir.resolve()
-    options = BatchOptions(resolution_m=resolution, robot=robot, pose=pose, map_mode=map_mode,
-                           occupied=occupied, free=free, log_format=log_format)  # fmt: skip
-    planned = plan_jobs(logs, outdir, options)
-    submit = dask_cluster(scheduler) if scheduler is not None else local_processes(jobs)
-    bar = tqdm(total=len(planned), desc="batch", unit=" logs", file=sys.stderr,
-               disable=quiet or not sys.stderr.isatty(), leave=False)  # fmt: skip
+    planned = plan_jobs(logs, outdir, options)  # names clash: refused before the folder exists
+    with _executor(scheduler, jobs) as submit:  # an unreachable scheduler: the same
+        _make_folder(outdir)
+        bar = tqdm(total=len(planned), desc="batch", unit=" logs", file=sys.stderr,
+                   disable=quiet or not sys.stderr.isatty(), leave=False)  # fmt: skip
 
-    def progress(result: JobResult) -> None:
-        bar.update(1)
-        if result.status == "failed" and not quiet:
-            bar.clear()
-            click.echo(f"Failed: {result.error}", err=True)
+        def progress(result: JobResult) -> None:
+            bar.update(1)
+            if result.status == "failed" and not quiet:
+                bar.clear()
+                click.echo(f"Failed: {result.error}", err=True)
 
-    with BatchLock(outdir), bar:
-        summary = run_batch(planned, submit, report or outdir / REPORT_NAME, progress)
+        with BatchLock(outdir), bar:
+            summary = run_batch(planned, submit, report_path, progress)
+            overview = write_overview(outdir, planned, summary, report_path,
+                                      time.perf_counter() - started)  # fmt: skip
+    if summary.interrupted:
+        raise Interrupted(_interrupted_line(summary, report_path, overview, executor))
     if not quiet:
         click.echo(
             f"gridmap batch: {summary.count('built')} built, {summary.count('skipped')} up to "
-            f"date, {summary.failed} failed of {len(planned)} logs -> {outdir}",
+            f"date, {summary.failed} failed of {len(planned)} logs -> {outdir} (overview: "
+            f"{overview})",
             err=True,
         )
     if summary.failed:
         sys.exit(1)
+
+
+def _batch_options(
+    image_format: str,
+    robot: str | None,
+    log_format: str | None,
+    resolution: float,
+    mode: str,
+    map_mode: str,
+    occupied: float,
+    free: float,
+    no_echo_free: float,
+    pose: str,
+    topics: ReadOptions,
+    sensor_patterns: tuple[str, ...],
+    start: str | None,
+    end: str | None,
+    odometry_file: Path | None,
+    coefficients: tuple[str, ...],
+    trust_length: float,
+    max_spread_deg: float,
+) -> BatchOptions:
+    """Build's usage checks of the map options, and the options as every job takes them."""
+    check_thresholds(occupied, free)
+    check_resolution(resolution)
+    check_map_outputs(Path(f"map.{image_format}"), map_mode, True)  # scale needs a PNG
+    sonar = sonar_params(no_echo_free)
+    error_aware, odometry_error = error_aware_settings(
+        mode, odometry_file, coefficients, trust_length, max_spread_deg
+    )
+    Selection.parse(sensor_patterns, start, end)  # bad patterns and times before any work
+    if robot is not None:
+        load_robot(robot)  # a bad robot is a usage error before any log is read
+        if robot not in preset_names():
+            robot = str(Path(robot).resolve())
+    build = BuildOptions(resolution_m=resolution, mode=mode, sonar=sonar,
+                         error_aware=error_aware, odometry_error=odometry_error)  # fmt: skip
+    return BatchOptions(build=build, robot=robot, log_format=log_format, pose=pose,
+                        topics=topics, sensors=sensor_patterns, start=start, end=end,
+                        map_mode=map_mode, occupied=occupied, free=free,
+                        image_format=image_format)  # fmt: skip
+
+
+@contextlib.contextmanager
+def _executor(scheduler: str | None, jobs: int) -> Iterator[Submit]:
+    if scheduler is None:
+        yield local_processes(jobs)
+        return
+    with dask_cluster(scheduler) as submit:
+        yield submit
+
+
+def _make_folder(outdir: Path) -> None:
+    try:
+        outdir.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise GridmapError(f"{outdir}: cannot create the folder: {exc.strerror or exc}") from exc
+
+
+def _interrupted_line(summary: BatchSummary, report: Path, overview: Path, executor: str) -> str:
+    """What a Ctrl-C stopped and what it left: the finished logs, counted and named."""
+    done = len(summary.results)
+    built = [Path(r.map).name for r in summary.results if r.status == "built"]
+    named = ", ".join(built[:NAMED_IN_INTERRUPT])
+    if len(built) > NAMED_IN_INTERRUPT:
+        named += f" and {len(built) - NAMED_IN_INTERRUPT} more"
+    left = summary.total - done
+    running = (
+        "; Dask tasks already running may still write their maps whole"
+        if executor == "dask" and left
+        else ""
+    )
+    return (
+        f"{done} of {summary.total} logs finished: {len(built)} built"
+        + (f" ({named})" if built else "")
+        + f", {summary.count('skipped')} up to date, {summary.failed} failed; the other "
+        f"{left} maps were left as they were{running}; report {report}, overview {overview}"
+    )

@@ -36,6 +36,7 @@ from gridmap_cli.cli.map_options import (
     check_resolution,
     check_thresholds,
     error_aware_settings,
+    image_format_option,
     map_options,
     sonar_params,
 )
@@ -76,11 +77,8 @@ LASER_POSES = ("scan-matched", "slam")
     type=click.Path(path_type=Path),
     help="As map_saver_cli: write BASENAME.pgm (or --fmt) and BASENAME.yaml; instead of -o.",
 )
-@click.option(
-    "--fmt",
-    "image_format",
-    type=click.Choice(IMAGE_FORMATS),
-    help="As map_saver_cli: the image format for -f [default: pgm]; with -o it must match.",
+@image_format_option(
+    "As map_saver_cli: the image format for -f [default: pgm]; with -o it must match."
 )
 @map_options
 @click.option(

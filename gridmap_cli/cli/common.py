@@ -42,8 +42,8 @@ class Interrupted(click.ClickException):
 
     exit_code = 130
 
-    def __init__(self) -> None:
-        super().__init__("interrupted (Ctrl-C); no output was written or changed")
+    def __init__(self, message: str = "no output was written or changed") -> None:
+        super().__init__(f"interrupted (Ctrl-C); {message}")
 
 
 def handle_errors(func: Callable[P, R]) -> Callable[P, R]:

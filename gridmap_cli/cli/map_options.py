@@ -25,7 +25,7 @@ from gridmap_cli.mapping.pipeline import MAPPING_MODES, MAX_RESOLUTION_M
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.poses.sync import POSE_SOURCES
 from gridmap_cli.readers import format_names
-from gridmap_cli.writers.map_image import MAP_MODES
+from gridmap_cli.writers.map_image import IMAGE_FORMATS, MAP_MODES
 
 F = TypeVar("F", bound=Callable[..., object])
 
@@ -37,6 +37,14 @@ robot_option = click.option(
 format_option = click.option(
     "--format", "log_format", type=click.Choice(format_names()), help="Log format."
 )
+
+
+def image_format_option(help_text: str) -> Callable[[F], F]:
+    """``--fmt``, the map image's format (map_saver_cli's flag); each command says what it
+    does there (build: the format of ``-f``; batch: of every map)."""
+    return click.option("--fmt", "image_format", type=click.Choice(IMAGE_FORMATS), help=help_text)
+
+
 resolution_option = click.option(
     "--resolution", type=float, default=0.05, show_default=True, help="Cell size in metres."
 )

@@ -21,44 +21,59 @@ import contextlib
 import dataclasses
 import fcntl
 import glob
-import hashlib
 import json
 import os
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-import numpy as np
-
 from gridmap_cli import __version__
 from gridmap_cli.atomic import atomic_write
 from gridmap_cli.errors import GridmapError, UsageError
-from gridmap_cli.runs.content import content_hash
+from gridmap_cli.mapping.pipeline import BuildOptions
+from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.runs.batch_build import build_job, sidecar_thumbnail, up_to_date
+from gridmap_cli.runs.content import build_key, content_hash
 
 #: The sidecar beside each map, holding the key of what it was built from.
 SIDECAR_SUFFIX = ".batch.json"
 LOCK_NAME = ".gridmap-batch.lock"
 REPORT_NAME = "batch-report.jsonl"
+OVERVIEW_NAME = "index.html"
 _GLOB_CHARS = "*?["
 
 
 @dataclass(frozen=True)
 class BatchOptions:
-    """How every map of a batch is built (``gridmap build``'s flags of the same names)."""
+    """How every map of a batch is built: ``gridmap build``'s map options, resolved (a robot
+    file as an absolute path, the error-aware model's settings as values in ``build``)."""
 
-    resolution_m: float = 0.05
+    build: BuildOptions = field(default_factory=BuildOptions)
     robot: str | None = None  # preset name or absolute path; None: each log's own
+    log_format: str | None = None
     pose: str = "odometry"
+    topics: ReadOptions = field(default_factory=ReadOptions)  # without a robot
+    sensors: tuple[str, ...] = ()
+    start: str | None = None
+    end: str | None = None
     map_mode: str = "trinary"
     occupied: float = 0.65
     free: float = 0.25
-    log_format: str | None = None
+    image_format: str = "png"
+
+    @property
+    def resolution_m(self) -> float:
+        return self.build.resolution_m
 
     def as_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """Every option as plain values: what the key of a map holds (processes mapping one
+        log are left out: the map is the same bytes for any number)."""
+        values = dataclasses.asdict(self)
+        del values["build"]["jobs"]
+        return values
 
 
 @dataclass(frozen=True)
@@ -91,6 +106,9 @@ class JobResult:
     map_bytes: int = 0
     cells: dict[str, int] = field(default_factory=dict)
     key: str = ""
+    readings: int = 0  # readings mapped
+    warnings: tuple[str, ...] = ()
+    built_at: str = ""  # UTC time the map was built (this run, or the run that built it)
 
     def as_json(self) -> str:
         return json.dumps(dataclasses.asdict(self), sort_keys=True)
@@ -114,7 +132,9 @@ def is_log_name(path: Path) -> bool:
 def find_logs(inputs: Sequence[str]) -> list[Path]:
     """The logs the inputs name: a file is a log; a rosbag2 folder is one log; another folder
     holds logs (files with a log extension and rosbag2 folders, not recursing further); a glob
-    (``*``, ``?``, ``[``; ``**`` recurses) names files and folders as above. Sorted, each once.
+    (``*``, ``?``, ``[``; ``**`` recurses) names files and folders as above. Resolved (links
+    followed), sorted, each once: a file reached twice (a symbolic link loop under ``**``, a
+    link beside its target) is one log.
 
     Raises :class:`UsageError` naming an input that matches nothing.
     """
@@ -136,7 +156,7 @@ def find_logs(inputs: Sequence[str]) -> list[Path]:
             else:
                 continue
             for log in logs:
-                found[log] = None
+                found[log.resolve()] = None
                 matched = True
         if not matched:
             raise UsageError(f"{text}: no log there (a log file, a folder of logs, or a glob)")
@@ -144,7 +164,8 @@ def find_logs(inputs: Sequence[str]) -> list[Path]:
 
 
 def plan_jobs(logs: Sequence[Path], outdir: Path, options: BatchOptions) -> list[Job]:
-    """One map per log in ``outdir``, named after the log: ``run.mcap`` -> ``run.png``.
+    """One map per log in ``outdir``, named after the log: ``run.mcap`` -> ``run.png`` (or the
+    options' image format).
 
     Logs that share a stem (``run.csv`` and ``run.mcap``) are told apart by their extension
     (``run-csv.png``, ``run-mcap.png``), so a name depends only on the inputs of the run.
@@ -156,7 +177,7 @@ def plan_jobs(logs: Sequence[Path], outdir: Path, options: BatchOptions) -> list
         if stems[stem] > 1:
             ext = log.name[len(stem) :].lstrip(".").replace(".", "-") or "dir"
             stem = f"{stem}-{ext}"
-        jobs.append(Job(log, outdir / f"{stem}.png", options))
+        jobs.append(Job(log, outdir / f"{stem}.{options.image_format}", options))
     names = Counter(job.output.name for job in jobs)
     twice = sorted(name for name, n in names.items() if n > 1)
     if twice:
@@ -179,19 +200,7 @@ def _stem(log: Path) -> str:
 
 def job_key(content: str, options: BatchOptions) -> str:
     """The key a map is built from: log content, options and gridmap's version."""
-    text = json.dumps({"content": content, "options": options.as_dict(), "gridmap": __version__},
-                      sort_keys=True)  # fmt: skip
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-def up_to_date(job: Job, key: str) -> bool:
-    if not (job.output.is_file() and job.yaml.is_file() and job.sidecar.is_file()):
-        return False
-    try:
-        stored = json.loads(job.sidecar.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return False
-    return isinstance(stored, dict) and stored.get("key") == key
+    return build_key(content, options.as_dict(), __version__)
 
 
 # ------------------------------------------------------------------------------------ jobs
@@ -210,9 +219,16 @@ def run_job(job: Job) -> JobResult:
         content, input_bytes = content_hash(job.log)
         key = job_key(content, job.options)
         seconds["hash"] = time.perf_counter() - started
-        if up_to_date(job, key):
-            return _result(job, "skipped", None, seconds, started, input_bytes, key)
-        cells = _build(job, key, seconds)
+        stored = up_to_date(job, key)
+        if stored is not None:
+            return dataclasses.replace(
+                _result(job, "skipped", None, seconds, started, input_bytes, key),
+                cells=dict(stored.get("cells") or {}),
+                readings=int(stored.get("readings") or 0),
+                warnings=tuple(str(w) for w in stored.get("warnings") or ()),
+                built_at=str(stored.get("built_at") or ""),
+            )
+        built = build_job(job, key, seconds)
     except GridmapError as exc:
         return _result(job, "failed", _one_line(str(exc)), seconds, started, input_bytes, key)
     except OSError as exc:
@@ -224,45 +240,12 @@ def run_job(job: Job) -> JobResult:
     except Exception as exc:  # a batch continues past anything one log does
         error = f"{job.log}: internal error ({type(exc).__name__}: {_one_line(str(exc))[:300]})"
         return _result(job, "failed", error, seconds, started, input_bytes, key)
-    return _result(job, "built", None, seconds, started, input_bytes, key, cells)
-
-
-def _build(job: Job, key: str, seconds: dict[str, float]) -> dict[str, int]:
-    from gridmap_cli.mapping.pipeline import BuildOptions, build_map
-    from gridmap_cli.poses.sync import select_poses
-    from gridmap_cli.readers import read_logs
-    from gridmap_cli.readers.options import ReadOptions
-    from gridmap_cli.robot import load_robot, robot_from_log
-    from gridmap_cli.writers.map_image import write_map
-
-    mark = time.perf_counter()
-    options = job.options
-    robot = load_robot(options.robot) if options.robot else None
-    data = read_logs([job.log], options.log_format, ReadOptions(robot=robot))
-    data = select_poses(data, options.pose)
-    if robot is None:
-        robot = robot_from_log(job.log, data.metadata)
-    seconds["read"] = time.perf_counter() - mark
-    mark = time.perf_counter()
-    result = build_map(data, robot, BuildOptions(resolution_m=options.resolution_m))
-    seconds["map"] = time.perf_counter() - mark
-    mark = time.perf_counter()
-    write_map(job.output, result.map, mode=options.map_mode, occupied_thresh=options.occupied,
-              free_thresh=options.free, force=True)  # fmt: skip
-    sidecar = {"key": key, "log": str(job.log), "options": options.as_dict(),
-               "gridmap": __version__}  # fmt: skip
-    with atomic_write(job.sidecar, "the batch sidecar") as tmp:
-        tmp.write_text(json.dumps(sidecar, sort_keys=True) + "\n", encoding="utf-8")
-    seconds["write"] = time.perf_counter() - mark
-    prob = result.map.prob
-    known = ~np.isnan(prob)
-    return {
-        "width": result.map.spec.width,
-        "height": result.map.spec.height,
-        "observed": int(known.sum()),
-        "occupied": int((prob[known] >= options.occupied).sum()),
-        "free": int((prob[known] <= options.free).sum()),
-    }
+    return dataclasses.replace(
+        _result(job, "built", None, seconds, started, input_bytes, key, built.cells),
+        readings=built.readings,
+        warnings=built.warnings,
+        built_at=built.built_at,
+    )
 
 
 def _result(
@@ -300,7 +283,12 @@ def _one_line(text: str) -> str:
 
 @dataclass(frozen=True)
 class BatchSummary:
+    """The results of a run, in the order of its jobs: every job's, or, when the run was
+    ``interrupted`` (Ctrl-C), those that finished before it, of ``total`` jobs."""
+
     results: list[JobResult]
+    total: int
+    interrupted: bool = False
 
     def count(self, status: str) -> int:
         return sum(1 for r in self.results if r.status == status)
@@ -312,24 +300,74 @@ class BatchSummary:
 
 def run_batch(
     jobs: Sequence[Job],
-    submit: Callable[[Sequence[Job]], Iterator[JobResult]],
+    submit: Callable[[Sequence[Job]], Generator[JobResult, None, None]],
     report: Path,
     on_result: Callable[[JobResult], object] | None = None,
 ) -> BatchSummary:
     """Run ``jobs`` through ``submit`` (an executor's map, results in any order) and write the
     JSON-lines ``report`` (one line per log, in the order of ``jobs``) atomically at the end.
 
-    ``on_result`` is called with each result as it arrives (a progress bar).
+    ``on_result`` is called with each result as it arrives (a progress bar). Ctrl-C
+    (KeyboardInterrupt) stops the executor (closing its generator ends its workers) and the
+    report holds the jobs that had finished; the summary says it was interrupted.
     """
     by_map: dict[str, JobResult] = {}
-    for result in submit(jobs):
-        by_map[result.map] = result
-        if on_result is not None:
-            on_result(result)
-    results = [by_map[str(job.output)] for job in jobs]
+    interrupted = False
+    try:
+        with contextlib.closing(submit(jobs)) as results_in:
+            for result in results_in:
+                by_map[result.map] = result
+                if on_result is not None:
+                    on_result(result)
+    except KeyboardInterrupt:
+        interrupted = True
+    results = [by_map[str(job.output)] for job in jobs if str(job.output) in by_map]
     with atomic_write(report, "the batch report") as tmp:
         tmp.write_text("".join(r.as_json() + "\n" for r in results), encoding="utf-8")
-    return BatchSummary(results)
+    return BatchSummary(results, len(jobs), interrupted)
+
+
+def write_overview(
+    outdir: Path, jobs: Sequence[Job], summary: BatchSummary, report: Path, seconds: float
+) -> Path:
+    """Write ``outdir/index.html`` (atomically), the overview page of this run: every
+    finished log with its map's thumbnail (from the sidecars, so up-to-date maps have theirs
+    too), and the logs an interrupted run did not finish."""
+    from gridmap_cli.writers.overview import OverviewPage, overview_html
+
+    finished = {r.map for r in summary.results}
+    thumbnails = {}
+    for job in jobs:
+        if str(job.output) in finished:
+            thumbnail = sidecar_thumbnail(job)
+            if thumbnail is not None:
+                thumbnails[str(job.output)] = thumbnail
+    options = jobs[0].options if jobs else BatchOptions()
+    build = options.build
+    shown = [("pose", options.pose), ("mode", build.mode),
+             ("cells", f"{build.resolution_m:g} m"),
+             ("image", f"{options.map_mode} {options.image_format}")]  # fmt: skip
+    if options.sensors:
+        shown.append(("sensors", " ".join(options.sensors)))
+    if options.start or options.end:
+        shown.append(("window", f"{options.start or 'start'} to {options.end or 'end'}"))
+    page = OverviewPage(
+        folder=str(outdir),
+        report=str(report),
+        generated=time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()),
+        seconds=seconds,
+        resolution_m=build.resolution_m,
+        version=__version__,
+        total=summary.total,
+        options=tuple(shown),
+        interrupted=summary.interrupted,
+        pending=tuple(str(job.log) for job in jobs if str(job.output) not in finished),
+    )
+    records = [dataclasses.asdict(r) for r in summary.results]
+    target = outdir / OVERVIEW_NAME
+    with atomic_write(target, "the batch overview") as tmp:
+        tmp.write_text(overview_html(records, thumbnails, page), encoding="utf-8")
+    return target
 
 
 class BatchLock:

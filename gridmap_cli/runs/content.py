@@ -1,10 +1,14 @@
 """What a log holds, as a key: batch's sidecars and fuse's duplicate check both name a log by
-the SHA-256 of its content, so the same file under two names is the same log."""
+the SHA-256 of its content, so the same file under two names is the same log; batch's key of a
+map adds every option that changes the map (:func:`build_key`)."""
 
 from __future__ import annotations
 
 import hashlib
+import json
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 _HASH_BLOCK = 1 << 20
 
@@ -23,3 +27,12 @@ def content_hash(log: Path) -> tuple[str, int]:
                 digest.update(block)
                 total += len(block)
     return digest.hexdigest(), total
+
+
+def build_key(content: str, options: Mapping[str, Any], version: str) -> str:
+    """The key a map is built from: its log's :func:`content_hash`, every option that changes
+    the map (``options``: plain JSON values, nested) and gridmap's version. JSON writes floats
+    exactly (their shortest ``repr``), so equal options give one key and unequal ones two."""
+    text = json.dumps({"content": content, "options": options, "gridmap": version},
+                      sort_keys=True, default=str)  # fmt: skip
+    return hashlib.sha256(text.encode()).hexdigest()
