@@ -181,6 +181,9 @@ def test_usage_errors_come_before_any_work(logs: Path, tmp_path: Path) -> None:
         (("--executor", "dask"), "--scheduler ADDRESS"),
         (("--scheduler", "tcp://x:1"), "--executor dask"),
         (("--robot", "nosuchrobot"), "unknown robot"),
+        (("--executor", "dask", "--scheduler", "not an address"), "not a Dask scheduler address"),
+        (("--executor", "dask", "--scheduler", "tcp://host"), "not a Dask scheduler address"),
+        (("--executor", "dask", "--scheduler", "ftp://host:21"), "not a Dask scheduler address"),
     ]:
         code, _, err = run("batch", str(logs), "-o", str(out), *args)
         assert code == 2 and err.count("\n") == 1 and text in err, err
@@ -222,3 +225,45 @@ def test_a_worker_that_dies_fails_its_log_and_the_batch_goes_on(
     assert "the worker building it died (BrokenProcessPool" in statuses["hall.csv"][1]
     # the pool broke with that worker: the other log was built before, or failed with it
     assert statuses["corridor_loop.csv"][0] in ("built", "failed")
+
+
+def test_two_logs_with_one_name_are_refused_in_one_line_and_leave_nothing(
+    logs: Path, tmp_path: Path
+) -> None:
+    other = tmp_path / "other"
+    other.mkdir()
+    shutil.copy(SAMPLES / "office.csv", other / "hall.csv")  # another file, the same name
+    out = tmp_path / "maps"
+    code, _, err = run("batch", str(logs / "hall.csv"), str(other / "hall.csv"), "-o", str(out))
+    assert code == 2 and err.count("\n") == 1
+    assert err.startswith(
+        f"Error: several logs would write hall-csv.png: {logs / 'hall.csv'} and "
+        f"{other / 'hall.csv'} (the same name"
+    )
+    assert not out.exists()
+    # into an existing folder: nothing added to it, no lock
+    out.mkdir()
+    assert run("batch", str(logs / "hall.csv"), str(other / "hall.csv"), "-o", str(out))[0] == 2
+    assert names(out) == set()
+
+
+def test_a_report_in_a_missing_folder_is_refused_before_any_map(logs: Path, tmp_path: Path) -> None:
+    out = tmp_path / "maps"
+    code, _, err = run("batch", str(logs / "hall.csv"), "-o", str(out),
+                       "--report", str(tmp_path / "nowhere" / "r.jsonl"))  # fmt: skip
+    assert code == 1 and err.count("\n") == 1 and "does not exist" in err
+    assert not out.exists()
+
+
+def test_a_file_reached_twice_through_a_symlink_loop_is_one_log(logs: Path, tmp_path: Path) -> None:
+    (logs / "broken.mcap").unlink()
+    (logs / "loop").symlink_to(logs, target_is_directory=True)  # logs/loop/loop/... is logs
+    (logs / "again.csv").symlink_to(logs / "hall.csv")  # a link beside its target
+    found = find_logs([str(logs / "**" / "*.csv"), str(logs / "hall.csv")])
+    assert [p.name for p in found] == ["corridor_loop.csv", "hall.csv"]
+    assert all(p == p.resolve() for p in found)
+    out = tmp_path / "maps"
+    code, _, err = run("batch", str(logs / "**" / "*.csv"), "-o", str(out))
+    assert code == 0, err
+    assert "2 built, 0 up to date, 0 failed of 2 logs" in err
+    assert [Path(str(r["log"])).name for r in report(out)] == ["corridor_loop.csv", "hall.csv"]

@@ -91,3 +91,4 @@ def test_an_unreachable_scheduler_is_one_line(
                        "--scheduler", "tcp://127.0.0.1:9")  # fmt: skip
     assert code == 1 and err.count("\n") == 1
     assert err.startswith("Error: cannot reach the Dask scheduler at tcp://127.0.0.1:9")
+    assert not (tmp_path / "o").exists()  # refused before the folder (and its lock) exist

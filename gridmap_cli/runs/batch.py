@@ -181,9 +181,10 @@ def plan_jobs(logs: Sequence[Path], outdir: Path, options: BatchOptions) -> list
     names = Counter(job.output.name for job in jobs)
     twice = sorted(name for name, n in names.items() if n > 1)
     if twice:
+        clash = [str(job.log) for job in jobs if job.output.name == twice[0]]
         raise UsageError(
-            f"several logs would write {twice[0]} (same name in different folders); run them "
-            "into separate output folders"
+            f"several logs would write {twice[0]}: {' and '.join(clash)} (the same name in "
+            "different folders); run them into separate output folders"
         )
     return jobs
 
