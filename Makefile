@@ -6,7 +6,7 @@ DEMO_OUT := out/demo
 # the compiled mapping kernels: pip builds them, so a change to them reinstalls
 KERNELS := setup.py gridmap_cli/mapping/models/_ckernels.c gridmap_cli/readers/ros/_cwalk.c
 
-.PHONY: install dev demo test lint format bench samples goldens doc-outputs experiment corpus clean
+.PHONY: install dev demo test lint format bench samples goldens doc-outputs experiment corpus overview-image clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -72,6 +72,10 @@ doc-outputs: install
 # look at the broken files and cases.json
 corpus: dev
 	$(BIN)/python -m tests.corpus.generate out/corpus
+
+# docs/images/batch-overview.png: a screenshot of a real batch overview page (needs chromium)
+overview-image: install
+	$(BIN)/python bench/overview_image.py
 
 clean:
 	rm -rf $(VENV) out build *.egg-info .pytest_cache .ruff_cache .mypy_cache bench/.cache

@@ -21,6 +21,8 @@ from urllib.parse import quote
 
 #: What a record's status is called on the page.
 STATUS_WORDS = {"built": "built", "skipped": "up to date", "failed": "failed"}
+#: Thumbnails whose longer side is below this are scaled up as blocks (image-rendering pixelated).
+SHARP_BELOW_PX = 200
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
@@ -144,8 +146,10 @@ def _card(
     size = png_size(thumbnail) if thumbnail else None
     if status != "failed" and thumbnail and size:
         source = "data:image/png;base64," + base64.b64encode(thumbnail).decode("ascii")
+        # a map of few cells is drawn in blocks, not blurred; a shrunk one is smoothed
+        sharp = ' class="cells"' if max(size) < SHARP_BELOW_PX else ""
         picture = (
-            f'<a class="thumb" href="{image}"><img src="{source}" width="{size[0]}" '
+            f'<a class="thumb" href="{image}"><img{sharp} src="{source}" width="{size[0]}" '
             f'height="{size[1]}" alt="map of {_text(_name(record))}"></a>'
         )
     else:
@@ -222,17 +226,17 @@ h1 { font-size: 22px; margin: 0 0 8px; }
 .notice { background: #fff8c5; border: 1px solid #d4a72c; padding: 6px 10px; border-radius: 6px; }
 .failures { margin: 6px 0; padding-left: 20px; color: var(--failed); }
 .failures a { color: inherit; font-weight: 600; }
-.cards { display: grid; grid-template-columns: repeat(auto-fill, minmax(300px, 1fr));
+.cards { display: grid; grid-template-columns: repeat(auto-fill, minmax(320px, 1fr));
   gap: 16px; }
 .card { background: #fff; border: 1px solid var(--line); border-top: 4px solid var(--muted);
   border-radius: 8px; overflow: hidden; display: flex; flex-direction: column; }
 .card.built { border-top-color: var(--built); }
 .card.skipped { border-top-color: var(--skipped); }
 .card.failed { border-top-color: var(--failed); }
-.thumb { display: flex; align-items: center; justify-content: center; height: 220px;
+.thumb { display: flex; align-items: center; justify-content: center; height: 240px;
   background: #cdcdcd; }
-.thumb img { max-width: 100%; max-height: 220px; width: auto; height: 100%;
-  object-fit: contain; image-rendering: pixelated; }
+.thumb img { width: 100%; height: 100%; object-fit: contain; }
+.thumb img.cells { image-rendering: pixelated; }
 .thumb.none { color: var(--muted); background: repeating-linear-gradient(45deg, #eee 0 10px,
   #f6f6f6 10px 20px); }
 .body { padding: 10px 14px 12px; }

@@ -1,10 +1,11 @@
 """A small picture of a map for people (batch's overview page), never a map_server image.
 
-The map is shrunk by a whole factor so that its longer side fits :data:`THUMBNAIL_PX`; each
-block of cells becomes one pixel, occupied if any of its cells is (a one-cell wall survives the
-shrinking, as it does in a person's sketch), else free if any is, else unknown: the trinary
-greys of the map image. Maps smaller than the limit keep one pixel per cell (the page scales
-them up without smoothing).
+The map is shrunk by a whole factor k so that its longer side fits :data:`THUMBNAIL_PX`; each
+k x k block of cells becomes one pixel, occupied when at least k / 2 of its cells are (a wall
+one cell thick crosses k of them, so it survives the shrinking, as in a person's sketch, while
+a stray occupied cell does not blacken a room), else free if any cell is, else unknown: the
+trinary greys of the map image. Maps smaller than the limit keep one pixel per cell (the page scales
+small ones up without smoothing).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from PIL import Image
 from gridmap_cli.writers.map_image import FREE_GREY, OCCUPIED_GREY, UNKNOWN_GREY
 
 #: The longer side of a thumbnail, in pixels.
-THUMBNAIL_PX = 240
+THUMBNAIL_PX = 320
 
 
 def thumbnail_pixels(
@@ -34,14 +35,14 @@ def thumbnail_pixels(
     height, width = prob.shape
     k = max(1, math.ceil(max(height, width) / size_px))
     rows, cols = math.ceil(height / k), math.ceil(width / k)
-    pooled = []
+    counts = []
     for mask in (prob >= occupied, prob <= free):  # NaN compares False: unknown is neither
         padded = np.zeros((rows * k, cols * k), dtype=bool)
         padded[:height, :width] = mask
-        pooled.append(padded.reshape(rows, k, cols, k).any(axis=(1, 3)))
+        counts.append(padded.reshape(rows, k, cols, k).sum(axis=(1, 3), dtype=np.int32))
     grey = np.full((rows, cols), UNKNOWN_GREY, dtype=np.uint8)
-    grey[pooled[1]] = FREE_GREY
-    grey[pooled[0]] = OCCUPIED_GREY  # any occupied cell in a block, else any free one
+    grey[counts[1] > 0] = FREE_GREY
+    grey[counts[0] >= max(1, k // 2)] = OCCUPIED_GREY
     return np.ascontiguousarray(grey[::-1])
 
 

@@ -164,6 +164,9 @@ def test_a_thumbnail_keeps_a_one_cell_wall_and_the_map_upright() -> None:
     assert (pixels[:90, 25] == 0).all()  # the wall survives
     assert (pixels[-10:, :25] == 205).all()  # unknown at the bottom of the picture
     assert (pixels[:90, :25] == 254).all()
+    speckled = np.full((1000, 500), 0.1)
+    speckled[500, 100] = 0.9  # one stray occupied cell does not blacken its block
+    assert (thumbnail_pixels(speckled, 0.65, 0.25, size_px=100) == 254).all()
     decoded = np.asarray(Image.open(io.BytesIO(thumbnail_png(prob, 0.65, 0.25, 100))))
     assert (decoded == pixels).all()
 
