@@ -44,7 +44,7 @@ def _map_option_names() -> set[str]:
 
 
 def test_batch_has_every_map_option_of_build_with_the_same_flags_and_help() -> None:
-    names = _map_option_names() | {"image_format"}
+    names = _map_option_names() | {"image_format", "error_samples"}
     assert {"sensor_patterns", "start", "end", "no_echo_free", "pose", "mode"} <= names
     built = {p.name: p for p in build.params}
     batched = {p.name: p for p in batch.params}
@@ -74,7 +74,7 @@ def test_batch_has_every_map_option_of_build_with_the_same_flags_and_help() -> N
         ("--pose", "global", "--sensors", "sonar[0-7]", "--start", "5", "--end", "90",
          "--no-echo-free", "0.5", "--resolution", "0.1"),
         ("--mode", "error-aware", "--odometry-coefficient", "range_m_per_m=0.02",
-         "--map-mode", "raw", "--resolution", "0.1"),
+         "--map-mode", "raw", "--resolution", "0.1", "--error-samples", "4"),
     ],
     ids=["selection", "error-aware"],
 )  # fmt: skip
@@ -214,6 +214,7 @@ def test_map_option_usage_errors_come_before_any_work(tmp_path: Path) -> None:
         (("--mode", "error-aware"), "needs the odometry error"),
         (("--mode", "trinary"), "--map-mode trinary"),
         (("--free", "0.7"), "--free < --occupied"),
+        (("--error-samples", "4"), "--error-samples applies to --mode error-aware"),
     ]:
         code, _, err = run("batch", str(SAMPLES / "hall.csv"), "-o", str(out), *args)
         assert code == 2 and err.count("\n") == 1, (args, err)

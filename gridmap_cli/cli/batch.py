@@ -16,6 +16,8 @@ from gridmap_cli.cli.map_options import (
     check_resolution,
     check_thresholds,
     error_aware_settings,
+    error_samples_option,
+    error_samples_setting,
     image_format_option,
     map_options,
     sonar_params,
@@ -64,6 +66,7 @@ NAMED_IN_INTERRUPT = 10
 )
 @image_format_option("Image format of every map [default: png].")
 @map_options
+@error_samples_option
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
               help="Logs built at once, each in its own local process.")  # fmt: skip
 @click.option(
@@ -106,6 +109,7 @@ def batch(
     coefficients: tuple[str, ...],
     trust_length: float,
     max_spread_deg: float,
+    error_samples: int | None,
     jobs: int,
     executor: str,
     scheduler: str | None,
@@ -126,7 +130,7 @@ def batch(
     options = _batch_options(image_format or "png", robot, log_format, resolution, mode,
                              map_mode, occupied, free, no_echo_free, pose, topics,
                              sensor_patterns, start, end, odometry_file, coefficients,
-                             trust_length, max_spread_deg)  # fmt: skip
+                             trust_length, max_spread_deg, error_samples)  # fmt: skip
     if executor == "dask":
         if scheduler is None:
             raise UsageError("--executor dask needs --scheduler ADDRESS (tcp://host:8786)")
@@ -193,6 +197,7 @@ def _batch_options(
     coefficients: tuple[str, ...],
     trust_length: float,
     max_spread_deg: float,
+    error_samples: int | None,
 ) -> BatchOptions:
     """Build's usage checks of the map options, and the options as every job takes them."""
     check_thresholds(occupied, free)
@@ -202,13 +207,15 @@ def _batch_options(
     error_aware, odometry_error = error_aware_settings(
         mode, odometry_file, coefficients, trust_length, max_spread_deg
     )
+    samples = error_samples_setting(mode, error_samples)
     Selection.parse(sensor_patterns, start, end)  # bad patterns and times before any work
     if robot is not None:
         load_robot(robot)  # a bad robot is a usage error before any log is read
         if robot not in preset_names():
             robot = str(Path(robot).resolve())
     build = BuildOptions(resolution_m=resolution, mode=mode, sonar=sonar,
-                         error_aware=error_aware, odometry_error=odometry_error)  # fmt: skip
+                         error_aware=error_aware, odometry_error=odometry_error,
+                         error_samples=samples)  # fmt: skip
     return BatchOptions(build=build, robot=robot, log_format=log_format, pose=pose,
                         topics=topics, sensors=sensor_patterns, start=start, end=end,
                         map_mode=map_mode, occupied=occupied, free=free,

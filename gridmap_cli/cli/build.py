@@ -36,6 +36,8 @@ from gridmap_cli.cli.map_options import (
     check_resolution,
     check_thresholds,
     error_aware_settings,
+    error_samples_option,
+    error_samples_setting,
     image_format_option,
     map_options,
     sonar_params,
@@ -115,15 +117,7 @@ LASER_POSES = ("scan-matched", "slam")
               "map is the same bytes for every N; error-aware mode maps in one process when "
               "the compiled kernels are built), or with --fuse and the local executor, the "
               "logs.")  # fmt: skip
-@click.option(
-    "--error-samples",
-    type=click.IntRange(min=0),
-    default=None,
-    metavar="K",
-    help=f"Error-aware mode: average the standard maps of K tracks sampled from the odometry "
-    f"error (the expected map; default {BuildOptions.error_samples}); 0 fades each reading's "
-    f"evidence by its pose spread instead (faster, less true: docs/sensor-model.md).",
-)
+@error_samples_option
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -178,9 +172,7 @@ def build(
     error_aware, odometry_error = error_aware_settings(
         mode, odometry_file, coefficients, trust_length, max_spread_deg
     )
-    if error_samples is not None and mode != "error-aware":
-        raise UsageError("--error-samples applies to --mode error-aware")
-    samples = BuildOptions.error_samples if error_samples is None else error_samples
+    samples = error_samples_setting(mode, error_samples)
     selection = Selection.parse(sensor_patterns, start, end)
     to_stdout = output == STDIO
     if to_stdout:

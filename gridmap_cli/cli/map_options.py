@@ -21,7 +21,7 @@ from gridmap_cli.cli.common import selection_options, topic_options
 from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.models.standard import StandardSonarParams
-from gridmap_cli.mapping.pipeline import MAPPING_MODES, MAX_RESOLUTION_M
+from gridmap_cli.mapping.pipeline import MAPPING_MODES, MAX_RESOLUTION_M, BuildOptions
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.poses.sync import POSE_SOURCES
 from gridmap_cli.readers import format_names
@@ -147,6 +147,24 @@ ERROR_AWARE_OPTIONS = (
         "reading.",
     ),
 )
+
+error_samples_option = click.option(
+    "--error-samples",
+    type=click.IntRange(min=0),
+    default=None,
+    metavar="K",
+    help=f"Error-aware mode: average the standard maps of K tracks sampled from the odometry "
+    f"error (the expected map; default {BuildOptions.error_samples}); 0 fades each reading's "
+    f"evidence by its pose spread instead (faster, less true: docs/sensor-model.md).",
+)
+
+
+def error_samples_setting(mode: str, error_samples: int | None) -> int:
+    """--error-samples, checked: it belongs to --mode error-aware."""
+    if error_samples is not None and mode != "error-aware":
+        raise UsageError("--error-samples applies to --mode error-aware")
+    return BuildOptions.error_samples if error_samples is None else error_samples
+
 
 #: Every map option, in help order: the command receives robot, log_format, resolution, mode,
 #: map_mode, occupied, free, no_echo_free, pose, topics (a ReadOptions), sensor_patterns,
