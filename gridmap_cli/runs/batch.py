@@ -3,12 +3,15 @@
 :func:`find_logs` turns the inputs (files, folders, globs) into logs; :func:`plan_jobs` names one
 map per log; :func:`run_job` builds one map and never raises (a failed log is a result, so a
 batch continues past it); :func:`run_batch` runs the jobs on an executor (in this process, local
-processes, or a Dask cluster, :mod:`gridmap_cli.runs.executors`) and reports each as it finishes.
+processes, or a Dask cluster, :mod:`gridmap_cli.runs.executors`) and reports each as it finishes
+(on Ctrl-C, those that finished); :func:`write_overview` writes ``OUTDIR/index.html`` from the
+results (:mod:`gridmap_cli.writers.overview`). :mod:`gridmap_cli.runs.batch_build` builds a map.
 
 Up to date means: the map, its YAML and its sidecar (``.<map>.batch.json``) exist and the
-sidecar's key is the SHA-256 of the log's content (every file of a rosbag2 folder), the build
-options and gridmap's version. Touching a log without changing it rebuilds nothing; changing a
-byte of it, or an option, rebuilds its map.
+sidecar's key is the SHA-256 of the log's content (every file of a rosbag2 folder), every
+option that changes the map (:class:`BatchOptions`) and gridmap's version, and the robot file
+the map used is unchanged. Touching a log without changing it rebuilds nothing; changing a byte
+of it, of its robot file, or an option, rebuilds its map.
 
 :class:`BatchLock` keeps two batch runs off one output folder: an advisory ``flock`` on
 ``OUTDIR/.gridmap-batch.lock``, released by the kernel when its holder exits or is killed, so a
