@@ -15,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError, MapSizeError, NoDataError
+from gridmap_cli.mapping import expected
 from gridmap_cli.mapping.grid import (
     DEFAULT_CLAMP_P,
     DEFAULT_MAX_CELLS,
@@ -40,11 +41,9 @@ from gridmap_cli.mapping.shards import (
     batch_bounds as batch_bounds,  # callers cut batches as build does
 )
 from gridmap_cli.poses.odometry_error import OdometryError, travelled
-from gridmap_cli.poses.pose_uncertainty import StepNoise, propagate, sample_tracks
+from gridmap_cli.poses.pose_uncertainty import StepNoise, propagate, sample_offsets
 from gridmap_cli.poses.sync import (
-    SensorReadings,
     SyncStats,
-    select_readings,
     sensors_for_log,
     synchronise,
 )
@@ -190,13 +189,15 @@ def expected_map(
 ) -> BuildResult:
     """The expected map under the pose belief: the mean probability of the standard maps of
     ``options.error_samples`` tracks drawn from the odometry-error model
-    (:func:`~gridmap_cli.poses.pose_uncertainty.sample_tracks`: systematic errors drawn once per
-    track, a random error per key step, composed along the path, so every correlation along it
-    is kept), on the grid of the standard build (readings a sample moves off it are cut). A
-    cell some samples' readings missed counts as the prior 0.5 in those; a cell none touched
-    stays unknown. Perfect odometry gives one sample, the standard map to the bit. Readings
-    whose heading standard deviation exceeds ``options.error_aware.max_heading_spread_rad``
-    are left out, as in the analytic model. ``progress`` counts the log's readings once."""
+    (:func:`~gridmap_cli.poses.pose_uncertainty.sample_offsets`: systematic errors drawn once
+    per track, a random error per key step, composed along the path, so every correlation
+    along it is kept), on the grid of the standard build (readings a sample moves off it are
+    cut); :mod:`gridmap_cli.mapping.expected` says how it costs a few standard builds, not K.
+    A cell some samples' readings missed counts as the prior 0.5 in those; a cell none touched
+    stays unknown. Perfect odometry is the standard build, to the bit. Readings whose heading
+    standard deviation exceeds ``options.error_aware.max_heading_spread_rad`` are left out, as
+    in the analytic model. ``progress`` counts the log's readings once; one process maps
+    them whatever ``options.jobs`` is."""
     if options.odometry_error is None:
         raise GridmapError(
             "error-aware mode needs the odometry error model (gridmap calibrate writes one)"
@@ -206,56 +207,23 @@ def expected_map(
     if between_passes is not None:
         between_passes()
     noise = StepNoise.of(options.odometry_error)
+    if noise.is_zero:  # one sample, the standard map to the bit
+        grid = LogOddsAccumulator(plan.spec)
+        updates = accumulate(plan, grid, standard, progress)
+        return BuildResult(grid.occupancy_map(standard.clamp_p), plan.sync, updates)
+    heading = propagate(log.poses, noise)
     limit = options.error_aware.max_heading_spread_rad
+    cutoff = None
     if limit < math.inf and len(log.poses):
-        heading = propagate(log.poses, noise)
         over = np.flatnonzero(heading.cov[:, 2, 2] > limit * limit)  # never falls: monotone
         if over.size:
             cutoff = int(heading.stamp_ns[over[0]])
-            models: list[tuple[SensorModel, str]] = [
-                (_Before(model, cutoff), kind) for model, kind in plan.models
-            ]
-            plan = dataclasses.replace(plan, models=models)
-    count = 1 if noise.is_zero else options.error_samples
-    shape = (plan.spec.height, plan.spec.width)
-    total, seen = np.zeros(shape), np.zeros(shape, dtype=bool)
-    updates = 0
-    done = [0, 0]  # readings mapped over all samples, readings reported
-
-    def report(n: int) -> None:  # the caller counts the log's readings once
-        done[0] += n
-        if progress is not None and done[0] // count > done[1]:
-            progress(done[0] // count - done[1])
-            done[1] = done[0] // count
-
-    for track in sample_tracks(log.poses, noise, count, options.error_seed):
-        moved = dataclasses.replace(log, poses=track)
-        part = dataclasses.replace(plan, log=moved, travelled=travelled(track))
-        grid = LogOddsAccumulator(plan.spec)
-        updates += accumulate(part, grid, standard, report)
-        prob = grid.occupancy_map(standard.clamp_p).prob
-        known = ~np.isnan(prob)
-        seen |= known
-        total += np.where(known, prob, 0.5)
-    mean = np.where(seen, total / count, np.nan)
-    return BuildResult(map=OccupancyMap(plan.spec, mean), sync=plan.sync, cell_updates=updates)
-
-
-class _Before:
-    """A model that maps only the readings stamped at or before ``cutoff_ns``."""
-
-    def __init__(self, model: SensorModel, cutoff_ns: int) -> None:
-        self.model = model
-        self.cutoff_ns = cutoff_ns
-
-    def bounds(self, readings: SensorReadings) -> tuple[float, float, float, float]:
-        return self.model.bounds(readings)
-
-    def accumulate(self, grid: LogOddsAccumulator, readings: SensorReadings) -> int:
-        keep = readings.stamp_ns <= self.cutoff_ns
-        if not keep.any():
-            return 0
-        return self.model.accumulate(grid, select_readings(readings, keep))
+    offsets = sample_offsets(
+        log.poses, noise, options.error_samples, options.error_seed, expected.ANTITHETIC
+    )
+    casts = expected.collect(plan, heading, offsets, cutoff, progress)
+    omap, updates = expected.average(plan, casts, offsets, standard.clamp_p)
+    return BuildResult(map=omap, sync=plan.sync, cell_updates=updates)
 
 
 def accumulate(

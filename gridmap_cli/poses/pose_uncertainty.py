@@ -206,6 +206,97 @@ def project(cov: F64, lever_x_m: F64, lever_y_m: F64, beam_rad: F64) -> tuple[F6
     return np.sqrt(np.maximum(along, 0.0)), np.sqrt(np.maximum(across, 0.0))
 
 
+@dataclass(frozen=True)
+class SampledOffsets:
+    """Tracks drawn from the noise model, as the rigid motion that takes each nominal key
+    pose to the sampled one: a pose owned by key pose k (the last key pose at or before it)
+    is moved by ``p -> R(rot_rad[s, k]) p + (tx_m[s, k], ty_m[s, k])`` in sample s.
+
+    ``key_stamp_ns`` (K,); ``rot_rad``, ``tx_m``, ``ty_m`` (S, K). Composing a sensor pose
+    with the motion is the same as composing the robot pose and then the mounting, so synced
+    readings move as their robot does.
+    """
+
+    key_stamp_ns: I64
+    rot_rad: F64
+    tx_m: F64
+    ty_m: F64
+
+    @property
+    def count(self) -> int:
+        return int(self.rot_rad.shape[0])
+
+    def owner(self, stamp_ns: I64) -> I64:
+        """Index of the key pose owning each stamp, shape (M,)."""
+        at = np.searchsorted(self.key_stamp_ns, stamp_ns, side="right") - 1
+        return np.clip(at, 0, self.key_stamp_ns.shape[0] - 1)
+
+
+def _key_draws(
+    track: PoseTrack,
+    noise: StepNoise,
+    count: int,
+    seed: int,
+    antithetic: bool,
+    step_m: float,
+    step_rad: float,
+) -> tuple[I64, list[tuple[F64, F64, F64]]]:
+    """The key indices and each sample's key poses (x, y, theta), shape (K,) each.
+
+    With ``antithetic`` the samples come in pairs whose standard-normal draws are negatives
+    of each other (the last one alone when ``count`` is odd): a pair's errors cancel to first
+    order, so the mean over samples converges faster for the same cost."""
+    keys = key_steps(track, step_m, step_rad)
+    if keys.shape[0] < 2:
+        k = track.x_m[keys], track.y_m[keys], track.theta_rad[keys]
+        return keys, [k] * count
+    rng = np.random.default_rng(seed)
+    dx, dy, dth = key_increments(track, keys)
+    ds = np.hypot(dx, dy)
+    kx, ky, kth = track.x_m[keys], track.y_m[keys], track.theta_rad[keys]
+    heading_sd = np.sqrt(
+        noise.heading_rad_per_sqrt_rad**2 * np.abs(dth) + noise.heading_rad_per_sqrt_m**2 * ds
+    )
+    out = []
+    draw: tuple[F64, F64] | None = None
+    for i in range(count):
+        if antithetic and i % 2 == 1 and draw is not None:
+            unit, z = -draw[0], -draw[1]
+        else:
+            unit, z = rng.normal(0.0, 1.0, 3), rng.normal(0.0, 1.0, (3, ds.shape[0]))
+            draw = (unit, z)
+        scale = unit * (noise.distance_scale, noise.turn_scale, noise.heading_drift_rad_per_m)
+        # robot-frame noise: along-track on dx, lateral on dy (as :func:`propagate`)
+        sx = dx * (1.0 + scale[0]) + z[0] * noise.along_m_per_sqrt_m * np.sqrt(ds)
+        sy = dy * (1.0 + scale[0]) + z[1] * noise.lateral_m_per_sqrt_m * np.sqrt(ds)
+        sth = dth * (1.0 + scale[1]) + scale[2] * ds + z[2] * heading_sd
+        out.append(_integrate(kx[0], ky[0], kth[0], sx, sy, sth))
+    return keys, out
+
+
+def sample_offsets(
+    track: PoseTrack,
+    noise: StepNoise,
+    count: int,
+    seed: int = 0,
+    antithetic: bool = False,
+    step_m: float = KEY_STEP_M,
+    step_rad: float = KEY_STEP_RAD,
+) -> SampledOffsets:
+    """``count`` tracks drawn as :func:`sample_tracks` draws them (the same draws for the same
+    seed), as rigid motions of the nominal key poses (:class:`SampledOffsets`)."""
+    keys, draws = _key_draws(track, noise, count, seed, antithetic, step_m, step_rad)
+    kx, ky, kth = track.x_m[keys], track.y_m[keys], track.theta_rad[keys]
+    rot = np.empty((count, keys.shape[0]))
+    tx, ty = np.empty_like(rot), np.empty_like(rot)
+    for i, (px, py, pth) in enumerate(draws):
+        rot[i] = pth - kth
+        c, s = np.cos(rot[i]), np.sin(rot[i])
+        tx[i] = px - (c * kx - s * ky)
+        ty[i] = py - (s * kx + c * ky)
+    return SampledOffsets(track.stamp_ns[keys], rot, tx, ty)
+
+
 def sample_tracks(
     track: PoseTrack,
     noise: StepNoise,
@@ -218,12 +309,9 @@ def sample_tracks(
     systematic errors once and a random error per key step, composes the key steps again, and
     moves every pose between two key poses with the key pose before it. Same stamps as
     ``track``; the first pose is unchanged."""
-    keys = key_steps(track, step_m, step_rad)
+    keys, draws = _key_draws(track, noise, count, seed, False, step_m, step_rad)
     if keys.shape[0] < 2:
         return [track] * count
-    rng = np.random.default_rng(seed)
-    dx, dy, dth = key_increments(track, keys)
-    ds = np.hypot(dx, dy)
     kx, ky, kth = track.x_m[keys], track.y_m[keys], track.theta_rad[keys]
     # every pose relative to the key pose at or before it
     owner = np.searchsorted(keys, np.arange(len(track)), side="right") - 1
@@ -232,26 +320,7 @@ def sample_tracks(
     rx, ry = c * ex + s * ey, -s * ex + c * ey
     rth = track.theta_rad - kth[owner]
     out = []
-    for _ in range(count):
-        scale = rng.normal(0.0, 1.0, 3) * (
-            noise.distance_scale,
-            noise.turn_scale,
-            noise.heading_drift_rad_per_m,
-        )
-        z = rng.normal(0.0, 1.0, (3, ds.shape[0]))
-        # robot-frame noise: along-track on dx, lateral on dy (as :func:`propagate`)
-        sx = dx * (1.0 + scale[0]) + z[0] * noise.along_m_per_sqrt_m * np.sqrt(ds)
-        sy = dy * (1.0 + scale[0]) + z[1] * noise.lateral_m_per_sqrt_m * np.sqrt(ds)
-        sth = (
-            dth * (1.0 + scale[1])
-            + scale[2] * ds
-            + z[2]
-            * np.sqrt(
-                noise.heading_rad_per_sqrt_rad**2 * np.abs(dth)
-                + noise.heading_rad_per_sqrt_m**2 * ds
-            )
-        )
-        px, py, pth = _integrate(kx[0], ky[0], kth[0], sx, sy, sth)
+    for px, py, pth in draws:
         co, so = np.cos(pth[owner]), np.sin(pth[owner])
         out.append(
             PoseTrack(

@@ -420,12 +420,141 @@ done:
     return result;
 }
 
+/* ---- rays moved by a sampled track (mapping/expected.py cast_rays_numpy) -------------- */
+
+/* Every segment moved by its key pose's rigid motion (p -> R p + t: cos, sin, tx, ty per key,
+ * indexed by owner), walked as ray.py's ray_rows and row_runs walk it, its free runs into
+ * the difference arrays with l_free and its end cell (echo, in the grid) with l_end - l_free,
+ * in the order the numpy reference adds them: the free runs' delta, then the end cells'. */
+static PyObject *moved_ray_batch(PyObject *self, PyObject *args)
+{
+    (void)self;
+    double ox, oy, res, l_free, l_end;
+    int64_t width, height;
+    PyObject *o[11];
+    if (!PyArg_ParseTuple(args, "dddLLOOOOOOOOOddOO", &ox, &oy, &res, &width, &height, &o[0],
+                          &o[1], &o[2], &o[3], &o[4], &o[5], &o[6], &o[7], &o[8], &l_free,
+                          &l_end, &o[9], &o[10]))
+        return NULL;
+    Buf b[11] = {0};
+    PyObject *result = NULL;
+    Delta free_runs = {0}, ends = {0};
+    int64_t stride = width + 1;
+    int64_t *ra = NULL, *rb = NULL, *p_lo = NULL, *cnt = NULL;
+    double *off = NULL, *slope = NULL, *ua = NULL, *ub = NULL;
+    int64_t *end_at = NULL;
+    if (take(o[0], &b[0], -1, 0, "x0") != 0)
+        goto done;
+    Py_ssize_t n = b[0].view.len / 8;
+    static const char *names[] = {"x0", "y0", "x1", "y1", "echo", "owner"};
+    for (int i = 1; i < 6; i++)
+        if (take(o[i], &b[i], n, 0, names[i]) != 0)
+            goto done;
+    if (take(o[6], &b[6], -1, 0, "cos") != 0)
+        goto done;
+    Py_ssize_t keys = b[6].view.len / 8;
+    /* o[8] holds the key poses' tx, then their ty */
+    if (take(o[7], &b[7], keys, 0, "sin") != 0 || take(o[8], &b[8], 2 * keys, 0, "txy") != 0 ||
+        take(o[9], &b[9], height * stride, 1, "value_sums") != 0 ||
+        take(o[10], &b[10], height * stride, 1, "count_sums") != 0)
+        goto done;
+    const double *x0 = F64(b[0]), *y0 = F64(b[1]), *x1 = F64(b[2]), *y1 = F64(b[3]);
+    const int64_t *echo = I64(b[4]), *owner = I64(b[5]);
+    const double *cs = F64(b[6]), *sn = F64(b[7]), *txy = F64(b[8]);
+    double *value_sums = (double *)b[9].view.buf;
+    int64_t *count_sums = (int64_t *)b[10].view.buf;
+    size_t sz = (size_t)(n > 0 ? n : 1);
+    ra = malloc(sz * 8), rb = malloc(sz * 8), p_lo = malloc(sz * 8), cnt = malloc(sz * 8);
+    off = malloc(sz * 8), slope = malloc(sz * 8), ua = malloc(sz * 8), ub = malloc(sz * 8);
+    end_at = malloc(sz * 8);
+    if (!ra || !rb || !p_lo || !cnt || !off || !slope || !ua || !ub || !end_at) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    int64_t n_end = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        int64_t k = owner[i];
+        if (k < 0 || k >= keys) {
+            PyErr_SetString(PyExc_ValueError, "owner: index out of range");
+            goto done;
+        }
+        double c = cs[k], s = sn[k], tx = txy[k], ty = txy[keys + k];
+        double ax = c * x0[i] - s * y0[i] + tx, ay = s * x0[i] + c * y0[i] + ty;
+        double bx = c * x1[i] - s * y1[i] + tx, by = s * x1[i] + c * y1[i] + ty;
+        double u0 = (ax - ox) / res, v0 = (ay - oy) / res;
+        double u1 = (bx - ox) / res, v1 = (by - oy) / res;
+        int down = v1 < v0;
+        double a_u = down ? u1 : u0, a_v = down ? v1 : v0;
+        double b_u = down ? u0 : u1, b_v = down ? v0 : v1;
+        double ra_f = floor(a_v);
+        ra[i] = (int64_t)ra_f;
+        rb[i] = (int64_t)floor(b_v);
+        p_lo[i] = -ra[i] > 0 ? -ra[i] : 0;
+        int64_t top = rb[i] < height - 1 ? rb[i] : height - 1;
+        int64_t p_hi = top - ra[i];
+        int active = echo[i] != 0 || u0 != u1 || v0 != v1;
+        int64_t count = p_hi - p_lo[i] + 1;
+        cnt[i] = active && count > 0 ? count : 0;
+        double dv = b_v - a_v;
+        slope[i] = dv > 0.0 ? (b_u - a_u) / dv : 0.0;
+        off[i] = ra_f - a_v;
+        ua[i] = a_u;
+        ub[i] = b_u;
+        if (echo[i]) {
+            int64_t col = (int64_t)floor(u1), row = (int64_t)floor(v1);
+            if (col >= 0 && col < width && row >= 0 && row < height)
+                end_at[n_end++] = row * stride + col;
+        }
+    }
+    RayRows r = {ra, rb, p_lo, cnt, off, slope, ua, ub};
+    int64_t base, size, runs;
+    ray_range(&r, n, stride, &base, &size, &runs);
+    if (delta_open(&free_runs, 0, base, size, runs) != 0)
+        goto done;
+    long long cells = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        for (int64_t p = r.p_lo[i]; p < r.p_lo[i] + r.counts[i]; p++) {
+            int64_t col0, col1;
+            if (!ray_run(&r, i, p, 1, width, &col0, &col1))
+                continue;
+            int64_t at = (r.ra[i] + p) * stride;
+            count_sums[at + col0] += 1;
+            count_sums[at + col1 + 1] -= 1;
+            cells += col1 - col0 + 1;
+            delta_run(&free_runs, at + col0, at + col1 + 1, l_free);
+        }
+    }
+    delta_close(&free_runs, value_sums);
+    if (n_end > 0) {
+        int64_t lo = end_at[0], hi = end_at[0];
+        for (int64_t k = 1; k < n_end; k++) {
+            lo = end_at[k] < lo ? end_at[k] : lo;
+            hi = end_at[k] > hi ? end_at[k] : hi;
+        }
+        if (delta_open(&ends, 1, lo, hi - lo + 2, n_end) != 0)
+            goto done;
+        double v = l_end - l_free;
+        for (int64_t k = 0; k < n_end; k++)
+            delta_run(&ends, end_at[k], end_at[k] + 1, v);
+        delta_close(&ends, value_sums);
+    }
+    result = PyLong_FromLongLong(cells);
+done:
+    free(ra), free(rb), free(p_lo), free(cnt), free(off), free(slope), free(ua), free(ub);
+    free(end_at);
+    release(b, 11);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"sector_batch", sector_batch, METH_VARARGS,
      "One batch of nested sonar sectors into the running difference arrays; returns the "
      "outer sectors' cells."},
     {"ray_batch", ray_batch, METH_VARARGS,
      "One chunk of rays' free runs into the running difference arrays; returns the cells."},
+    {"moved_ray_batch", moved_ray_batch, METH_VARARGS,
+     "One batch of rays moved by a sampled track's key-pose motions, free runs and end "
+     "cells into the running difference arrays; returns the free runs' cells."},
     {NULL, NULL, 0, NULL},
 };
 

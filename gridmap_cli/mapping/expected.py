@@ -1,0 +1,376 @@
+"""The expected map under the pose belief: the mean probability of the standard maps of tracks
+drawn from the odometry-error model (docs/sensor-model.md, "The expected map").
+
+Each sample's map is the standard map of its track. Three things make K of them cost a few
+standard builds instead of K:
+
+* **One sync.** A sampled track moves every pose owned by a key pose by one rigid motion
+  (:class:`~gridmap_cli.poses.pose_uncertainty.SampledOffsets`), and the readings' sensor poses
+  move with it; so the readings are synchronised once and each sample moves their geometry.
+* **Cells no finer than the spread.** A reading whose position is uncertain by sigma lands,
+  in each sample, somewhere within sigma of its nominal cells. Cast on cells up to sigma wide
+  (a grid 2, 4, 8 ... times coarser, aligned with the map's), the evidence a map cell gets in a
+  sample is the evidence at its coarse cell's centre: less than a cell width off, which the
+  sample-to-sample spread of sigma averages out. The evidence keeps the fine map's geometry (the
+  obstacle band of the map's resolution, not of the coarse cells), so each map cell sees the same
+  evidence with the same probability as in a full-resolution sample; a ray, whose cells are a
+  line of cell width, gives its free evidence times the ratio of the cell sizes and its end cell's
+  evidence times their squared ratio (the evidence per map cell it would spread over). A cast
+  costs its rows, so a coarse cast is cheap.
+* **Antithetic pairs.** Samples come in pairs of opposite draws, whose first-order errors
+  cancel: the mean converges faster than with independent draws.
+
+Readings whose position spread is under half a cell are the same in every sample: they are
+cast once and their log-odds added to every sample's before the probabilities are taken (the
+expected map averages probabilities, so they cannot be averaged separately). Perfect odometry
+is the standard map to the bit (the caller checks).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import TypeVar
+
+import numpy as np
+import numpy.typing as npt
+
+from gridmap_cli.mapping.grid import GridSpec, LogOddsAccumulator, OccupancyMap, logodds
+from gridmap_cli.mapping.models.kernels import compiled
+from gridmap_cli.mapping.models.ray import RayModel, RaySegments, end_cells, row_runs
+from gridmap_cli.mapping.models.standard import (
+    SectorEvidence,
+    StandardSonarModel,
+    accumulate_sectors,
+)
+from gridmap_cli.mapping.plan import BuildPlan
+from gridmap_cli.mapping.shards import accumulate_log_odds, batch_bounds
+from gridmap_cli.poses.odometry_error import travelled
+from gridmap_cli.poses.pose_uncertainty import PoseUncertainty, SampledOffsets
+from gridmap_cli.poses.sync import SensorReadings, select_readings
+from gridmap_cli.records import PoseTrack
+
+T = TypeVar("T", bound=np.generic)
+F64 = npt.NDArray[np.float64]
+I64 = npt.NDArray[np.int64]
+
+#: A reading is cast on cells at most its position spread (standard deviation, the smaller
+#: principal axis) divided by this wide.
+SPREAD_PER_CELL = 1.0
+#: The coarsest cast: cells 2 ** MAX_LEVEL times the map's.
+MAX_LEVEL = 4
+#: Readings whose spread is under this many map cells are cast once, for every sample.
+SHARED_SPREAD_CELLS = 0.5
+#: Samples come in antithetic pairs (module docstring).
+ANTITHETIC = True
+#: Readings per kernel call (each call holds its rows' runs).
+BATCH_READINGS = 20_000
+#: Rows per ray batch: bounds the runs a batch holds.
+BATCH_ROWS = 2_000_000
+
+
+@dataclass
+class _Casts:
+    """The nominal geometry of one model's readings at one level, chunk by chunk."""
+
+    model: StandardSonarModel | RayModel
+    level: int
+    owner: list[I64] = dataclasses.field(default_factory=list)
+    sectors: list[SectorEvidence] = dataclasses.field(default_factory=list)
+    rays: list[RaySegments] = dataclasses.field(default_factory=list)
+
+
+def level_spec(spec: GridSpec, level: int) -> GridSpec:
+    """The grid of cells ``2 ** level`` times the map's, sharing its origin and covering it."""
+    f = 1 << level
+    return GridSpec(
+        spec.origin_x_m, spec.origin_y_m, spec.resolution_m * f, -(-spec.width // f),
+        -(-spec.height // f),
+    )  # fmt: skip
+
+
+def upsample(values: npt.NDArray[T], spec: GridSpec, level: int) -> npt.NDArray[T]:
+    """A level's cells onto the map's: each map cell takes its coarse cell's value."""
+    if level == 0:
+        return values
+    f = 1 << level
+    return np.repeat(np.repeat(values, f, axis=0), f, axis=1)[: spec.height, : spec.width]
+
+
+def levels(
+    uncertainty: PoseUncertainty, readings: SensorReadings, resolution_m: float
+) -> npt.NDArray[np.int64]:
+    """The cast level of each reading, shape (M,).
+
+    -1 (cast once, shared by every sample) when the reading's farthest point moves by under
+    :data:`SHARED_SPREAD_CELLS` cells in every direction: the larger principal spread of the
+    position plus the range times the heading spread. Else the coarsest level whose cells are
+    no wider than the *smaller* principal spread of the position / :data:`SPREAD_PER_CELL`: a
+    track whose error has one direction only (a distance scale error moves poses along the
+    path) spreads nothing across it, and coarse cells would shift the evidence there."""
+    u = uncertainty
+    t = (u.stamp_ns - u.stamp_ns[0]).astype(np.float64)
+    q = (readings.stamp_ns - u.stamp_ns[0]).astype(np.float64)
+    a = np.interp(q, t, u.cov[:, 0, 0])
+    b = np.interp(q, t, u.cov[:, 1, 1])
+    c = np.interp(q, t, u.cov[:, 0, 1])
+    h = np.interp(q, t, u.cov[:, 2, 2])
+    mid, half = 0.5 * (a + b), np.sqrt(0.25 * (a - b) ** 2 + c * c)
+    small = np.sqrt(np.maximum(mid - half, 0.0)) / resolution_m
+    large = np.sqrt(np.maximum(mid + half, 0.0)) / resolution_m
+    reach = large + readings.range_m * np.sqrt(np.maximum(h, 0.0)) / resolution_m
+    with np.errstate(divide="ignore"):
+        level = np.floor(np.log2(np.maximum(small / SPREAD_PER_CELL, 1e-300)))
+    level = np.clip(level, 0, MAX_LEVEL).astype(np.int64)
+    return np.where(reach < SHARED_SPREAD_CELLS, -1, level)
+
+
+def collect(
+    plan: BuildPlan,
+    uncertainty: PoseUncertainty,
+    offsets: SampledOffsets,
+    cutoff_ns: int | None,
+    progress: Callable[[int], object] | None,
+) -> list[_Casts]:
+    """One pass over the plan's readings: each model's nominal geometry, per level."""
+    casts: dict[tuple[int, int], _Casts] = {}
+    for model, readings in plan.parts():
+        if cutoff_ns is not None:
+            readings = select_readings(readings, readings.stamp_ns <= cutoff_ns)
+        if len(readings):
+            level = levels(uncertainty, readings, plan.spec.resolution_m)
+            owner = offsets.owner(readings.stamp_ns)
+            for lv in np.unique(level).tolist():
+                pick = select_readings(readings, np.flatnonzero(level == lv))
+                key = (id(model), lv)
+                if not isinstance(model, StandardSonarModel | RayModel):
+                    raise TypeError(f"the expected map cannot sample {type(model).__name__}")
+                entry = casts.setdefault(key, _Casts(model, lv))
+                entry.owner.append(owner[level == lv])
+                if isinstance(model, RayModel):
+                    entry.rays.append(model.segments(pick))
+                else:
+                    entry.sectors.append(model.evidence(pick))
+        if progress is not None:
+            progress(len(readings))
+    return list(casts.values())
+
+
+def _moved(x: F64, y: F64, c: F64, s: F64, tx: F64, ty: F64) -> tuple[F64, F64]:
+    return c * x - s * y + tx, s * x + c * y + ty
+
+
+@dataclass(frozen=True)
+class Motion:
+    """One sample's rigid motion of every key pose (:class:`SampledOffsets`), shape (K,)
+    each; ``txy`` (2K,) holds tx, then ty (what the compiled kernel takes)."""
+
+    rot: F64
+    cos: F64
+    sin: F64
+    txy: F64
+
+    @classmethod
+    def of(cls, offsets: SampledOffsets, sample: int) -> Motion:
+        rot = offsets.rot_rad[sample]
+        txy = np.concatenate([offsets.tx_m[sample], offsets.ty_m[sample]])
+        return cls(rot, np.cos(rot), np.sin(rot), txy)
+
+
+def cast(
+    grid: LogOddsAccumulator, entry: _Casts, motion: Motion | None, resolution_m: float
+) -> int:
+    """Add one level's readings to ``grid``, moved by ``motion`` (nominal when None); returns
+    the cell updates. ``resolution_m``: the map's cells (the rays' evidence scales with the
+    ratio of the cell sizes, module docstring)."""
+    if isinstance(entry.model, RayModel):
+        return _cast_rays(grid, entry, entry.model, motion, resolution_m)
+    updates = 0
+    for owner, ev in zip(entry.owner, entry.sectors, strict=True):
+        for start, stop in _batches(owner.shape[0]):
+            sl = slice(start, stop)
+            x, y, th = ev.x_m[sl], ev.y_m[sl], ev.theta_rad[sl]
+            if motion is not None:
+                k = owner[sl]
+                n = motion.cos.shape[0]
+                c, sn, tx, ty = motion.cos[k], motion.sin[k], motion.txy[k], motion.txy[n + k]
+                x, y = _moved(x, y, c, sn, tx, ty)
+                th = th + motion.rot[k]
+            part = SectorEvidence(
+                x, y, th, ev.half_width_rad[sl], ev.inner_m[sl], ev.inner_value[sl],
+                ev.outer_m[sl], ev.outer_value[sl],
+            )  # fmt: skip
+            updates += accumulate_sectors(grid, part)
+    return updates
+
+
+def _cast_rays(
+    grid: LogOddsAccumulator,
+    entry: _Casts,
+    model: RayModel,
+    motion: Motion | None,
+    resolution_m: float,
+) -> int:
+    updates = 0
+    ratio = resolution_m / grid.spec.resolution_m
+    identity = Motion(np.zeros(1), np.ones(1), np.zeros(1), np.zeros(2))
+    for owner, seg in zip(entry.owner, entry.rays, strict=True):
+        keys = np.zeros_like(owner) if motion is None else owner
+        # a ray's rows: its length in cells and its two end rows (a motion keeps the length)
+        rows = np.hypot(seg.x1_m - seg.x0_m, seg.y1_m - seg.y0_m) / grid.spec.resolution_m + 2.0
+        for start, stop in _row_batches(rows):
+            sl = slice(start, stop)
+            part = RaySegments(seg.x0_m[sl], seg.y0_m[sl], seg.x1_m[sl], seg.y1_m[sl], seg.echo[sl])
+            updates += cast_rays(
+                grid, part, keys[sl], identity if motion is None else motion,
+                model.l_free * ratio, model.l_occ * ratio * ratio,
+            )  # fmt: skip
+    return updates
+
+
+def cast_rays(
+    grid: LogOddsAccumulator,
+    seg: RaySegments,
+    owner: I64,
+    motion: Motion,
+    l_free: float,
+    l_end: float,
+) -> int:
+    """Rays moved by ``motion`` (``owner``: each ray's key pose) into ``grid``: ``l_free`` in
+    every cell crossed and ``l_end`` in the end cell of an echo. The compiled kernel when it is
+    built, else :func:`cast_rays_numpy`: the same grid bit for bit."""
+    kernels = compiled()
+    if kernels is None:
+        return cast_rays_numpy(grid, seg, owner, motion, l_free, l_end)
+    spec = grid.spec
+    values, observations = grid.difference_arrays()
+    f64 = np.ascontiguousarray
+    return int(
+        kernels.moved_ray_batch(
+            spec.origin_x_m, spec.origin_y_m, spec.resolution_m, spec.width, spec.height,
+            f64(seg.x0_m), f64(seg.y0_m), f64(seg.x1_m), f64(seg.y1_m),
+            seg.echo.astype(np.int64), f64(owner, dtype=np.int64), f64(motion.cos),
+            f64(motion.sin), f64(motion.txy), l_free, l_end, values, observations,
+        )
+    )  # fmt: skip
+
+
+def cast_rays_numpy(
+    grid: LogOddsAccumulator,
+    seg: RaySegments,
+    owner: I64,
+    motion: Motion,
+    l_free: float,
+    l_end: float,
+) -> int:
+    """:func:`cast_rays` in numpy: the reference the compiled kernel must equal."""
+    n = motion.cos.shape[0]
+    c, s, tx, ty = motion.cos[owner], motion.sin[owner], motion.txy[owner], motion.txy[n + owner]
+    x0, y0 = _moved(seg.x0_m, seg.y0_m, c, s, tx, ty)
+    x1, y1 = _moved(seg.x1_m, seg.y1_m, c, s, tx, ty)
+    moved = RaySegments(x0, y0, x1, y1, seg.echo)
+    runs = row_runs(grid.spec, moved)
+    grid.add_observations(runs.row, runs.col0, runs.col1)
+    grid.add_values(runs.row, runs.col0, runs.col1, np.full(runs.row.shape[0], l_free))
+    end_row, end_col = end_cells(grid.spec, moved)
+    grid.add_values(end_row, end_col, end_col, np.full(end_row.shape[0], l_end - l_free))
+    return runs.cells()
+
+
+def _batches(n: int) -> Iterable[tuple[int, int]]:
+    return batch_bounds(np.arange(n, dtype=np.int64), BATCH_READINGS)
+
+
+def _row_batches(rows: F64) -> Iterable[tuple[int, int]]:
+    """Batches of at most :data:`BATCH_READINGS` rays and about :data:`BATCH_ROWS` rows."""
+    cum = np.cumsum(rows)
+    start, n = 0, rows.shape[0]
+    while start < n:
+        base = cum[start - 1] if start else 0.0
+        stop = int(np.searchsorted(cum, base + BATCH_ROWS, side="right"))
+        stop = min(max(stop, start + 1), start + BATCH_READINGS, n)
+        yield start, stop
+        start = stop
+
+
+def average(
+    plan: BuildPlan,
+    casts: list[_Casts],
+    offsets: SampledOffsets,
+    clamp_p: tuple[float, float],
+) -> tuple[OccupancyMap, int]:
+    """The mean over samples of each sample's map probabilities; returns it and the updates.
+
+    Per sample, each level's log-odds are added into the next finer level's, coarsest first,
+    so one pass of the map's size per sample takes them all; the probabilities are summed as
+    ``tanh(l / 2)`` (``p = (1 + tanh(l / 2)) / 2``). Observation counts are kept over all
+    samples: a cell is known when some sample's reading touched it."""
+    spec = plan.spec
+    res = spec.resolution_m
+    lo, hi = logodds(clamp_p[0]), logodds(clamp_p[1])
+    updates = 0
+    by_level: dict[int, list[_Casts]] = {}
+    for entry in casts:
+        by_level.setdefault(entry.level, []).append(entry)
+    grids = {lv: LogOddsAccumulator(level_spec(spec, max(lv, 0))) for lv in by_level}
+    shared: F64 | float = 0.0
+    if -1 in by_level:
+        for entry in by_level.pop(-1):
+            updates += cast(grids[-1], entry, None, res)
+        shared = grids[-1].log_odds()
+    total = np.zeros((spec.height, spec.width))
+    order = sorted(by_level, reverse=True)
+    for s in range(offsets.count):
+        motion = Motion.of(offsets, s)
+        summed: F64 | None = None
+        for level in range(order[0] if order else -1, -1, -1):
+            if summed is not None:
+                summed = _finer(summed, level_spec(spec, level))
+            if level not in by_level:
+                continue
+            grid = grids[level]
+            values, _ = grid.difference_arrays()
+            values.fill(0.0)
+            for entry in by_level[level]:
+                updates += cast(grid, entry, motion, res)
+            summed = grid.log_odds() if summed is None else summed + grid.log_odds()
+        if summed is None:
+            summed = np.zeros_like(total)
+        summed = summed + shared
+        np.clip(summed, lo, hi, out=summed)
+        summed *= 0.5
+        total += np.tanh(summed, out=summed)
+    seen = np.zeros((spec.height, spec.width), dtype=bool)
+    for level, grid in grids.items():
+        seen |= upsample(grid.observations(), spec, max(level, 0)) > 0
+    mean = np.where(seen, 0.5 + 0.5 * (total / offsets.count), np.nan)
+    return OccupancyMap(spec, mean), updates
+
+
+def _finer(values: F64, fine: GridSpec) -> F64:
+    """A level's cells onto the next finer level's (each takes its coarse cell's value)."""
+    return np.repeat(np.repeat(values, 2, axis=0), 2, axis=1)[: fine.height, : fine.width]
+
+
+def exact(
+    plan: BuildPlan,
+    tracks: list[PoseTrack],
+    clamp_p: tuple[float, float],
+    batch_size: int,
+) -> OccupancyMap:
+    """The oracle the fast map is measured against: the full standard build of every track in
+    ``tracks`` (synchronised again, on the map's cells), probabilities averaged. ``plan``'s
+    models must map every reading (no heading-spread cut)."""
+    shape = (plan.spec.height, plan.spec.width)
+    total, seen = np.zeros(shape), np.zeros(shape, dtype=bool)
+    for track in tracks:
+        moved = dataclasses.replace(plan.log, poses=track)
+        part = dataclasses.replace(plan, log=moved, travelled=travelled(track))
+        grid = LogOddsAccumulator(plan.spec)
+        accumulate_log_odds(part, grid, batch_size, 1)
+        prob = grid.occupancy_map(clamp_p).prob
+        known = ~np.isnan(prob)
+        seen |= known
+        total += np.where(known, prob, 0.5)
+    return OccupancyMap(plan.spec, np.where(seen, total / len(tracks), np.nan))
