@@ -39,11 +39,8 @@ import numpy.typing as npt
 from gridmap_cli.mapping.grid import GridSpec, LogOddsAccumulator, OccupancyMap, logodds
 from gridmap_cli.mapping.models.kernels import compiled
 from gridmap_cli.mapping.models.ray import RayModel, RaySegments, end_cells, row_runs
-from gridmap_cli.mapping.models.standard import (
-    SectorEvidence,
-    StandardSonarModel,
-    accumulate_sectors,
-)
+from gridmap_cli.mapping.models.sector import rows_of_range
+from gridmap_cli.mapping.models.standard import SectorEvidence, StandardSonarModel
 from gridmap_cli.mapping.plan import BuildPlan
 from gridmap_cli.mapping.shards import accumulate_log_odds, batch_bounds
 from gridmap_cli.poses.odometry_error import travelled
@@ -70,6 +67,36 @@ BATCH_READINGS = 20_000
 BATCH_ROWS = 2_000_000
 
 
+@dataclass(frozen=True)
+class Cones:
+    """Sonar sectors as the moved-sector cast takes them, shape (M,) each: apex, the edges'
+    directions (right: theta - beta / 2, left: theta + beta / 2) and the nested disks'
+    radii and values (:class:`~gridmap_cli.mapping.models.standard.SectorEvidence`)."""
+
+    x_m: F64
+    y_m: F64
+    sin_r: F64
+    cos_r: F64
+    sin_l: F64
+    cos_l: F64
+    outer_m: F64
+    outer_value: F64
+    inner_m: F64
+    inner_value: F64
+
+    @classmethod
+    def of(cls, ev: SectorEvidence) -> Cones:
+        right = ev.theta_rad - ev.half_width_rad
+        left = ev.theta_rad + ev.half_width_rad
+        return cls(
+            ev.x_m, ev.y_m, np.sin(right), np.cos(right), np.sin(left), np.cos(left),
+            ev.outer_m, ev.outer_value, ev.inner_m, ev.inner_value,
+        )  # fmt: skip
+
+    def take(self, sl: slice) -> Cones:
+        return Cones(*(getattr(self, f.name)[sl] for f in dataclasses.fields(self)))
+
+
 @dataclass
 class _Casts:
     """The nominal geometry of one model's readings at one level, chunk by chunk."""
@@ -77,7 +104,7 @@ class _Casts:
     model: StandardSonarModel | RayModel
     level: int
     owner: list[I64] = dataclasses.field(default_factory=list)
-    sectors: list[SectorEvidence] = dataclasses.field(default_factory=list)
+    sectors: list[Cones] = dataclasses.field(default_factory=list)
     rays: list[RaySegments] = dataclasses.field(default_factory=list)
 
 
@@ -151,7 +178,7 @@ def collect(
                 if isinstance(model, RayModel):
                     entry.rays.append(model.segments(pick))
                 else:
-                    entry.sectors.append(model.evidence(pick))
+                    entry.sectors.append(Cones.of(model.evidence(pick)))
         if progress is not None:
             progress(len(readings))
     return list(casts.values())
@@ -178,6 +205,10 @@ class Motion:
         return cls(rot, np.cos(rot), np.sin(rot), txy)
 
 
+#: The motion that moves nothing (one key pose, every reading's).
+_IDENTITY = Motion(np.zeros(1), np.ones(1), np.zeros(1), np.zeros(2))
+
+
 def cast(
     grid: LogOddsAccumulator, entry: _Casts, motion: Motion | None, resolution_m: float
 ) -> int:
@@ -187,22 +218,64 @@ def cast(
     if isinstance(entry.model, RayModel):
         return _cast_rays(grid, entry, entry.model, motion, resolution_m)
     updates = 0
-    for owner, ev in zip(entry.owner, entry.sectors, strict=True):
+    for owner, cones in zip(entry.owner, entry.sectors, strict=True):
+        keys = np.zeros_like(owner) if motion is None else owner
         for start, stop in _batches(owner.shape[0]):
             sl = slice(start, stop)
-            x, y, th = ev.x_m[sl], ev.y_m[sl], ev.theta_rad[sl]
-            if motion is not None:
-                k = owner[sl]
-                n = motion.cos.shape[0]
-                c, sn, tx, ty = motion.cos[k], motion.sin[k], motion.txy[k], motion.txy[n + k]
-                x, y = _moved(x, y, c, sn, tx, ty)
-                th = th + motion.rot[k]
-            part = SectorEvidence(
-                x, y, th, ev.half_width_rad[sl], ev.inner_m[sl], ev.inner_value[sl],
-                ev.outer_m[sl], ev.outer_value[sl],
-            )  # fmt: skip
-            updates += accumulate_sectors(grid, part)
+            moves = _IDENTITY if motion is None else motion
+            updates += cast_sectors(grid, cones.take(sl), keys[sl], moves)
     return updates
+
+
+def cast_sectors(grid: LogOddsAccumulator, cones: Cones, owner: I64, motion: Motion) -> int:
+    """Sonar sectors moved by ``motion`` (``owner``: each one's key pose) into ``grid``, as
+    the standard model maps them; returns the outer sectors' cells. The compiled kernel when
+    it is built, else :func:`cast_sectors_numpy`: the same grid bit for bit."""
+    kernels = compiled()
+    if kernels is None:
+        return cast_sectors_numpy(grid, cones, owner, motion)
+    spec = grid.spec
+    values, observations = grid.difference_arrays()
+    f64 = np.ascontiguousarray
+    return int(
+        kernels.moved_sector_batch(
+            spec.origin_x_m, spec.origin_y_m, spec.resolution_m, spec.width, spec.height,
+            *(f64(getattr(cones, f.name)) for f in dataclasses.fields(cones)),
+            f64(owner, dtype=np.int64), f64(motion.cos), f64(motion.sin), f64(motion.txy),
+            values, observations,
+        )
+    )  # fmt: skip
+
+
+def cast_sectors_numpy(grid: LogOddsAccumulator, cones: Cones, owner: I64, motion: Motion) -> int:
+    """:func:`cast_sectors` in numpy: the reference the compiled kernel must equal. The edges
+    turn by the angle-sum formulas; a sector spans the rows of its apex and its arc's ends,
+    and of the arc's top (bottom) when the wedge holds the +y (-y) direction."""
+    spec = grid.spec
+    n = motion.cos.shape[0]
+    c, s = motion.cos[owner], motion.sin[owner]
+    x, y = _moved(cones.x_m, cones.y_m, c, s, motion.txy[owner], motion.txy[n + owner])
+    sr, cr = cones.sin_r * c + cones.cos_r * s, cones.cos_r * c - cones.sin_r * s
+    sl, cl = cones.sin_l * c + cones.cos_l * s, cones.cos_l * c - cones.sin_l * s
+    reach = cones.outer_m
+    ys = np.stack([y, y + reach * sr, y + reach * sl])
+    ymin = np.where((cr <= 0.0) & (cl >= 0.0), y - reach, ys.min(axis=0))
+    ymax = np.where((cr >= 0.0) & (cl <= 0.0), y + reach, ys.max(axis=0))
+    res = spec.resolution_m
+    j0 = np.clip(np.ceil((ymin - spec.origin_y_m) / res - 0.5), 0, spec.height).astype(np.int64)
+    j1 = np.clip(np.floor((ymax - spec.origin_y_m) / res - 0.5), -1, spec.height - 1)
+    counts = np.where(reach > 0, np.maximum(j1.astype(np.int64) - j0 + 1, 0), 0)
+    rows = rows_of_range(spec, x, y, j0, counts, sr, cr, sl, cl)
+    outer = rows.spans(cones.outer_m)
+    grid.add_observations(outer.row, outer.col0, outer.col1)
+    nonzero = cones.outer_value[outer.reading] != 0.0
+    grid.add_values(
+        outer.row[nonzero], outer.col0[nonzero], outer.col1[nonzero],
+        cones.outer_value[outer.reading][nonzero],
+    )  # fmt: skip
+    inner = rows.spans(cones.inner_m)
+    grid.add_values(inner.row, inner.col0, inner.col1, cones.inner_value[inner.reading])
+    return outer.cells()
 
 
 def _cast_rays(
@@ -214,7 +287,6 @@ def _cast_rays(
 ) -> int:
     updates = 0
     ratio = resolution_m / grid.spec.resolution_m
-    identity = Motion(np.zeros(1), np.ones(1), np.zeros(1), np.zeros(2))
     for owner, seg in zip(entry.owner, entry.rays, strict=True):
         keys = np.zeros_like(owner) if motion is None else owner
         # a ray's rows: its length in cells and its two end rows (a motion keeps the length)
@@ -223,7 +295,7 @@ def _cast_rays(
             sl = slice(start, stop)
             part = RaySegments(seg.x0_m[sl], seg.y0_m[sl], seg.x1_m[sl], seg.y1_m[sl], seg.echo[sl])
             updates += cast_rays(
-                grid, part, keys[sl], identity if motion is None else motion,
+                grid, part, keys[sl], _IDENTITY if motion is None else motion,
                 model.l_free * ratio, model.l_occ * ratio * ratio,
             )  # fmt: skip
     return updates

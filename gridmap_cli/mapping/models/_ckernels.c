@@ -240,44 +240,23 @@ static void row_range(const int64_t *j0, const int64_t *counts, Py_ssize_t m, in
 
 /* ---- the standard sonar cone (standard.py accumulate_sectors_numpy) ------------------ */
 
-static PyObject *sector_batch(PyObject *self, PyObject *args)
+/* The rows of every sector into the difference arrays (sector_batch's loop; the moved
+ * sectors' too). Returns the outer sectors' cells, or -1 with an exception set. */
+static long long sector_core(double ox, double oy, double res, int64_t width, Py_ssize_t m,
+                             const double *x, const double *y, const double *sin_r,
+                             const double *cos_r, const double *sin_l, const double *cos_l,
+                             const int64_t *j0, const int64_t *counts, const double *outer_m,
+                             const double *outer_value, const double *inner_m,
+                             const double *inner_value, double *value_sums,
+                             int64_t *count_sums)
 {
-    (void)self;
-    double ox, oy, res;
-    int64_t width, height;
-    PyObject *o[14];
-    if (!PyArg_ParseTuple(args, "dddLLOOOOOOOOOOOOOO", &ox, &oy, &res, &width, &height, &o[0],
-                          &o[1], &o[2], &o[3], &o[4], &o[5], &o[6], &o[7], &o[8], &o[9], &o[10],
-                          &o[11], &o[12], &o[13]))
-        return NULL;
-    Buf b[14] = {0};
-    PyObject *result = NULL;
-    Delta outer = {0}, inner = {0};
     int64_t stride = width + 1;
-    if (take(o[0], &b[0], -1, 0, "x") != 0)
-        goto done;
-    Py_ssize_t m = b[0].view.len / 8;
-    static const char *names[] = {"x",     "y",       "sin_r",         "cos_r",
-                                  "sin_l", "cos_l",   "j0",            "counts",
-                                  "outer_m", "outer_value", "inner_m", "inner_value"};
-    for (int i = 1; i < 12; i++)
-        if (take(o[i], &b[i], m, 0, names[i]) != 0)
-            goto done;
-    if (take(o[12], &b[12], height * stride, 1, "value_sums") != 0 ||
-        take(o[13], &b[13], height * stride, 1, "count_sums") != 0)
-        goto done;
-    const double *x = F64(b[0]), *y = F64(b[1]), *sin_r = F64(b[2]), *cos_r = F64(b[3]),
-                 *sin_l = F64(b[4]), *cos_l = F64(b[5]), *outer_m = F64(b[8]),
-                 *outer_value = F64(b[9]), *inner_m = F64(b[10]), *inner_value = F64(b[11]);
-    const int64_t *j0 = I64(b[6]), *counts = I64(b[7]);
-    double *value_sums = (double *)b[12].view.buf;
-    int64_t *count_sums = (int64_t *)b[13].view.buf;
-
+    Delta outer = {0}, inner = {0};
     int64_t base, size, rows;
     row_range(j0, counts, m, stride, &base, &size, &rows);
     if (delta_open(&outer, 0, base, size, rows) != 0 ||
         delta_open(&inner, 1, base, size, rows) != 0)
-        goto done;
+        return -1;
     long long cells = 0;
     for (Py_ssize_t i = 0; i < m; i++) {
         if (counts[i] <= 0)
@@ -304,6 +283,47 @@ static PyObject *sector_batch(PyObject *self, PyObject *args)
     }
     delta_close(&outer, value_sums);
     delta_close(&inner, value_sums);
+    return cells;
+}
+
+
+static PyObject *sector_batch(PyObject *self, PyObject *args)
+{
+    (void)self;
+    double ox, oy, res;
+    int64_t width, height;
+    PyObject *o[14];
+    if (!PyArg_ParseTuple(args, "dddLLOOOOOOOOOOOOOO", &ox, &oy, &res, &width, &height, &o[0],
+                          &o[1], &o[2], &o[3], &o[4], &o[5], &o[6], &o[7], &o[8], &o[9], &o[10],
+                          &o[11], &o[12], &o[13]))
+        return NULL;
+    Buf b[14] = {0};
+    PyObject *result = NULL;
+    int64_t stride = width + 1;
+    if (take(o[0], &b[0], -1, 0, "x") != 0)
+        goto done;
+    Py_ssize_t m = b[0].view.len / 8;
+    static const char *names[] = {"x",     "y",       "sin_r",         "cos_r",
+                                  "sin_l", "cos_l",   "j0",            "counts",
+                                  "outer_m", "outer_value", "inner_m", "inner_value"};
+    for (int i = 1; i < 12; i++)
+        if (take(o[i], &b[i], m, 0, names[i]) != 0)
+            goto done;
+    if (take(o[12], &b[12], height * stride, 1, "value_sums") != 0 ||
+        take(o[13], &b[13], height * stride, 1, "count_sums") != 0)
+        goto done;
+    const double *x = F64(b[0]), *y = F64(b[1]), *sin_r = F64(b[2]), *cos_r = F64(b[3]),
+                 *sin_l = F64(b[4]), *cos_l = F64(b[5]), *outer_m = F64(b[8]),
+                 *outer_value = F64(b[9]), *inner_m = F64(b[10]), *inner_value = F64(b[11]);
+    const int64_t *j0 = I64(b[6]), *counts = I64(b[7]);
+    double *value_sums = (double *)b[12].view.buf;
+    int64_t *count_sums = (int64_t *)b[13].view.buf;
+
+    long long cells = sector_core(ox, oy, res, width, m, x, y, sin_r, cos_r, sin_l, cos_l, j0,
+                                  counts, outer_m, outer_value, inner_m, inner_value,
+                                  value_sums, count_sums);
+    if (cells < 0)
+        goto done;
     result = PyLong_FromLongLong(cells);
 done:
     release(b, 14);
@@ -417,6 +437,96 @@ static PyObject *ray_batch(PyObject *self, PyObject *args)
     result = PyLong_FromLongLong(cells);
 done:
     release(b, 10);
+    return result;
+}
+
+/* ---- sonar cones moved by a sampled track (mapping/expected.py cast_sectors_numpy) ---- */
+
+/* Every sector moved by its key pose's rigid motion (p -> R p + t; its edges' directions
+ * turned by the angle-sum formulas), its rows found as cast_sectors_numpy finds them, then
+ * mapped as sector_batch maps them. */
+static PyObject *moved_sector_batch(PyObject *self, PyObject *args)
+{
+    (void)self;
+    double ox, oy, res;
+    int64_t width, height;
+    PyObject *o[16];
+    if (!PyArg_ParseTuple(args, "dddLLOOOOOOOOOOOOOOOO", &ox, &oy, &res, &width, &height,
+                          &o[0], &o[1], &o[2], &o[3], &o[4], &o[5], &o[6], &o[7], &o[8],
+                          &o[9], &o[10], &o[11], &o[12], &o[13], &o[14], &o[15]))
+        return NULL;
+    Buf b[16] = {0};
+    PyObject *result = NULL;
+    int64_t stride = width + 1;
+    double *mx = NULL, *my = NULL, *sr = NULL, *cr = NULL, *sl = NULL, *cl = NULL;
+    int64_t *j0 = NULL, *counts = NULL;
+    if (take(o[0], &b[0], -1, 0, "x") != 0)
+        goto done;
+    Py_ssize_t m = b[0].view.len / 8;
+    static const char *names[] = {"x",       "y",           "sin_r",   "cos_r",
+                                  "sin_l",   "cos_l",       "outer_m", "outer_value",
+                                  "inner_m", "inner_value", "owner"};
+    for (int i = 1; i < 11; i++)
+        if (take(o[i], &b[i], m, 0, names[i]) != 0)
+            goto done;
+    if (take(o[11], &b[11], -1, 0, "cos") != 0)
+        goto done;
+    Py_ssize_t keys = b[11].view.len / 8;
+    if (take(o[12], &b[12], keys, 0, "sin") != 0 ||
+        take(o[13], &b[13], 2 * keys, 0, "txy") != 0 ||
+        take(o[14], &b[14], height * stride, 1, "value_sums") != 0 ||
+        take(o[15], &b[15], height * stride, 1, "count_sums") != 0)
+        goto done;
+    const double *x = F64(b[0]), *y = F64(b[1]), *sin_r = F64(b[2]), *cos_r = F64(b[3]),
+                 *sin_l = F64(b[4]), *cos_l = F64(b[5]), *outer_m = F64(b[6]);
+    const int64_t *owner = I64(b[10]);
+    const double *kc = F64(b[11]), *ks = F64(b[12]), *txy = F64(b[13]);
+    size_t sz = (size_t)(m > 0 ? m : 1);
+    mx = malloc(sz * 8), my = malloc(sz * 8), sr = malloc(sz * 8), cr = malloc(sz * 8);
+    sl = malloc(sz * 8), cl = malloc(sz * 8), j0 = malloc(sz * 8), counts = malloc(sz * 8);
+    if (!mx || !my || !sr || !cr || !sl || !cl || !j0 || !counts) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    for (Py_ssize_t i = 0; i < m; i++) {
+        int64_t k = owner[i];
+        if (k < 0 || k >= keys) {
+            PyErr_SetString(PyExc_ValueError, "owner: index out of range");
+            goto done;
+        }
+        double c = kc[k], s = ks[k];
+        mx[i] = c * x[i] - s * y[i] + txy[k];
+        my[i] = s * x[i] + c * y[i] + txy[keys + k];
+        sr[i] = sin_r[i] * c + cos_r[i] * s;
+        cr[i] = cos_r[i] * c - sin_r[i] * s;
+        sl[i] = sin_l[i] * c + cos_l[i] * s;
+        cl[i] = cos_l[i] * c - sin_l[i] * s;
+        double reach = outer_m[i];
+        double y_r = my[i] + reach * sr[i], y_l = my[i] + reach * sl[i];
+        double ymin = my[i], ymax = my[i];
+        ymin = y_r < ymin ? y_r : ymin;
+        ymin = y_l < ymin ? y_l : ymin;
+        ymax = y_r > ymax ? y_r : ymax;
+        ymax = y_l > ymax ? y_l : ymax;
+        if (cr[i] >= 0.0 && cl[i] <= 0.0) /* the wedge holds +y: the arc bulges up */
+            ymax = my[i] + reach;
+        if (cr[i] <= 0.0 && cl[i] >= 0.0)
+            ymin = my[i] - reach;
+        double lo = ceil((ymin - oy) / res - 0.5), hi = floor((ymax - oy) / res - 0.5);
+        lo = lo < 0.0 ? 0.0 : (lo > (double)height ? (double)height : lo);
+        hi = hi < -1.0 ? -1.0 : (hi > (double)(height - 1) ? (double)(height - 1) : hi);
+        j0[i] = (int64_t)lo;
+        int64_t n = (int64_t)hi - j0[i] + 1;
+        counts[i] = reach > 0.0 && n > 0 ? n : 0;
+    }
+    long long cells = sector_core(ox, oy, res, width, m, mx, my, sr, cr, sl, cl, j0, counts,
+                                  outer_m, F64(b[7]), F64(b[8]), F64(b[9]),
+                                  (double *)b[14].view.buf, (int64_t *)b[15].view.buf);
+    if (cells >= 0)
+        result = PyLong_FromLongLong(cells);
+done:
+    free(mx), free(my), free(sr), free(cr), free(sl), free(cl), free(j0), free(counts);
+    release(b, 16);
     return result;
 }
 
@@ -552,6 +662,9 @@ static PyMethodDef methods[] = {
      "outer sectors' cells."},
     {"ray_batch", ray_batch, METH_VARARGS,
      "One chunk of rays' free runs into the running difference arrays; returns the cells."},
+    {"moved_sector_batch", moved_sector_batch, METH_VARARGS,
+     "One batch of sonar sectors moved by a sampled track's key-pose motions into the running "
+     "difference arrays; returns the outer sectors' cells."},
     {"moved_ray_batch", moved_ray_batch, METH_VARARGS,
      "One batch of rays moved by a sampled track's key-pose motions, free runs and end "
      "cells into the running difference arrays; returns the free runs' cells."},

@@ -146,6 +146,23 @@ def sector_rows(
     j0, counts, right, left = sector_row_range(
         spec, y_m, theta_rad, half_width_rad, reach_m, inner_m
     )
+    return rows_of_range(spec, x_m, y_m, j0, counts, np.sin(right), np.cos(right), np.sin(left),
+                         np.cos(left))  # fmt: skip
+
+
+def rows_of_range(
+    spec: GridSpec,
+    x_m: F64,
+    y_m: F64,
+    j0: I64,
+    counts: I64,
+    sin_r: F64,
+    cos_r: F64,
+    sin_l: F64,
+    cos_l: F64,
+) -> SectorRows:
+    """:func:`sector_rows` from each sector's rows (first, count) and its edges' directions
+    (right edge: ``sin_r``, ``cos_r``; left: ``sin_l``, ``cos_l``), shape (M,) each."""
     total = int(counts.sum())
     reading = np.repeat(np.arange(x_m.shape[0], dtype=np.int64), counts)
     starts = np.cumsum(counts) - counts
@@ -153,8 +170,8 @@ def sector_rows(
     dy = spec.origin_y_m + (row + 0.5) * spec.resolution_m - y_m[reading]
 
     # wedge = right of the left edge and left of the right edge (convex because 2h < pi)
-    lo1, hi1 = _half_plane(-np.sin(right)[reading], np.cos(right)[reading], dy)
-    lo2, hi2 = _half_plane(np.sin(left)[reading], -np.cos(left)[reading], dy)
+    lo1, hi1 = _half_plane(-sin_r[reading], cos_r[reading], dy)
+    lo2, hi2 = _half_plane(sin_l[reading], -cos_l[reading], dy)
     return SectorRows(
         spec=spec,
         sensor_x_m=x_m,
