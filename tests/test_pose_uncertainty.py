@@ -6,12 +6,14 @@ import math
 
 import numpy as np
 
+from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.poses.odometry_error import OdometryError
 from gridmap_cli.poses.pose_uncertainty import (
     StepNoise,
     key_steps,
     project,
     propagate,
+    sample_offsets,
     sample_tracks,
 )
 from gridmap_cli.records import PoseTrack
@@ -68,3 +70,31 @@ def test_sampled_tracks_scatter_as_the_covariance_says() -> None:
     for i in range(3):
         assert math.isclose(empirical[i, i], u.cov[-1, i, i], rel_tol=0.15), i
     assert all(t.x_m[0] == track.x_m[0] for t in tracks)
+
+
+def test_sampled_offsets_move_the_track_as_the_sampled_tracks() -> None:
+    noise = StepNoise(
+        distance_scale=0.02, heading_drift_rad_per_m=0.005, along_m_per_sqrt_m=0.05,
+        lateral_m_per_sqrt_m=0.03, heading_rad_per_sqrt_m=0.01,
+    )  # fmt: skip
+    track = straight(wiggle_rad=0.01)
+    tracks = sample_tracks(track, noise, 5, seed=4)
+    offsets = sample_offsets(track, noise, 5, seed=4)
+    k = offsets.owner(track.stamp_ns)
+    for s, sampled in enumerate(tracks):
+        c, sn = np.cos(offsets.rot_rad[s][k]), np.sin(offsets.rot_rad[s][k])
+        x = c * track.x_m - sn * track.y_m + offsets.tx_m[s][k]
+        y = sn * track.x_m + c * track.y_m + offsets.ty_m[s][k]
+        assert np.allclose(x, sampled.x_m, atol=1e-9) and np.allclose(y, sampled.y_m, atol=1e-9)
+        turned = wrap_angle(track.theta_rad + offsets.rot_rad[s][k] - sampled.theta_rad)
+        assert np.allclose(turned, 0.0, atol=1e-9)
+
+
+def test_antithetic_pairs_mirror_their_errors() -> None:
+    # with a distance scale error only, a track is the nominal one stretched by (1 + s); the
+    # pair's partner is stretched by (1 - s): their end points straddle the nominal one
+    track = straight()
+    offsets = sample_offsets(track, StepNoise(distance_scale=0.05), 4, seed=1, antithetic=True)
+    ends = offsets.tx_m[:, -1] + track.x_m[-1] * np.cos(offsets.rot_rad[:, -1])
+    assert np.all(np.abs(ends - track.x_m[-1]) > 1e-6)
+    assert np.allclose(ends[0::2] - track.x_m[-1], -(ends[1::2] - track.x_m[-1]), atol=1e-9)

@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from gridmap_cli.mapping import expected
 from gridmap_cli.mapping.grid import GridSpec, LogOddsAccumulator
 from gridmap_cli.mapping.models import kernels
 from gridmap_cli.mapping.models.ray import RaySegments, accumulate_rays
@@ -159,3 +160,80 @@ def test_a_small_batch_on_a_large_grid_moves_only_what_it_touched(
     assert np.count_nonzero(ref.observations()) > 0
     assert np.array_equal(ref.log_odds(), fast.log_odds())
     assert np.array_equal(ref.observations(), fast.observations())
+
+
+def _motion(rng: np.random.Generator, keys: int) -> expected.Motion:
+    rot = rng.normal(0.0, 0.6, keys)
+    rot[0] = 0.0  # one key pose that does not move
+    txy = rng.normal(0.0, 0.8, 2 * keys)
+    txy[[0, keys]] = 0.0
+    return expected.Motion(rot, np.cos(rot), np.sin(rot), txy)
+
+
+def test_moved_sector_kernel_equals_the_numpy_reference(monkeypatch: pytest.MonkeyPatch) -> None:
+    rng = np.random.default_rng(11)
+    motion = _motion(rng, 9)
+    batches = [(expected.Cones.of(_sectors(rng, n)), rng.integers(0, 9, n)) for n in (700, 5)]
+    cells: list[int] = []
+
+    def add(grid: LogOddsAccumulator) -> None:
+        cells.append(sum(expected.cast_sectors(grid, c, k, motion) for c, k in batches))
+
+    ref, fast = _both(monkeypatch, add)
+    assert cells[0] == cells[1] > 0
+    assert np.array_equal(ref.log_odds(), fast.log_odds())
+    assert np.array_equal(ref.observations(), fast.observations())
+
+
+def test_unmoved_cones_map_as_the_standard_model() -> None:
+    ev = _sectors(np.random.default_rng(5), 800)
+    a, b = LogOddsAccumulator(SPEC), LogOddsAccumulator(SPEC)
+    still = expected.Motion(np.zeros(1), np.ones(1), np.zeros(1), np.zeros(2))
+    n = expected.cast_sectors_numpy(a, expected.Cones.of(ev), np.zeros(800, np.int64), still)
+    assert n == accumulate_sectors_numpy(b, ev)
+    assert np.array_equal(a.log_odds(), b.log_odds())
+    assert np.array_equal(a.observations(), b.observations())
+
+
+def test_moved_ray_kernel_equals_the_numpy_reference(monkeypatch: pytest.MonkeyPatch) -> None:
+    rng = np.random.default_rng(12)
+    n = 2000
+    x0 = np.round(rng.uniform(-3.5, 2.0, n), 2)
+    y0 = np.round(rng.uniform(-2.5, 2.5, n), 2)
+    angle = rng.uniform(-math.pi, math.pi, n)
+    length = rng.uniform(0.0, 6.0, n)
+    length[:3] = 0.0
+    seg = RaySegments(
+        x0, y0, x0 + length * np.cos(angle), y0 + length * np.sin(angle), rng.random(n) < 0.7
+    )
+    motion = _motion(rng, 6)
+    owner = rng.integers(0, 6, n)
+    cells: list[int] = []
+
+    def add(grid: LogOddsAccumulator) -> None:
+        cells.append(expected.cast_rays(grid, seg, owner, motion, -0.1, 0.05))
+
+    ref, fast = _both(monkeypatch, add)
+    assert cells[0] == cells[1] > 0
+    assert np.array_equal(ref.log_odds(), fast.log_odds())
+    assert np.array_equal(ref.observations(), fast.observations())
+
+
+def test_the_moved_kernels_refuse_a_key_pose_that_is_not_there() -> None:
+    from gridmap_cli.mapping.models import _ckernels  # type: ignore[attr-defined]
+
+    grid = LogOddsAccumulator(SPEC)
+    values, counts = grid.difference_arrays()
+    m = np.zeros(2)
+    bad = np.array([0, 1], dtype=np.int64)  # one key pose: index 1 is out of range
+    one, two = np.ones(1), np.zeros(2)
+    with pytest.raises(ValueError, match="owner"):
+        _ckernels.moved_sector_batch(
+            0.0, 0.0, 0.05, SPEC.width, SPEC.height, m, m, m, m, m, m, m, m, m, m, bad, one,
+            one, two, values, counts,
+        )  # fmt: skip
+    with pytest.raises(ValueError, match="owner"):
+        _ckernels.moved_ray_batch(
+            0.0, 0.0, 0.05, SPEC.width, SPEC.height, m, m, m, m, bad, bad, one, one, two, -0.4,
+            0.8, values, counts,
+        )  # fmt: skip
