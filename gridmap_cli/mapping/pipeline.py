@@ -73,7 +73,7 @@ class BuildOptions:
     #: Error-aware mode: tracks sampled from the odometry-error model whose standard maps are
     #: averaged (the expected map, :func:`expected_map`); 0 maps with the analytic model, the
     #: standard models' evidence faded by the pose spread. 16 won on accuracy in every
-    #: measurement (docs/sensor-model.md); it costs 16 standard builds.
+    #: measurement (docs/sensor-model.md); it costs about 1.2-1.5 standard builds.
     error_samples: int = 16
     #: Seed of the sampled tracks: the same seed, the same map.
     error_seed: int = 0
