@@ -1,29 +1,33 @@
 """The expected map under the pose belief: the mean probability of the standard maps of tracks
 drawn from the odometry-error model (docs/sensor-model.md, "The expected map").
 
-Each sample's map is the standard map of its track. Three things make K of them cost a few
-standard builds instead of K:
+Each sample's map is the standard map of its track. Four things make K of them cost about
+one more standard build instead of K:
 
 * **One sync.** A sampled track moves every pose owned by a key pose by one rigid motion
   (:class:`~gridmap_cli.poses.pose_uncertainty.SampledOffsets`), and the readings' sensor poses
   move with it; so the readings are synchronised once and each sample moves their geometry.
-* **Cells no finer than the spread.** A reading whose position is uncertain by sigma lands,
-  in each sample, somewhere within sigma of its nominal cells. Cast on cells up to sigma wide
-  (a grid 2, 4, 8 ... times coarser, aligned with the map's), the evidence a map cell gets in a
-  sample is the evidence at its coarse cell's centre: less than a cell width off, which the
-  sample-to-sample spread of sigma averages out. The evidence keeps the fine map's geometry (the
-  obstacle band of the map's resolution, not of the coarse cells), so each map cell sees the same
-  evidence with the same probability as in a full-resolution sample; a ray, whose cells are a
-  line of cell width, gives its free evidence times the ratio of the cell sizes and its end cell's
-  evidence times their squared ratio (the evidence per map cell it would spread over). A cast
-  costs its rows, so a coarse cast is cheap.
+* **Cells no finer than the spread.** A reading whose position is uncertain by sigma (the
+  smaller principal spread: :func:`levels`) lands, in each sample, somewhere within sigma of
+  its nominal cells. Cast on cells up to sigma wide (a grid 2, 4, 8 or 16 times coarser,
+  aligned with the map's), the evidence a map cell gets in a sample is the evidence near its
+  coarse cell's centre (interpolated linearly between centres): less than a coarse cell off,
+  which the sample-to-sample spread of sigma averages out. The evidence keeps the fine map's
+  geometry (the obstacle band of the map's resolution, not of the coarse cells), so each map
+  cell sees the same evidence with the same probability as in a full-resolution sample; a ray,
+  whose cells are a line of cell width, gives its free evidence times the ratio of the cell
+  sizes and its end cell's evidence times their squared ratio (the evidence per map cell it
+  would spread over). A cast costs its rows, so a coarse cast is cheap.
 * **Antithetic pairs.** Samples come in pairs of opposite draws, whose first-order errors
   cancel: the mean converges faster than with independent draws.
+* **Cast once what every sample agrees on.** Readings that move by under half a cell are the
+  same in every sample: they are cast once and their log-odds added to every sample's before
+  the probabilities are taken (the expected map averages probabilities, so they cannot be
+  averaged separately).
 
-Readings whose position spread is under half a cell are the same in every sample: they are
-cast once and their log-odds added to every sample's before the probabilities are taken (the
-expected map averages probabilities, so they cannot be averaged separately). Perfect odometry
-is the standard map to the bit (the caller checks).
+Moved cones and rays go through compiled kernels (:func:`cast_sectors`, :func:`cast_rays`),
+each equal bit for bit to its numpy reference. :func:`exact` is the oracle: K full standard
+builds. Perfect odometry is the standard map to the bit (the caller checks).
 """
 
 from __future__ import annotations
