@@ -64,11 +64,17 @@ LASER_POSES = ("scan-matched", "slam")
 
 
 @click.command()
-@click.argument("logs", metavar="LOG...", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.argument(
+    "logs",
+    metavar="LOG...",
+    nargs=-1,
+    required=True,
+    type=click.Path(path_type=Path, readable=False),
+)
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="Map to write: an image (.png, .pgm or .bmp) with its YAML beside it, or an MCAP "
     "(.mcap) holding a nav_msgs/msg/OccupancyGrid on /map; - writes the image alone to standard "
     "output (with --fmt).",
@@ -76,7 +82,7 @@ LASER_POSES = ("scan-matched", "slam")
 @click.option(
     "-f",
     "basename",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="As map_saver_cli: write BASENAME.pgm (or --fmt) and BASENAME.yaml; instead of -o.",
 )
 @image_format_option(

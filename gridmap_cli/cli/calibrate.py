@@ -31,11 +31,11 @@ if TYPE_CHECKING:
 
 
 @click.command()
-@click.argument("log", type=click.Path(path_type=Path))
+@click.argument("log", type=click.Path(path_type=Path, readable=False))
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="Odometry-error YAML to write (what build takes); default: print only.",
 )
 @click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")

@@ -8,6 +8,7 @@ import functools
 import json
 import math
 import numbers
+import os
 import shutil
 import sys
 import tempfile
@@ -130,14 +131,31 @@ def progress_bar(total: int, quiet: bool, desc: str) -> tqdm[Any] | _NoBar:
 STDIO = Path("-")
 
 
-def check_input(log: Path) -> None:
-    """A log must exist: a file, or a folder (rosbag2); ``-`` is standard input."""
+def check_input(log: Path, folder_ok: bool = True) -> None:
+    """A log must exist and be readable: a file, or a folder (rosbag2) when ``folder_ok``;
+    ``-`` is standard input. What cannot be read is bad data (exit 1), as a missing file is,
+    never a usage error: click's own readability check is off on every input path."""
     if log == STDIO:
         return
     if not log.exists():
+        if log.is_symlink():
+            raise InputFileError(
+                log, f"a symbolic link to {os.readlink(log)}, which does not exist"
+            )
         raise InputFileError(log, "no such file")
-    if not (log.is_file() or log.is_dir()):
+    if log.is_dir():
+        if not folder_ok:
+            raise InputFileError(log, "a directory, where a file is expected")
+        if not os.access(log, os.R_OK | os.X_OK):
+            raise InputFileError(log, "cannot read the folder: permission denied")
+        return
+    if not log.is_file():
         raise InputFileError(log, "not a regular file or folder")
+    try:
+        with open(log, "rb"):
+            pass
+    except OSError as exc:
+        raise InputFileError(log, f"cannot read: {exc.strerror or exc}") from exc
 
 
 def read_input(

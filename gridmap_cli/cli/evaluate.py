@@ -17,7 +17,7 @@ from gridmap_cli.cli.common import (
     selection_options,
     warn,
 )
-from gridmap_cli.errors import InputFileError, UsageError
+from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
@@ -36,18 +36,18 @@ if TYPE_CHECKING:
 
 
 @click.command()
-@click.argument("map_yaml", metavar="MAP.yaml", type=click.Path(path_type=Path))
+@click.argument("map_yaml", metavar="MAP.yaml", type=click.Path(path_type=Path, readable=False))
 @click.option(
     "--truth",
     "truth_yaml",
     required=True,
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="Ground-truth world map (map_server YAML, e.g. samples/worlds/*.yaml).",
 )
 @click.option(
     "--log",
     "log_path",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="The log the map was built from (with ground truth): places the odometry frame in the "
     "world and limits the scores to the cells its sensors could have sensed.",
 )
@@ -69,12 +69,12 @@ if TYPE_CHECKING:
 @click.option("-q", "--quiet", is_flag=True, help="No table on stdout (with --plot: just draw).")
 @click.option(
     "--plot",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="Write a PNG: the map with the true walls, and a reliability diagram (needs matplotlib).",
 )
 @click.option(
     "--spread-plot",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="Write a PNG of where the map's uncertainty comes from: per cell, the smallest "
     "position spread (and its heading spread) of the pose at which a reading of --log crossed "
     "it, the pose covariance carried along the odometry from --odometry-error (needs --log and "
@@ -83,7 +83,7 @@ if TYPE_CHECKING:
 @click.option(
     "--odometry-error",
     "odometry_file",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="--spread-plot: the odometry-error file the map was built with (gridmap calibrate).",
 )
 @click.option("--force", is_flag=True, help="Overwrite existing --plot / --spread-plot outputs.")
@@ -148,10 +148,9 @@ def evaluate(
     if log_path is not None:
         check_input(log_path)
     if odometry_file is not None:
-        check_input(odometry_file)
+        check_input(odometry_file, folder_ok=False)
     for given in (map_yaml, truth_yaml):
-        if not given.is_file():
-            raise InputFileError(given, "no such file" if not given.exists() else "not a file")
+        check_input(given, folder_ok=False)
     for out, flag in ((plot, "--plot"), (spread_plot, "--spread-plot")):
         if out is None:
             continue

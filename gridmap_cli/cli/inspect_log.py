@@ -22,7 +22,13 @@ from gridmap_cli.robot import load_robot
 
 
 @click.command()
-@click.argument("logs", metavar="LOG...", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.argument(
+    "logs",
+    metavar="LOG...",
+    nargs=-1,
+    required=True,
+    type=click.Path(path_type=Path, readable=False),
+)
 @click.option("--robot", help="Robot preset, robot YAML file or ARIA .p file.")
 @click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
 @topic_options

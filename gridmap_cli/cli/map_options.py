@@ -17,7 +17,7 @@ from typing import Any, TypeVar
 
 import click
 
-from gridmap_cli.cli.common import selection_options, topic_options
+from gridmap_cli.cli.common import check_input, selection_options, topic_options
 from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.models.standard import StandardSonarParams
@@ -117,7 +117,7 @@ ERROR_AWARE_OPTIONS = (
     click.option(
         "--odometry-error",
         "odometry_file",
-        type=click.Path(path_type=Path),
+        type=click.Path(path_type=Path, readable=False),
         help="Error-aware mode: odometry-error YAML (what gridmap calibrate writes).",
     ),
     click.option(
@@ -267,6 +267,8 @@ def error_aware_settings(
             overrides[name] = float(text)
         except ValueError:
             raise UsageError(f"--odometry-coefficient {item!r}: {text!r} is not a number") from None
+    if odometry_file is not None:
+        check_input(odometry_file, folder_ok=False)
     model = load_odometry_error(odometry_file) if odometry_file is not None else OdometryError()
     try:
         return params, dataclasses.replace(model, **overrides)

@@ -28,12 +28,18 @@ from gridmap_cli.writers.trajectory import trajectory_format, write_trajectory
 
 
 @click.command()
-@click.argument("logs", metavar="LOG...", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.argument(
+    "logs",
+    metavar="LOG...",
+    nargs=-1,
+    required=True,
+    type=click.Path(path_type=Path, readable=False),
+)
 @click.option(
     "-o",
     "--output",
     required=True,
-    type=click.Path(path_type=Path, dir_okay=False),
+    type=click.Path(path_type=Path, dir_okay=False, readable=False),
     help="Track to write: .tum (TUM: 'time x y z qx qy qz qw', what evo reads) or .csv "
     "(time,x,y,theta; scan-matched adds each scan's status).",
 )
@@ -53,7 +59,7 @@ from gridmap_cli.writers.trajectory import trajectory_format, write_trajectory
 )
 @click.option(
     "--relations",
-    type=click.Path(path_type=Path, dir_okay=False),
+    type=click.Path(path_type=Path, readable=False),
     help="Score the track against a SLAM-benchmark relations file ('t1 t2 x y z roll pitch "
     "yaw' per line): mean and std of the translational (m) and rotational (deg) error.",
 )
@@ -97,7 +103,7 @@ def trajectory(
     for log in logs:
         check_input(log)
     if relations is not None:
-        check_input(relations)
+        check_input(relations, folder_ok=False)
         truth = read_relations(relations)
     read_options = dataclasses.replace(topics, robot=robot_desc)
     data = read_logs(logs, log_format, read_options)
