@@ -37,21 +37,25 @@ def describe_log(
     fmt: LogFormat,
     options: ReadOptions,
     selection: Selection | None = None,
+    held: tuple[RangeLog, int] | None = None,
 ) -> dict[str, Any]:
     """Describe a log of any format (several ROS recordings as one, as build reads them), or the
-    part of it ``selection`` chooses. ``fmt`` is the format of the first.
+    part of it ``selection`` chooses. ``fmt`` is the format of the first. ``held`` is a log
+    already read (standard input) and its size in bytes; ``paths`` then holds its name.
 
     Raises what the reader raises for a broken CSV/ARIA file, and what
     :func:`~gridmap_cli.mapping.selection.apply_selection` raises for a selection the log cannot
     meet.
     """
     path = paths[0]
-    size = sum(_bytes(p) for p in paths)
+    size = held[1] if held is not None else sum(_bytes(p) for p in paths)
     out: dict[str, Any] = {"file": " + ".join(map(str, paths)), "format": fmt.name, "bytes": size}
     problem: str | None = None
     mcap: RecordingRead | None = None
-    sources = recording_sources(paths, fmt.name if len(paths) == 1 else None)
-    if sources is not None:
+    sources = None if held else recording_sources(paths, fmt.name if len(paths) == 1 else None)
+    if held is not None:
+        log = held[0]
+    elif sources is not None:
         mcap = read_recording(sources, options, strict=False, every_topic=True)
         problem = None if mcap.problem is None else str(mcap.problem)
         log = mcap.log
