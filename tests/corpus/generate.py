@@ -671,6 +671,69 @@ _sqlite_damage(_garbage_db3, "db3-not-a-database", ": ", "rosbag2")
 _sqlite_damage(_cdr_cut, "db3-messages-cut", ": message 1 ", "does not decode")
 
 
+# issue 21: metadata.yaml that contradicts the files (compression, storage): one line, the file
+
+
+def _zstd(data: bytes) -> bytes:
+    from backports import zstd  # rosbags' own zstd (compression.zstd from Python 3.14)
+
+    return bytes(zstd.compress(data))
+
+
+def _compress_file(bag: Path) -> None:
+    path = next(p for p in bag.iterdir() if p.name != "metadata.yaml")
+    path.write_bytes(_zstd(path.read_bytes()))
+
+
+def _metadata_case(
+    name: str, base: str, names_file: bool, place: str, fragment: str,
+    edits: dict[str, str], also: Callable[[Path], None] | None = None,
+) -> None:  # fmt: skip
+    """A rosbag2 folder whose metadata says ``edits`` (key: new value); the error names the
+    data file (``names_file``) or metadata.yaml."""
+
+    def build(folder: Path) -> None:
+        shutil.copytree(bases()[base], folder / "bag")
+        meta = folder / "bag" / "metadata.yaml"
+        lines = meta.read_text().splitlines(keepends=True)
+        for key, value in edits.items():
+            lines = [f"  {key}: {value}\n" if x.startswith(f"  {key}:") else x for x in lines]
+        meta.write_text("".join(lines))
+        if also is not None:
+            also(folder / "bag")
+        data = next(p for p in (folder / "bag").iterdir() if p.name != "metadata.yaml")
+        (folder / "bag.input").write_text(data.name if names_file else "metadata.yaml")
+
+    case(f"rosbag2-{name}", "rosbag2", "bag/*", place, fragment)(build)
+
+
+ZSTD = {"compression_format": "zstd"}
+for _name, _base, _file, _place, _fragment, _edits, _also in [
+    ("zstd-messages-over-plain-sqlite", "sqlite", True, ": message 1 of /tf_static: ",
+     "not zstd-compressed", {**ZSTD, "compression_mode": "MESSAGE"}, None),
+    ("zstd-file-over-plain-sqlite", "sqlite", True, ": ",
+     "but this is an sqlite3 database, not compressed", {**ZSTD, "compression_mode": "FILE"},
+     None),
+    ("plain-over-zstd-file", "sqlite", True, ": ", "no compression, but this is zstd", {},
+     _compress_file),
+    ("lz4-file", "sqlite", False, ": ", "compression_format 'lz4'",
+     {"compression_format": "lz4", "compression_mode": "FILE"}, None),
+    ("compression-mode-unknown", "sqlite", False, ": ", "unknown compression_mode 'sometimes'",
+     {**ZSTD, "compression_mode": "sometimes"}, None),
+    ("mcap-storage-over-sqlite", "sqlite", True, ": ", "says storage mcap, but this is an sqlite3",
+     {"storage_identifier": "mcap"}, None),
+    ("sqlite-storage-over-mcap", "mcap-storage", True, ": ",
+     "says storage sqlite3, but this is an MCAP file", {"storage_identifier": "sqlite3"}, None),
+    ("zstd-messages-over-mcap", "mcap-storage", False, ": ", "message compression over MCAP",
+     {**ZSTD, "compression_mode": "MESSAGE"}, None),
+    ("zstd-file-over-mcap", "mcap-storage", False, ": ", "zstd-compressed MCAP storage files",
+     {**ZSTD, "compression_mode": "FILE"}, None),
+    ("zstd-file-over-zstd-mcap", "mcap-storage", False, ": ", "zstd-compressed MCAP storage",
+     {**ZSTD, "compression_mode": "FILE"}, _compress_file),
+]:  # fmt: skip
+    _metadata_case(_name, _base, _file, _place, _fragment, _edits, _also)
+
+
 def good_inputs(folder: Path) -> list[tuple[str, Path]]:
     """The unbroken inputs every case starts from, as (command, path): each must succeed, so
     that a case fails for the one change its name says."""
@@ -696,20 +759,20 @@ def all_cases() -> list[Case]:
 
 def build_case(name: str, folder: Path) -> Path:
     """Write case ``name`` into ``folder`` (created); returns the input path gridmap is given
-    (for ``bag/*.mcap`` cases, the rosbag2 folder; the error names the file inside)."""
+    (for ``bag/*`` cases, the rosbag2 folder; the error names the file inside)."""
     for c, build in _CASES:
         if c.name == name:
             folder.mkdir(parents=True, exist_ok=True)
             build(folder)
             if c.command == "world":
                 return folder / "world.yaml"
-            return folder / "bag" if c.input == "bag/*.mcap" else folder / c.input
+            return folder / "bag" if c.input.startswith("bag/*") else folder / c.input
     raise KeyError(name)
 
 
 def named_path(c: Case, folder: Path) -> Path:
     """The file the error must name."""
-    if c.input == "bag/*.mcap":
+    if c.input.startswith("bag/*"):
         return folder / "bag" / (folder / "bag.input").read_text()
     return folder / c.input
 
