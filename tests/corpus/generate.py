@@ -477,6 +477,41 @@ edited_mcap_case(
 )
 
 
+# issue 21: a schema that does not match its messages' type (fields missing, renamed, retyped):
+# the decoder gives a message without the type's fields; one line naming topic and message
+
+HEADER_DEFS = (
+    "=" * 80 + "\nMSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n"
+    + "=" * 80 + "\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n"
+)  # fmt: skip
+
+
+def _schema_of(type_end: str, text: str) -> Callable[[str, bytes], bytes]:
+    return lambda n, d: text.encode() if n.endswith(type_end) else d
+
+
+for _name, _base, _topic, _type, _schema, _fragment in [
+    ("range-schema-lacks-fields", "ros2", "/sonar", "Range",
+     "std_msgs/Header header\nuint8 radiation_type\n" + HEADER_DEFS, "min_range"),
+    ("range-schema-renamed-fields", "ros2", "/sonar", "Range",
+     "std_msgs/Header header\nuint8 kind\nfloat32 fov\nfloat32 lo\nfloat32 hi\nfloat32 r\n"
+     + HEADER_DEFS, "min_range"),
+    ("range-schema-no-header", "ros2", "/sonar", "Range",
+     "uint8 radiation_type\nfloat32 field_of_view\nfloat32 min_range\nfloat32 max_range\n"
+     "float32 range\n", "header"),
+    ("odometry-schema-other", "ros2", "/odom", "Odometry", "float64 x\n", "header"),
+    ("odometry-schema-no-pose", "ros2", "/odom", "Odometry",
+     "std_msgs/Header header\nstring child_frame_id\n" + HEADER_DEFS, "pose"),
+    ("tf-schema-other", "ros2", "/tf_static", "TFMessage", "int32 n\n", "transforms"),
+    ("ros1-scan-schema-lacks-ranges", "ros1", "/scan", "LaserScan",
+     "std_msgs/Header header\nfloat32 angle_min\nfloat32 angle_max\nfloat32 angle_increment\n"
+     "================================================================================\n"
+     "MSG: std_msgs/Header\nuint32 seq\ntime stamp\nstring frame_id\n", "ranges"),
+]:  # fmt: skip
+    edited_mcap_case(_name, _base, f": message 1 of {_topic} ", f"no attribute '{_fragment}'",
+                     schema=_schema_of(_type, _schema))  # fmt: skip
+
+
 # ROS 1 bags
 
 
