@@ -9,6 +9,7 @@ import json
 import math
 import numbers
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -87,8 +88,22 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
 
 def one_line(text: str) -> str:
     """``text`` with its line breaks (and runs of spaces around them) folded into one space:
-    every error is one line, whatever a library put in its message."""
-    return " ".join(part.strip() for part in text.splitlines() if part.strip())
+    every error is one line, whatever a library put in its message; numpy scalars' reprs
+    (``np.float64(nan)``, from a tuple or ``!r``) as the plain numbers they are."""
+    return plain_numbers(" ".join(part.strip() for part in text.splitlines() if part.strip()))
+
+
+#: numpy 2's repr of a scalar: ``np.float64(1.5)``, ``np.int32(3)``, ``np.str_('a')``.
+_NUMPY_REPR = re.compile(
+    r"\bnp\.(?:float|int|uint|bool|str|bytes|complex|longdouble)\w*\(([^()]*)\)"
+)
+
+_NUMPY_BOOL = re.compile(r"\bnp\.(True|False)_")
+
+
+def plain_numbers(text: str) -> str:
+    """``text`` with every numpy scalar repr replaced by its value (``nan``, ``1.5``)."""
+    return _NUMPY_BOOL.sub(r"\1", _NUMPY_REPR.sub(r"\1", text))
 
 
 def debug_enabled() -> bool:
@@ -286,7 +301,7 @@ def selection_options(sensors: bool = True) -> Callable[[Callable[P, R]], Callab
 def warn(notes: tuple[str, ...], quiet: bool = False) -> None:
     if not quiet:
         for note in notes:
-            click.echo(f"Warning: {note}", err=True)
+            click.echo(f"Warning: {one_line(note)}", err=True)
 
 
 def _plain(value: Any) -> Any:

@@ -14,6 +14,8 @@ from gridmap_cli.cli.common import (
     check_input,
     handle_errors,
     json_text,
+    one_line,
+    plain_numbers,
     selection_options,
     topic_options,
 )
@@ -79,8 +81,8 @@ def inspect(
         if fmt.sources is None:
             read_options.refuse_topic_flags(fmt.name.upper())
     description = describe_log(logs, fmt, read_options, selection, held)
-    click.echo(json_text(description) if as_json else render_text(description))
+    click.echo(json_text(description) if as_json else plain_numbers(render_text(description)))
     if not description["build"]["ready"]:
         # the description is printed; the verdict is the line build would print, and its exit
-        click.echo(f"Error: {description['build']['problem']}", err=True)
+        click.echo(f"Error: {one_line(description['build']['problem'])}", err=True)
         sys.exit(1)
