@@ -769,6 +769,75 @@ for _name, _base, _file, _place, _fragment, _edits, _also in [
     _metadata_case(_name, _base, _file, _place, _fragment, _edits, _also)
 
 
+# issue 21: a zero-norm or non-finite quaternion (odometry, TF, a static mount) is no rotation:
+# refused with the message's topic and log time, in every container (bulk and one by one)
+
+QUATERNIONS = {
+    "zero": ({"x": 0.0, "y": 0.0, "z": 0.0, "w": 0.0}, "has zero norm"),
+    "nan": ({"x": 0.0, "y": 0.0, "z": float("nan"), "w": 1.0}, "is not finite"),
+    "inf": ({"x": 0.0, "y": 0.0, "z": 0.0, "w": float("inf")}, "is not finite"),
+}
+#: where the bad rotation is: (topic, log time of the bad message, what the error says)
+ROTATION_PLACES = {
+    "odometry": ("/odom", "1.300000000", "orientation quaternion"),
+    "tf": ("/tf", "1.300000000", "transform odom -> base_link: quaternion"),
+    "static-mount": ("/tf_static", "1.000000000", "transform base_link -> s0: quaternion"),
+}
+
+
+def _rotation_recording(path: Path, where: str, q: dict[str, float]) -> Path:
+    from tests.readers.mcap_helpers import Recording, S, odometry, sonar_range, static_tf
+
+    with Recording(path) as rec:
+        mount = rec.transform(0, "base_link", "s0", 0.0, 0.0, 0.0)
+        if where == "static-mount":
+            mount["transform"]["rotation"] = q
+        static_tf(rec, mount)
+        for k in range(11):
+            ns = S + k * S // 10
+            if where == "tf":
+                t = rec.transform(ns, "odom", "base_link", 0.1 * k, 0.0, 0.0)
+                if k == 3:
+                    t["transform"]["rotation"] = q
+                rec.write("/tf", "tf2_msgs/TFMessage", ns, {"transforms": [t]})
+                continue
+            msg = odometry(rec, ns, 0.1 * k, 0.0, 0.0)
+            if k == 3 and where == "odometry":
+                msg["pose"]["pose"]["orientation"] = q
+            rec.write("/odom", "nav_msgs/Odometry", ns, msg)
+        rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "s0", 1.0))
+    return path
+
+
+def _rotation_case(container: str, where: str, kind: str) -> None:
+    from tests.readers.bag_helpers import write_bag, write_rosbag2
+
+    topic, at, what = ROTATION_PLACES[where]
+    q, problem = QUATERNIONS[kind]
+    name = {"mcap": "log.mcap", "bag": "log.bag", "rosbag2": "bag"}[container]
+
+    def build(folder: Path) -> None:
+        if container == "mcap":
+            _rotation_recording(folder / name, where, q)
+            return
+        source = _rotation_recording(folder / "source.mcap", where, q)
+        if container == "bag":
+            write_bag(source, folder / name)
+        else:
+            write_rosbag2(source, folder / name)
+        source.unlink()
+
+    place = f": {topic} at log time {at} s: "
+    fragment = f"{what} ({', '.join(f'{v:g}' for v in q.values())}) {problem}"
+    case(f"{container}-{where}-quaternion-{kind}", container, name, place, fragment)(build)
+
+
+for _container in ("mcap", "bag", "rosbag2"):
+    for _where in ROTATION_PLACES:
+        for _kind in QUATERNIONS:
+            _rotation_case(_container, _where, _kind)
+
+
 def good_inputs(folder: Path) -> list[tuple[str, Path]]:
     """The unbroken inputs every case starts from, as (command, path): each must succeed, so
     that a case fails for the one change its name says."""
