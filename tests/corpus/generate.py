@@ -838,6 +838,61 @@ for _container in ("mcap", "bag", "rosbag2"):
             _rotation_case(_container, _where, _kind)
 
 
+# issue 21: the beam-count limit (MAX_LASER_SAMPLES) in every reader of scans, not only in
+# robot descriptions and ARIA: CARMEN's laser lines, LaserScan messages of every container
+
+BEAMS = 100_001
+_POSE9 = "0.0 0.0 0.0"
+for _name, _line in [
+    ("flaser-too-many-beams",
+     f"FLASER {BEAMS} " + "1 " * BEAMS + f"{_POSE9} {_POSE9} 1.3 host 1.3\n"),
+    ("robotlaser-too-many-beams",
+     f"ROBOTLASER1 0 -1.5 3.1 0.00003 80 0.01 0 {BEAMS} " + "1 " * BEAMS
+     + f"0 {_POSE9} {_POSE9} 0 0 0 0 0 1.3 host 1.3\n"),
+]:  # fmt: skip
+    text_case(f"carmen-{_name}", "carmen", "run.log", carmen_text({10: _line}), 10,
+              "MAX_LASER_SAMPLES")  # fmt: skip
+
+
+def _wide_scan_recording(path: Path, ros: int = 2) -> Path:
+    from tests.readers.mcap_helpers import Recording, S, drive, static_tf
+
+    with Recording(path, ros=ros) as rec:
+        static_tf(rec, rec.transform(0, "base_link", "laser", 0.0, 0.0, 0.0))
+        drive(rec)
+        scan = {
+            "header": rec.header(S, "laser"), "angle_min": -1.5, "angle_max": 1.5,
+            "angle_increment": 3.0 / (BEAMS - 1), "range_min": 0.1, "range_max": 5.0,
+            "ranges": [1.0] * BEAMS, "intensities": [],
+        }  # fmt: skip
+        rec.write("/scan", "sensor_msgs/LaserScan", S, scan)
+    return path
+
+
+def _wide_scan_case(container: str) -> None:
+    from tests.readers.bag_helpers import write_bag, write_rosbag2
+
+    name = {"mcap": "log.mcap", "ros1-mcap": "log.mcap", "bag": "log.bag", "rosbag2": "bag"}
+
+    def build(folder: Path) -> None:
+        target = folder / name[container]
+        if container in ("mcap", "ros1-mcap"):
+            _wide_scan_recording(target, 1 if container == "ros1-mcap" else 2)
+            return
+        source = _wide_scan_recording(folder / "source.mcap")
+        (write_bag if container == "bag" else write_rosbag2)(source, target)
+        source.unlink()
+
+    reader = "mcap" if container == "ros1-mcap" else container
+    place = ": /scan at log time 1.000000000 s: laser 'laser': "
+    case(f"{container}-scan-too-many-beams", reader, name[container], place,
+         f"a scan of {BEAMS:,} beams")(build)  # fmt: skip
+
+
+for _container in ("mcap", "ros1-mcap", "bag", "rosbag2"):
+    _wide_scan_case(_container)
+
+
 def good_inputs(folder: Path) -> list[tuple[str, Path]]:
     """The unbroken inputs every case starts from, as (command, path): each must succeed, so
     that a case fails for the one change its name says."""

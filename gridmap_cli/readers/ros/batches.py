@@ -13,6 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.limits import MAX_LASER_SAMPLES, too_many_beams
 from gridmap_cli.readers.ros.bulk import TF_TYPES, Columns
 from gridmap_cli.readers.ros.frames import (
     Transform,
@@ -152,6 +153,9 @@ def _scans(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
             float(a["range_min"][row]),
             float(a["range_max"][row]),
         )
+        if geometry.count > MAX_LASER_SAMPLES:  # a frame's scans all have its first's beams
+            where = f"{_where(acc, topic, cols, row)}: laser '{frame}': "
+            raise too_many_beams(acc.message_path, geometry.count, where=where)
         known.append(acc.scans.get(frame, geometry))
     k_min = np.array([k.angle_min for k in known])[index]
     k_inc = np.array([k.angle_increment for k in known])[index]

@@ -27,7 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.limits import numbered_lines
+from gridmap_cli.limits import MAX_LASER_SAMPLES, numbered_lines, too_many_beams
 from gridmap_cli.readers.text.carmen_layout import layout_from_params
 from gridmap_cli.readers.text.carmen_tracks import Event, build_tracks
 from gridmap_cli.readers.text.csv_log import seconds_to_ns
@@ -224,6 +224,8 @@ class _Parser:
         if len(tokens) < 2:
             raise self.error(line, f"{message}: expected num_readings after the message name")
         n = self.count(line, message, tokens[1], "num_readings")
+        if n > MAX_LASER_SAMPLES:
+            raise too_many_beams(self.path, n, line, f"{message}: ")
         expected = n + 2 + 6 + _TRAILER
         if len(tokens) != expected:
             raise self.error(
@@ -272,6 +274,8 @@ class _Parser:
                 f"{10 + n + n_rem + tail} fields, found {len(tokens)}",
             )
         n_config, n, _ = layout
+        if n > MAX_LASER_SAMPLES:
+            raise too_many_beams(self.path, n, line, f"{message}: ")
         what = ("laser_type", "start_angle", "fov", "angular_resolution", "maximum_range")
         config = [self.number(line, message, t, w) for t, w in zip(tokens[1:6], what, strict=True)]
         ranges = self.ranges(line, message, tokens[n_config + 2 : n_config + 2 + n])
