@@ -349,6 +349,10 @@ def recording_sources(
                 f"(MCAP, bag, rosbag2 folder); this is a {fmt.name} log"
             )
         out.extend(fmt.sources(path))
+    if len(out) > 1:
+        from gridmap_cli.readers.repeats import refuse_repeats
+
+        refuse_repeats([Path(source.path) for source in out])
     return out
 
 
