@@ -40,6 +40,8 @@ from gridmap_cli.cli.map_options import (
     error_samples_setting,
     image_format_option,
     map_options,
+    max_range_option,
+    ray_params,
     sonar_params,
 )
 from gridmap_cli.errors import MixedLogsError, NotRecordingFolderError, UsageError
@@ -124,6 +126,7 @@ LASER_POSES = ("scan-matched", "slam")
               "the compiled kernels are built), or with --fuse and the local executor, the "
               "logs.")  # fmt: skip
 @error_samples_option
+@max_range_option
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -140,7 +143,7 @@ def build(
     map_mode: str,
     occupied: float,
     free: float,
-    no_echo_free: float,
+    no_echo_free: float | None,
     pose: str,
     topics: ReadOptions,
     sensor_patterns: tuple[str, ...],
@@ -157,6 +160,7 @@ def build(
     scheduler: str | None,
     jobs: int,
     error_samples: int | None,
+    max_range: float | None,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -175,6 +179,7 @@ def build(
     check_thresholds(occupied, free)
     check_resolution(resolution)
     sonar = sonar_params(no_echo_free)
+    ray = ray_params(no_echo_free, max_range)
     error_aware, odometry_error = error_aware_settings(
         mode, odometry_file, coefficients, trust_length, max_spread_deg
     )
@@ -214,7 +219,7 @@ def build(
                     read_options=dataclasses.replace(read_options, robot=None), pose=pose,
                     initial_pose=first, selection=selection,
                     robot_spec=_robot_spec(robot), options=BuildOptions(resolution_m=resolution,
-                                                                         sonar=sonar))
+                                                                         sonar=sonar, ray=ray))
             for log, first in zip(logs, placed, strict=True)
         ]  # fmt: skip
         if scheduler is not None:
@@ -257,6 +262,7 @@ def build(
         resolution_m=resolution,
         mode=mode,
         sonar=sonar,
+        ray=ray,
         error_aware=error_aware,
         odometry_error=odometry_error,
         error_samples=samples,

@@ -20,6 +20,7 @@ import click
 from gridmap_cli.cli.common import check_input, selection_options, topic_options
 from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
+from gridmap_cli.mapping.models.ray import LASER_NO_ECHO_FREE_M, RayParams
 from gridmap_cli.mapping.models.standard import StandardSonarParams
 from gridmap_cli.mapping.pipeline import MAPPING_MODES, MAX_RESOLUTION_M, BuildOptions
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
@@ -98,9 +99,19 @@ free_option = click.option(
 no_echo_free_option = click.option(
     "--no-echo-free",
     type=float,
-    default=StandardSonarParams.no_echo_free_m,
-    show_default=True,
-    help="Metres of free space a max-range (no echo) reading clears; 0 ignores them.",
+    default=None,
+    metavar="METRES",
+    help="Metres of free space a max-range (no echo) reading clears, at most the sensor's "
+    f"range; 0 ignores them [default: sonars {StandardSonarParams.no_echo_free_m:g}, lasers "
+    f"{LASER_NO_ECHO_FREE_M:g}].",
+)
+max_range_option = click.option(
+    "--max-range",
+    type=float,
+    default=None,
+    metavar="METRES",
+    help="Lasers: cut longer readings to free space up to METRES (no wall at their end); "
+    "they never set the map's bounds [default: the laser's own range].",
 )
 pose_option = click.option(
     "--pose",
@@ -211,12 +222,28 @@ def check_resolution(resolution: float) -> None:
         )
 
 
-def sonar_params(no_echo_free: float) -> StandardSonarParams:
-    """The standard model's settings from --no-echo-free."""
+def sonar_params(no_echo_free: float | None) -> StandardSonarParams:
+    """The standard model's settings from --no-echo-free (None: the model's default)."""
     try:
-        return StandardSonarParams(no_echo_free_m=no_echo_free)
+        return StandardSonarParams(
+            no_echo_free_m=StandardSonarParams.no_echo_free_m if no_echo_free is None
+            else no_echo_free
+        )  # fmt: skip
     except ValueError as exc:
-        raise UsageError(str(exc)) from exc
+        raise UsageError(f"--no-echo-free: {exc}") from exc
+
+
+def ray_params(no_echo_free: float | None, max_range: float | None) -> RayParams:
+    """The ray (laser) model's settings from --no-echo-free and --max-range (None: defaults)."""
+    if max_range is not None and not (max_range > 0.0 and math.isfinite(max_range)):
+        raise UsageError(f"--max-range must be a positive number of metres, got {max_range}")
+    try:
+        return RayParams(
+            no_echo_free_m=LASER_NO_ECHO_FREE_M if no_echo_free is None else no_echo_free,
+            max_range_m=math.inf if max_range is None else max_range,
+        )
+    except ValueError as exc:
+        raise UsageError(f"--no-echo-free: {exc}") from exc
 
 
 def error_aware_settings(

@@ -311,14 +311,14 @@ class _Parser:
             if event.kind != "scan":
                 continue
             scan = self.scans[event.scan]
-            # at or beyond the maximum: SICK's error codes (81.83, 81.91) or a clipped 50 m;
-            # as "no echo" they would clear free space straight through the building's walls
+            # at or beyond the maximum: SICK's error codes (81.83, 81.91) or a clipped 50 m: no
+            # echo, which the ray model clears only up to its cap (--no-echo-free)
             beyond = scan.ranges >= layouts[scan.laser].max_range_m
             no_echo[scan.laser] += int(np.count_nonzero(beyond))
-            present = ~np.isnan(scan.ranges) & ~beyond
+            present = ~np.isnan(scan.ranges)
             stamps.append(np.full(int(present.sum()), stamp_ns, dtype=np.int64))
             index.append(offsets[scan.laser] + np.nonzero(present)[0])
-            ranges.append(scan.ranges[present])
+            ranges.append(np.where(beyond, np.inf, scan.ranges)[present])
         readings = RangeReadings(
             stamp_ns=np.concatenate(stamps),
             sensor=np.concatenate(index).astype(np.int32),
@@ -331,7 +331,7 @@ class _Parser:
             metadata[LASER_NAMES[number]] = (
                 f"{lasers[number]}, {count} beams from {math.degrees(start):g} deg every "
                 f"{math.degrees(step):g} deg, max range {laser.max_range_m:g} m "
-                f"({laser.max_from}); {no_echo[number]} readings at or beyond it left out"
+                f"({laser.max_from}); {no_echo[number]} readings at or beyond it: no echo"
                 + (f"; PARAM {laser.params_read}" if laser.params_read else "")
             )
         skipped = [f"{m} {c}" for m, c in sorted(self.skipped.items())]
