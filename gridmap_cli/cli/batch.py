@@ -20,6 +20,7 @@ from gridmap_cli.cli.map_options import (
     error_samples_setting,
     image_format_option,
     map_options,
+    ray_params,
     sonar_params,
 )
 from gridmap_cli.errors import GridmapError, UsageError
@@ -99,7 +100,7 @@ def batch(
     map_mode: str,
     occupied: float,
     free: float,
-    no_echo_free: float,
+    no_echo_free: float | None,
     pose: str,
     topics: ReadOptions,
     sensor_patterns: tuple[str, ...],
@@ -187,7 +188,7 @@ def _batch_options(
     map_mode: str,
     occupied: float,
     free: float,
-    no_echo_free: float,
+    no_echo_free: float | None,
     pose: str,
     topics: ReadOptions,
     sensor_patterns: tuple[str, ...],
@@ -214,8 +215,8 @@ def _batch_options(
         if robot not in preset_names():
             robot = str(Path(robot).resolve())
     build = BuildOptions(resolution_m=resolution, mode=mode, sonar=sonar,
-                         error_aware=error_aware, odometry_error=odometry_error,
-                         error_samples=samples)  # fmt: skip
+                         ray=ray_params(no_echo_free, None), error_aware=error_aware,
+                         odometry_error=odometry_error, error_samples=samples)  # fmt: skip
     return BatchOptions(build=build, robot=robot, log_format=log_format, pose=pose,
                         topics=topics, sensors=sensor_patterns, start=start, end=end,
                         map_mode=map_mode, occupied=occupied, free=free,
