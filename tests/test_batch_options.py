@@ -16,6 +16,7 @@ from gridmap_cli.cli.batch import batch
 from gridmap_cli.cli.build import build
 from gridmap_cli.cli.map_options import map_options
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
+from gridmap_cli.mapping.models.ray import RayParams
 from gridmap_cli.mapping.models.standard import StandardSonarParams
 from gridmap_cli.mapping.pipeline import BuildOptions
 from gridmap_cli.poses.odometry_error import OdometryError
@@ -133,6 +134,7 @@ def test_every_option_that_changes_a_map_changes_its_key() -> None:
             ),
         ),
         dataclasses.replace(base, build=dataclasses.replace(build, error_samples=0)),
+        dataclasses.replace(base, build=dataclasses.replace(build, ray=RayParams(max_range_m=8.0))),
         dataclasses.replace(base, robot="p3dx"),
         dataclasses.replace(base, log_format="csv"),
         dataclasses.replace(base, pose="global"),
@@ -163,7 +165,7 @@ def test_every_option_that_changes_a_map_changes_its_key() -> None:
 @pytest.mark.parametrize(
     "changed",
     [("--no-echo-free", "0.5"), ("--sensors", "sonar[0-3]"), ("--start", "10"),
-     ("--end", "60"), ("--pose", "global"), ("--occupied", "0.7")],
+     ("--end", "60"), ("--pose", "global"), ("--occupied", "0.7"), ("--max-range", "3")],
 )  # fmt: skip
 def test_a_changed_option_rebuilds_and_the_same_one_skips(
     tmp_path: Path, changed: tuple[str, str]

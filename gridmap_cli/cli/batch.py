@@ -101,6 +101,7 @@ def batch(
     occupied: float,
     free: float,
     no_echo_free: float | None,
+    max_range: float | None,
     pose: str,
     topics: ReadOptions,
     sensor_patterns: tuple[str, ...],
@@ -129,7 +130,7 @@ def batch(
     """
     started = time.perf_counter()
     options = _batch_options(image_format or "png", robot, log_format, resolution, mode,
-                             map_mode, occupied, free, no_echo_free, pose, topics,
+                             map_mode, occupied, free, no_echo_free, max_range, pose, topics,
                              sensor_patterns, start, end, odometry_file, coefficients,
                              trust_length, max_spread_deg, error_samples)  # fmt: skip
     if executor == "dask":
@@ -189,6 +190,7 @@ def _batch_options(
     occupied: float,
     free: float,
     no_echo_free: float | None,
+    max_range: float | None,
     pose: str,
     topics: ReadOptions,
     sensor_patterns: tuple[str, ...],
@@ -215,7 +217,7 @@ def _batch_options(
         if robot not in preset_names():
             robot = str(Path(robot).resolve())
     build = BuildOptions(resolution_m=resolution, mode=mode, sonar=sonar,
-                         ray=ray_params(no_echo_free, None), error_aware=error_aware,
+                         ray=ray_params(no_echo_free, max_range), error_aware=error_aware,
                          odometry_error=odometry_error, error_samples=samples)  # fmt: skip
     return BatchOptions(build=build, robot=robot, log_format=log_format, pose=pose,
                         topics=topics, sensors=sensor_patterns, start=start, end=end,

@@ -40,7 +40,6 @@ from gridmap_cli.cli.map_options import (
     error_samples_setting,
     image_format_option,
     map_options,
-    max_range_option,
     ray_params,
     sonar_params,
 )
@@ -126,7 +125,6 @@ LASER_POSES = ("scan-matched", "slam")
               "the compiled kernels are built), or with --fuse and the local executor, the "
               "logs.")  # fmt: skip
 @error_samples_option
-@max_range_option
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")

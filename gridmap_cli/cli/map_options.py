@@ -178,7 +178,7 @@ def error_samples_setting(mode: str, error_samples: int | None) -> int:
 
 
 #: Every map option, in help order: the command receives robot, log_format, resolution, mode,
-#: map_mode, occupied, free, no_echo_free, pose, topics (a ReadOptions), sensor_patterns,
+#: map_mode, occupied, free, no_echo_free, max_range, pose, topics (a ReadOptions), sensor_patterns,
 #: start, end, odometry_file, coefficients, trust_length and max_spread_deg.
 MAP_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     robot_option,
@@ -189,6 +189,7 @@ MAP_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     occupied_option,
     free_option,
     no_echo_free_option,
+    max_range_option,
     pose_option,
     topic_options,
     selection_options(),
