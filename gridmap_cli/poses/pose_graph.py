@@ -90,6 +90,34 @@ class PoseGraph:
         marginals = gtsam.Marginals(self._factors(), values)
         return np.stack([marginals.marginalCovariance(k) for k in range(len(poses))])
 
+    def sample(self, poses: FloatArray, count: int, seed: int = 0) -> FloatArray:
+        """``count`` joint draws of every node's pose from the graph's Gaussian at ``poses``
+        (the optimum): shape (count, N, 3).
+
+        The graph is linearised there and eliminated into its square-root information R (upper
+        triangular, R^T R the information); ``R d = z`` with ``z`` standard normal gives a
+        tangent step ``d`` whose covariance is the inverse information, so the draws keep the
+        correlations along the path (neighbours move together, as the edges between them say)
+        and each node's spread is its marginal's. (gtsam's own ``GaussianBayesNet.sample``
+        adds the conditionals' unit sigmas after solving, not ``R^-1 z``: not this.)
+        """
+        values = gtsam.Values()
+        for k, (x, y, th) in enumerate(poses):
+            values.insert(k, gtsam.Pose2(float(x), float(y), float(th)))
+        net = self._factors().linearize(values).eliminateSequential()
+        mean = net.optimize()  # about 0 at the optimum; kept so the draws centre on the belief
+        rng = np.random.default_rng(seed)
+        out = np.empty((count, len(poses), 3))
+        for s in range(count):
+            z = gtsam.VectorValues()
+            for k in range(len(poses)):
+                z.insert(k, rng.standard_normal(3))
+            step = net.backSubstitute(z)
+            for k in range(len(poses)):
+                step.update(k, step.at(k) + mean.at(k))
+            out[s] = _poses(values.retract(step), len(poses))
+        return out
+
 
 def _poses(values: gtsam.Values, n: int) -> FloatArray:
     out = np.empty((n, 3))
