@@ -112,10 +112,29 @@ class PoseGraph:
             z = gtsam.VectorValues()
             for k in range(len(poses)):
                 z.insert(k, rng.standard_normal(3))
-            step = net.backSubstitute(z)
+            spread = net.backSubstitute(z)
+            step = gtsam.VectorValues()
             for k in range(len(poses)):
-                step.update(k, step.at(k) + mean.at(k))
+                step.insert(k, spread.at(k) + mean.at(k))
             out[s] = _poses(values.retract(step), len(poses))
+        return out
+
+    def covariance_product(self, poses: FloatArray, vectors: FloatArray) -> FloatArray:
+        """``Sigma v`` for each ``v`` of ``vectors`` (M, N, 3), ``Sigma`` the joint covariance
+        of every node at ``poses`` (each node's block in its own frame, as :meth:`marginals`):
+        shape (M, N, 3). Two triangular solves per vector with the square-root information, so
+        the joint covariance (3N x 3N) is never formed."""
+        values = gtsam.Values()
+        for k, (x, y, th) in enumerate(poses):
+            values.insert(k, gtsam.Pose2(float(x), float(y), float(th)))
+        net = self._factors().linearize(values).eliminateSequential()
+        out = np.empty(vectors.shape)
+        for m, vector in enumerate(vectors):
+            rhs = gtsam.VectorValues()
+            for k in range(len(poses)):
+                rhs.insert(k, np.ascontiguousarray(vector[k], dtype=np.float64))
+            product = net.backSubstitute(net.backSubstituteTranspose(rhs))
+            out[m] = [product.at(k) for k in range(len(poses))]
         return out
 
 
