@@ -103,3 +103,50 @@ def test_error_aware_odometry_still_needs_the_odometry_error(
     out = tmp_path / "m.png"
     code, _, stderr = run("build", str(loop_csv), "--mode", "error-aware", "-o", str(out))
     assert code == 2 and "--odometry-error FILE" in stderr and names(tmp_path) == set()
+
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+CORRIDOR = SAMPLES / "worlds" / "corridor_loop.yaml"
+
+
+@pytest.mark.parametrize(
+    ("flags", "message"),
+    [
+        (("--pose", "global", "--frame", "odometry"), "--pose global is in the world frame"),
+        (("--pose", "slam", "--frame", "world"), "--pose slam is in the odometry frame"),
+        (("--pose", "slam", "--spread-plot", "s.png", "--odometry-error", "o.yaml"),
+         "the pose spread is the pose graph's own"),
+    ],
+)  # fmt: skip
+def test_evaluate_pose_usage_errors(tmp_path: Path, flags: tuple[str, ...], message: str) -> None:
+    args = [str(tmp_path / f) if f.endswith((".png", ".yaml")) else f for f in flags]
+    code, _, stderr = run("evaluate", str(CORRIDOR), "--truth", str(CORRIDOR),
+                          "--log", str(SAMPLES / "corridor_loop.csv"), *args)  # fmt: skip
+    assert code == 2 and message in stderr.strip().splitlines()[-1]
+    assert names(tmp_path) == set()
+
+
+def test_evaluate_a_slam_map_and_draw_the_graphs_spread(tmp_path: Path) -> None:
+    """A slam map sits in the odometry frame (scored as an odometry map is placed); its spread
+    plot is the pose graph's uncertainty, with no odometry-error file."""
+    log = tmp_path / "run.csv"
+    path = SAMPLES / "paths" / "corridor_loop.yaml"
+    code, _, stderr = run("simulate", str(CORRIDOR), str(path), "--robot", "p3at-lms200",
+                          "--rate", "2", "-o", str(log), "-q")  # fmt: skip
+    assert code == 0, stderr
+    image = tmp_path / "slam.png"
+    code, _, stderr = run("build", str(log), "--pose", "slam", "--map-mode", "scale",
+                          "-o", str(image), "-q")  # fmt: skip
+    assert code == 0, stderr
+    base = ["evaluate", str(image.with_suffix(".yaml")), "--truth", str(CORRIDOR),
+            "--log", str(log), "--json"]  # fmt: skip
+    plot = tmp_path / "spread.png"
+    code, stdout, stderr = run(*base, "--pose", "slam", "--spread-plot", str(plot))
+    assert code == 0, stderr
+    slam = json.loads(stdout)
+    assert slam["pose"] == "slam" and slam["frame"] == "odometry"
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    code, stdout, stderr = run(*base)  # placed as an odometry map is: the same scores
+    assert code == 0, stderr
+    assert json.loads(stdout)["map_to_world"] == slam["map_to_world"]
+    assert json.loads(stdout)["nll"] == slam["nll"]
