@@ -3,11 +3,16 @@ shape covariance with the rigid motion taken out, and joint draws that keep both
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
+from gridmap_cli.mapping.models.fading import ErrorAwareParams
+from gridmap_cli.mapping.pipeline import BuildOptions, build_map
 from gridmap_cli.poses.pose_belief import (
     PoseBelief,
     align_draws,
@@ -16,7 +21,9 @@ from gridmap_cli.poses.pose_belief import (
     to_map_frame,
 )
 from gridmap_cli.poses.pose_graph import PoseGraph
-from gridmap_cli.records import PoseTrack
+from gridmap_cli.readers import read_log
+from gridmap_cli.records import PoseTrack, RangeLog
+from gridmap_cli.robot import load_robot
 from tests.test_pose_graph import _closure, _drifting_graph, _square
 
 
@@ -123,3 +130,49 @@ def test_aligning_removes_a_planted_rigid_motion() -> None:
     moved[:, 2] = poses[:, 2] + 0.2
     laid = align_draws(moved[None], poses)[0]
     assert np.allclose(laid[:, :2], poses[:, :2], atol=1e-9)
+
+
+SAMPLE = Path(__file__).resolve().parents[1] / "samples" / "corridor_loop.csv"
+ROBOT = load_robot("p3at")
+
+
+def _still_belief(log: RangeLog, spread_m: float) -> PoseBelief:
+    """A belief about ``log``'s odometry: every 50th pose a keyframe, a position spread of
+    ``spread_m`` (none: every draw is the track itself)."""
+    keys = np.arange(0, len(log.poses), 50)
+    poses = np.column_stack([log.poses.x_m, log.poses.y_m, log.poses.theta_rad])[keys]
+    cov = np.zeros((len(keys), 3, 3))
+    cov[:, 0, 0] = cov[:, 1, 1] = spread_m**2
+    cov[:, 2, 2] = (spread_m / 10) ** 2
+    rng = np.random.default_rng(0)
+    draws = poses[None] + rng.normal(0.0, 1.0, (4, *poses.shape)) * [spread_m, spread_m,
+                                                                     spread_m / 10]  # fmt: skip
+    return PoseBelief(log.poses.stamp_ns[keys], poses, cov, cov, draws)
+
+
+@pytest.mark.parametrize("samples", [4, 0])
+def test_a_belief_without_spread_maps_as_the_standard_model(samples: int) -> None:
+    log = read_log(SAMPLE)
+    standard = build_map(log, ROBOT, BuildOptions()).map.prob
+    options = BuildOptions(mode="error-aware", error_samples=samples)
+    still = build_map(log, ROBOT, dataclasses.replace(options, pose_belief=_still_belief(log, 0.0)))
+    assert np.array_equal(still.map.prob, standard, equal_nan=True)
+    loose = build_map(log, ROBOT, dataclasses.replace(options, pose_belief=_still_belief(log, 0.3)))
+    assert not np.array_equal(loose.map.prob, standard, equal_nan=True)
+
+
+def test_readings_past_the_heading_limit_are_left_out_one_by_one() -> None:
+    log = read_log(SAMPLE)
+    belief = _still_belief(log, 0.0)
+    heading = np.zeros(len(belief.stamp_ns))
+    heading[len(heading) // 3 : 2 * len(heading) // 3] = math.radians(20.0) ** 2  # lost, found
+    cov = belief.shape_cov.copy()
+    cov[:, 2, 2] = heading
+    belief = dataclasses.replace(belief, shape_cov=cov)
+    params = ErrorAwareParams(max_heading_spread_rad=math.radians(5.0))
+    options = BuildOptions(mode="error-aware", error_samples=1, pose_belief=belief,
+                           error_aware=params)  # fmt: skip
+    limited = build_map(log, ROBOT, options)
+    whole = build_map(log, ROBOT, dataclasses.replace(options, error_aware=ErrorAwareParams()))
+    # a third of the run is left out, and the readings after it are mapped again
+    assert 0.5 * whole.cell_updates < limited.cell_updates < 0.8 * whole.cell_updates
