@@ -57,6 +57,7 @@ from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, check_map_outputs, write_map
 
 if TYPE_CHECKING:
+    from gridmap_cli.poses.pose_belief import PoseBelief
     from gridmap_cli.poses.scan_match import ScanMatch
     from gridmap_cli.writers.preview import DrawnTrack
 
@@ -179,7 +180,7 @@ def build(
     sonar = sonar_params(no_echo_free)
     ray = ray_params(no_echo_free, max_range)
     error_aware, odometry_error = error_aware_settings(
-        mode, odometry_file, coefficients, trust_length, max_spread_deg
+        mode, odometry_file, coefficients, trust_length, max_spread_deg, pose == "slam"
     )
     samples = error_samples_setting(mode, error_samples)
     selection = Selection.parse(sensor_patterns, start, end)
@@ -238,6 +239,7 @@ def build(
         robot_desc = robot_from_log(logs[0], data.metadata)
     match: ScanMatch | None = None
     slam_summary: dict[str, object] | None = None
+    belief: PoseBelief | None = None
     if pose == "scan-matched":
         from gridmap_cli.poses.scan_match import scan_matched_log  # scipy, small_gicp: only here
 
@@ -247,6 +249,10 @@ def build(
 
         data, slam = slam_corrected_log(data, robot_desc)
         slam_summary = slam.summary()
+        if mode == "error-aware":  # the graph's marginals and draws, not the odometry's
+            from gridmap_cli.poses.pose_belief import slam_belief
+
+            belief = slam_belief(slam, samples, BuildOptions.error_seed)
         if slam.warning:
             warn((f"--pose slam: {slam.warning}",), quiet)
     else:
@@ -265,6 +271,7 @@ def build(
         odometry_error=odometry_error,
         error_samples=samples,
         jobs=jobs,
+        pose_belief=belief,
     )
     with progress_bar(data.reading_count, quiet, "mapping") as bar:
         trim = TrimEvery(TRIM_EVERY_BATCHES)

@@ -253,9 +253,11 @@ def error_aware_settings(
     coefficients: tuple[str, ...],
     trust_length: float,
     max_spread_deg: float = math.degrees(ErrorAwareParams.max_heading_spread_rad),
+    graph_uncertainty: bool = False,
 ) -> tuple[ErrorAwareParams, OdometryError | None]:
     """The error-aware model's settings from :data:`ERROR_AWARE_OPTIONS` (usage errors before
-    any reading)."""
+    any reading). ``graph_uncertainty``: the pose uncertainty comes from a pose graph
+    (``--pose slam``), so the odometry error is optional (only its sonar range error is used)."""
     ctx = click.get_current_context()
     trust_given = any(
         ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT
@@ -269,7 +271,7 @@ def error_aware_settings(
                 "--max-heading-spread apply to --mode error-aware"
             )
         return ErrorAwareParams(), None
-    if not given:
+    if not given and not graph_uncertainty:
         raise UsageError(
             "--mode error-aware needs the odometry error: --odometry-error FILE (gridmap "
             "calibrate writes one) or --odometry-coefficient NAME=VALUE"

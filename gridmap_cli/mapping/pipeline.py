@@ -40,7 +40,13 @@ from gridmap_cli.mapping.shards import (
     batch_bounds as batch_bounds,  # callers cut batches as build does
 )
 from gridmap_cli.poses.odometry_error import OdometryError, travelled
-from gridmap_cli.poses.pose_uncertainty import StepNoise, propagate, sample_tracks
+from gridmap_cli.poses.pose_belief import PoseBelief
+from gridmap_cli.poses.pose_uncertainty import (
+    PoseUncertainty,
+    StepNoise,
+    propagate,
+    sample_tracks,
+)
 from gridmap_cli.poses.sync import (
     SensorReadings,
     SyncStats,
@@ -48,7 +54,7 @@ from gridmap_cli.poses.sync import (
     sensors_for_log,
     synchronise,
 )
-from gridmap_cli.records import RangeLog, cut_chunks, span_text
+from gridmap_cli.records import PoseTrack, RangeLog, cut_chunks, span_text
 from gridmap_cli.robot import RangeSensor, RobotDescription
 
 MAPPING_MODES = ("standard", "error-aware")
@@ -81,6 +87,10 @@ class BuildOptions:
     #: Processes mapping the readings; the map does not depend on it
     #: (:mod:`gridmap_cli.mapping.shards`).
     jobs: int = 1
+    #: Error-aware mode: the pose graph's belief about the track (``--pose slam``), used instead
+    #: of the odometry-error model: its marginals fade the readings, its draws are the sampled
+    #: tracks. None: the covariance carried along the odometry by ``odometry_error``.
+    pose_belief: PoseBelief | None = None
 
 
 @dataclass(frozen=True)
@@ -197,6 +207,8 @@ def expected_map(
     stays unknown. Perfect odometry gives one sample, the standard map to the bit. Readings
     whose heading standard deviation exceeds ``options.error_aware.max_heading_spread_rad``
     are left out, as in the analytic model. ``progress`` counts the log's readings once."""
+    if options.pose_belief is not None:
+        return _belief_map(log, robot, options, options.pose_belief, progress, between_passes)
     if options.odometry_error is None:
         raise GridmapError(
             "error-aware mode needs the odometry error model (gridmap calibrate writes one)"
@@ -217,6 +229,46 @@ def expected_map(
             ]
             plan = dataclasses.replace(plan, models=models)
     count = 1 if noise.is_zero else options.error_samples
+    tracks = sample_tracks(log.poses, noise, count, options.error_seed)
+    return _mean_map(log, plan, standard, tracks, progress)
+
+
+def _belief_map(
+    log: RangeLog,
+    robot: RobotDescription | None,
+    options: BuildOptions,
+    belief: PoseBelief,
+    progress: Callable[[int], object] | None,
+    between_passes: Callable[[], object] | None,
+) -> BuildResult:
+    """:func:`expected_map` with the tracks drawn from a pose graph's belief; readings whose
+    heading standard deviation (the graph's, which falls where a loop closed) exceeds the limit
+    are left out one by one."""
+    standard = dataclasses.replace(options, mode="standard")
+    plan = plan_build(log, robot, standard)
+    if between_passes is not None:
+        between_passes()
+    limit = options.error_aware.max_heading_spread_rad
+    if limit < math.inf:
+        steady = belief.uncertainty
+        models: list[tuple[SensorModel, str]] = [
+            (_Steady(model, steady, limit), kind) for model, kind in plan.models
+        ]
+        plan = dataclasses.replace(plan, models=models)
+    count = min(options.error_samples, belief.draws.shape[0])
+    tracks = belief.tracks(log.poses, count) if count else [log.poses]
+    return _mean_map(log, plan, standard, tracks, progress)
+
+
+def _mean_map(
+    log: RangeLog,
+    plan: BuildPlan,
+    standard: BuildOptions,
+    tracks: list[PoseTrack],
+    progress: Callable[[int], object] | None,
+) -> BuildResult:
+    """The mean probability of the standard maps of ``log`` placed by each of ``tracks``."""
+    count = len(tracks)
     shape = (plan.spec.height, plan.spec.width)
     total, seen = np.zeros(shape), np.zeros(shape, dtype=bool)
     updates = 0
@@ -228,7 +280,7 @@ def expected_map(
             progress(done[0] // count - done[1])
             done[1] = done[0] // count
 
-    for track in sample_tracks(log.poses, noise, count, options.error_seed):
+    for track in tracks:
         moved = dataclasses.replace(log, poses=track)
         part = dataclasses.replace(plan, log=moved, travelled=travelled(track))
         grid = LogOddsAccumulator(plan.spec)
@@ -239,6 +291,25 @@ def expected_map(
         total += np.where(known, prob, 0.5)
     mean = np.where(seen, total / count, np.nan)
     return BuildResult(map=OccupancyMap(plan.spec, mean), sync=plan.sync, cell_updates=updates)
+
+
+class _Steady:
+    """A model that maps only the readings whose heading standard deviation is within
+    ``limit_rad`` (the covariance of ``uncertainty`` at their stamps)."""
+
+    def __init__(self, model: SensorModel, uncertainty: PoseUncertainty, limit_rad: float) -> None:
+        self.model = model
+        self.uncertainty = uncertainty
+        self.limit_rad = limit_rad
+
+    def bounds(self, readings: SensorReadings) -> tuple[float, float, float, float]:
+        return self.model.bounds(readings)
+
+    def accumulate(self, grid: LogOddsAccumulator, readings: SensorReadings) -> int:
+        keep = self.uncertainty.at(readings.stamp_ns)[:, 2, 2] <= self.limit_rad**2
+        if not keep.any():
+            return 0
+        return self.model.accumulate(grid, select_readings(readings, keep))
 
 
 class _Before:
@@ -314,20 +385,23 @@ def _mapping_models(
 
 
 def _pose_spread(log: RangeLog, options: BuildOptions) -> PoseSpread:
-    """The pose covariance along the log's track, from the odometry-error model."""
-    if options.odometry_error is None:
+    """The pose covariance along the log's track: the pose graph's (``options.pose_belief``)
+    or that carried along the odometry by the odometry-error model."""
+    belief = options.pose_belief
+    if options.odometry_error is None and belief is None:
         raise GridmapError(
             "error-aware mode needs the odometry error model (gridmap calibrate writes one)"
         )
-    model = options.odometry_error
-    noise = StepNoise.of(model)
+    model = options.odometry_error or OdometryError()  # with a belief: the sonar's k only
     params = FadeParams(
         trust_length_m=options.error_aware.trust_length_m,
         sonar_relative_error=model.sonar_relative_error,
         laser_relative_error=options.error_aware.laser_relative_error,
         max_heading_spread_rad=options.error_aware.max_heading_spread_rad,
     )
-    return PoseSpread(propagate(log.poses, noise), params)
+    if belief is not None:
+        return PoseSpread(belief.uncertainty, params)
+    return PoseSpread(propagate(log.poses, StepNoise.of(model)), params)
 
 
 def _why_empty(log: RangeLog, stats: SyncStats) -> str:

@@ -98,6 +98,8 @@ class SlamResult:
     odometry_residual_m: float
     residual_m: float
     seconds: float
+    #: the optimised graph, for its marginals and draws (:mod:`.pose_belief`)
+    graph: PoseGraph | None = None
 
     @property
     def track(self) -> PoseTrack:
@@ -269,6 +271,7 @@ def slam_scans(
         odometry_residual_m=float(before[:, 0].mean()) if len(before) else float("nan"),
         residual_m=float(after[:, 0].mean()) if len(after) else float("nan"),
         seconds=time.perf_counter() - started,
+        graph=graph,
     )
 
 
