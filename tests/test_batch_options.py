@@ -115,6 +115,31 @@ def test_batch_scan_matched_and_slam_are_builds_maps(tmp_path: Path) -> None:
         assert (out / "room.png").read_bytes() == built.read_bytes(), pose
 
 
+def test_batch_error_aware_slam_maps_on_the_graphs_uncertainty_as_build_does(
+    tmp_path: Path,
+) -> None:
+    log = simulate_run(room_world(), [[2, 1.5], [10, 1.5], [10, 6.5], [2, 6.5], [2, 1.5]],
+                       drift=3.0)  # fmt: skip
+    log.metadata["robot"] = "p3at-lms200"
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    save_csv_log(log, logs / "room.csv")
+    # no --odometry-error: the pose graph's marginals are the pose uncertainty
+    args = ("--pose", "slam", "--mode", "error-aware", "--error-samples", "2",
+            "--map-mode", "scale", "-q")  # fmt: skip
+    code, _, err = run("batch", str(logs), "-o", str(tmp_path / "out"), *args)
+    assert code == 0, err
+    built = tmp_path / "built.png"
+    code, _, err = run("build", str(logs / "room.csv"), "-o", str(built), *args)
+    assert code == 0, err
+    plain = tmp_path / "standard.png"
+    code, _, err = run("build", str(logs / "room.csv"), "-o", str(plain), "--pose", "slam",
+                       "--map-mode", "scale", "-q")  # fmt: skip
+    assert code == 0, err
+    assert (tmp_path / "out" / "room.png").read_bytes() == built.read_bytes()
+    assert built.read_bytes() != plain.read_bytes()
+
+
 def test_every_option_that_changes_a_map_changes_its_key() -> None:
     base = BatchOptions()
     build = base.build

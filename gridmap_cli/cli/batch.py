@@ -208,7 +208,7 @@ def _batch_options(
     check_map_outputs(Path(f"map.{image_format}"), map_mode, True)  # scale needs a PNG
     sonar = sonar_params(no_echo_free)
     error_aware, odometry_error = error_aware_settings(
-        mode, odometry_file, coefficients, trust_length, max_spread_deg
+        mode, odometry_file, coefficients, trust_length, max_spread_deg, pose == "slam"
     )
     samples = error_samples_setting(mode, error_samples)
     Selection.parse(sensor_patterns, start, end)  # bad patterns and times before any work
