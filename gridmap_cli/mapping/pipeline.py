@@ -18,6 +18,7 @@ from gridmap_cli.errors import GridmapError, MapSizeError, NoDataError
 from gridmap_cli.mapping.grid import (
     DEFAULT_CLAMP_P,
     DEFAULT_MAX_CELLS,
+    STRIP_CELLS,
     GridSpec,
     LogOddsAccumulator,
     OccupancyMap,
@@ -103,7 +104,7 @@ class BuildResult:
 
     @property
     def observed_cells(self) -> int:
-        return int(np.count_nonzero(~np.isnan(self.map.prob)))
+        return self.map.cell_counts(1.0, 0.0)[0]
 
 
 #: Log readings synchronised at a time, by build and by inspect: with the models' bounds kept and
@@ -185,9 +186,9 @@ def build_map(
         between_passes()
     spec, stats = plan.spec, plan.sync
     # both modes sum log-odds: the error-aware mode is the standard one with faded evidence
-    grid = LogOddsAccumulator(spec)
+    grid = LogOddsAccumulator(spec, stats.used)
     updates = accumulate(plan, grid, options, progress)
-    omap = grid.occupancy_map(options.clamp_p)
+    omap, _ = grid.finish(options.clamp_p)
     return BuildResult(map=omap, sync=stats, cell_updates=updates)
 
 
@@ -269,28 +270,77 @@ def _mean_map(
 ) -> BuildResult:
     """The mean probability of the standard maps of ``log`` placed by each of ``tracks``."""
     count = len(tracks)
-    shape = (plan.spec.height, plan.spec.width)
-    total, seen = np.zeros(shape), np.zeros(shape, dtype=bool)
+    spec = plan.spec
+    bands = sample_bands(spec, count)
+    # the running sum of the samples' probabilities, negated while no sample has seen the cell
+    total = np.zeros(spec.height * spec.width)
     updates = 0
-    done = [0, 0]  # readings mapped over all samples, readings reported
+    done = [0, 0]  # readings mapped over all samples and bands, readings reported
+    passes = count * len(bands)
 
     def report(n: int) -> None:  # the caller counts the log's readings once
         done[0] += n
-        if progress is not None and done[0] // count > done[1]:
-            progress(done[0] // count - done[1])
-            done[1] = done[0] // count
+        if progress is not None and done[0] // passes > done[1]:
+            progress(done[0] // passes - done[1])
+            done[1] = done[0] // passes
 
-    for track in tracks:
-        moved = dataclasses.replace(log, poses=track)
-        part = dataclasses.replace(plan, log=moved, travelled=travelled(track))
-        grid = LogOddsAccumulator(plan.spec)
-        updates += accumulate(part, grid, standard, report)
-        prob = grid.occupancy_map(standard.clamp_p).prob
-        known = ~np.isnan(prob)
-        seen |= known
-        total += np.where(known, prob, 0.5)
-    mean = np.where(seen, total / count, np.nan)
-    return BuildResult(map=OccupancyMap(plan.spec, mean), sync=plan.sync, cell_updates=updates)
+    for rows in bands:
+        for track in tracks:
+            moved = dataclasses.replace(log, poses=track)
+            part = dataclasses.replace(plan, log=moved, travelled=travelled(track))
+            grid = LogOddsAccumulator(spec, plan.sync.used, rows)
+            accumulate(part, grid, standard, report)
+            band, band_updates = grid.finish(standard.clamp_p)
+            updates += band_updates
+            _add_sample(total[rows[0] * spec.width : rows[1] * spec.width], band.prob.ravel())
+            del grid, band
+    _mean_in_place(total, count)
+    mean = OccupancyMap(spec, total.reshape(spec.shape))
+    return BuildResult(map=mean, sync=plan.sync, cell_updates=updates)
+
+
+#: Bytes a cell the sampled expected map may take on top of its running sum (8 bytes a cell):
+#: the per-sample grid (12 bytes a cell) is cut into row bands to stay within it, so that the
+#: whole build stays within 12 bytes a cell plus a fixed allowance (README, "Speed").
+SAMPLE_GRID_BYTES_PER_CELL = 4
+#: Cells of the per-sample grid always allowed in one band (96 MiB at 12 bytes a cell): maps
+#: up to about 8 million cells are mapped in one band, each sample's readings in one pass.
+SAMPLE_GRID_FREE_CELLS = 8 << 20
+
+
+def sample_bands(spec: GridSpec, samples: int) -> list[tuple[int, int]]:
+    """The row bands ``[row0, row1)`` the sampled expected map maps each sample in: one band
+    unless the map is large (:data:`SAMPLE_GRID_BYTES_PER_CELL`). Each band reads the log's
+    readings again for every sample, so a band costs a pass over the log per sample; the map is
+    the same for any bands (integer sums, each cell in one band)."""
+    cells = spec.height * spec.width
+    allowed = SAMPLE_GRID_FREE_CELLS + cells * SAMPLE_GRID_BYTES_PER_CELL // 12
+    if samples <= 1 or cells <= allowed:
+        return [(0, spec.height)]
+    n = -(-cells // allowed)
+    step = -(-spec.height // n)
+    return [(r, min(spec.height, r + step)) for r in range(0, spec.height, step)]
+
+
+def _add_sample(total: npt.NDArray[np.float64], prob: npt.NDArray[np.float64]) -> None:
+    """Add one sample's probabilities (NaN where it saw nothing: counts as the prior 0.5) to
+    the running sum, strip by strip; a cell stays negated until some sample has seen it. The
+    sum's magnitude is the plain sum over the samples in order, as ``total += where(seen, p,
+    0.5)`` makes it (to the bit)."""
+    step = STRIP_CELLS
+    for k in range(0, total.shape[0], step):
+        t, p = total[k : k + step], prob[k : k + step]
+        known = ~np.isnan(p)
+        s = np.abs(t) + np.where(known, p, 0.5)
+        total[k : k + step] = np.where((t > 0.0) | known, s, -s)
+
+
+def _mean_in_place(total: npt.NDArray[np.float64], count: int) -> None:
+    """The running sum as the mean over ``count`` samples; NaN where no sample saw the cell."""
+    step = STRIP_CELLS
+    for k in range(0, total.shape[0], step):
+        t = total[k : k + step]
+        total[k : k + step] = np.where(t > 0.0, t / count, np.nan)
 
 
 class _Steady:

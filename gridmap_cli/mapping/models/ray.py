@@ -306,7 +306,8 @@ def _accumulate_chunk(
         cells = int(
             kernels.ray_batch(
                 grid.spec.width, rows.ra, rows.rb, rows.p_lo, rows.counts, rows.off, rows.slope,
-                rows.ua, rows.ub, not rows.inside, l_free, values, observations,
+                rows.ua, rows.ub, not rows.inside, l_free, grid.scale, grid.rows[0], values,
+                observations,
             )
         )  # fmt: skip
     end_row, end_col = end_cells(grid.spec, seg)
