@@ -43,6 +43,7 @@ from gridmap_cli.cli.map_options import (
     ray_params,
     sonar_params,
 )
+from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import MixedLogsError, NotRecordingFolderError, UsageError
 from gridmap_cli.heap import TRIM_EVERY_BATCHES, TrimEvery, keep_scratch_memory, release_free_memory
 from gridmap_cli.mapping.pipeline import BuildOptions, build_map
@@ -233,7 +234,8 @@ def build(
     # a long log's readings stay in its file, read again for each pass, unless scan matching
     # or a time window needs them held
     stream = pose not in LASER_POSES and selection.start is None and selection.end is None
-    whole = _read_logs(logs, log_format, dataclasses.replace(read_options, stream=stream))
+    with reading(_names(logs), quiet):
+        whole = _read_logs(logs, log_format, dataclasses.replace(read_options, stream=stream))
     data = whole
     if robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
@@ -243,11 +245,13 @@ def build(
     if pose == "scan-matched":
         from gridmap_cli.poses.scan_match import scan_matched_log  # scipy, small_gicp: only here
 
-        data, match = scan_matched_log(data, robot_desc)
+        with StageBars(quiet) as bars:
+            data, match = scan_matched_log(data, robot_desc, progress=bars)
     elif pose == "slam":
         from gridmap_cli.poses.slam import slam_corrected_log  # gtsam: only here
 
-        data, slam = slam_corrected_log(data, robot_desc)
+        with StageBars(quiet) as bars:
+            data, slam = slam_corrected_log(data, robot_desc, progress=bars)
         slam_summary = slam.summary()
         if mode == "error-aware":  # the graph's marginals and draws, not the odometry's
             from gridmap_cli.poses.pose_belief import slam_belief
@@ -313,6 +317,11 @@ def build(
     if slam_summary is not None:
         summary["slam"] = slam_summary
     report(summary, summary_line(summary), as_json, quiet)
+
+
+def _names(logs: tuple[Path, ...]) -> str:
+    """The logs as the reading stage names them."""
+    return logs[0].name if len(logs) == 1 else f"{len(logs)} logs"
 
 
 def _read_logs(logs: tuple[Path, ...], log_format: str | None, options: ReadOptions) -> RangeLog:

@@ -19,6 +19,7 @@ from gridmap_cli.cli.common import (
     selection_options,
     topic_options,
 )
+from gridmap_cli.cli.progress import reading
 from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.selection import Selection
 from gridmap_cli.readers import STDIN_NAME, format_names, held_text, resolve_format
@@ -80,7 +81,8 @@ def inspect(
         fmt = resolve_format(logs[0], log_format)
         if fmt.sources is None:
             read_options.refuse_topic_flags(fmt.name.upper())
-    description = describe_log(logs, fmt, read_options, selection, held)
+    with reading(logs[0].name if len(logs) == 1 else f"{len(logs)} logs", quiet=False):
+        description = describe_log(logs, fmt, read_options, selection, held)
     click.echo(json_text(description) if as_json else plain_numbers(render_text(description)))
     if not description["build"]["ready"]:
         # the description is printed; the verdict is the line build would print, and its exit

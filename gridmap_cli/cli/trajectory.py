@@ -19,6 +19,7 @@ from gridmap_cli.cli.common import (
     handle_errors,
     topic_options,
 )
+from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.evaluation.relations import read_relations, score_track
 from gridmap_cli.poses.scan_match import STATUS_NAMES, match_log
@@ -118,14 +119,16 @@ def trajectory(
     read_options = dataclasses.replace(
         topics, robot=robot_desc, poses_only=pose in ("odometry", "global")
     )
-    data = read_logs(logs, log_format, read_options)
+    with reading(logs[0].name if len(logs) == 1 else f"{len(logs)} logs", quiet):
+        data = read_logs(logs, log_format, read_options)
     summary: dict[str, object] = {"output": str(output), "pose": pose}
     status: list[str] | None = None
     covariance: tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_]] | None = None
     if pose == "scan-matched":
         if robot_desc is None:
             robot_desc = robot_from_log(logs[0], data.metadata)
-        match = match_log(data, robot_desc)
+        with StageBars(quiet) as bars:
+            match = match_log(data, robot_desc, progress=bars)
         track = match.track
         status = [STATUS_NAMES[int(s)] for s in match.status]
         summary["scan_match"] = match.summary()
@@ -136,7 +139,8 @@ def trajectory(
             robot_desc = robot_from_log(logs[0], data.metadata)
         from gridmap_cli.poses.pose_belief import slam_belief
 
-        result = slam_log(data, robot_desc)
+        with StageBars(quiet) as bars:
+            result = slam_log(data, robot_desc, progress=bars)
         track = result.track
         status = [STATUS_NAMES[int(s)] for s in result.scan_matched.status]
         summary["slam"] = result.summary()

@@ -42,6 +42,7 @@ from gridmap_cli.poses.pose_graph import Edge, PoseGraph, edge_residuals
 from gridmap_cli.poses.scan_match import (
     FALLBACK,
     NoLaserError,
+    Progress,
     ScanMatch,
     ScanMatchParams,
     Scans,
@@ -170,10 +171,11 @@ def sequential_edges(
 
 
 def optimise_with_closures(
-    scans: Scans, match: ScanMatch, params: SlamParams
+    scans: Scans, match: ScanMatch, params: SlamParams, progress: Progress | None = None
 ) -> tuple[npt.NDArray[np.intp], FloatArray, PoseGraph, list[Closure], int, int, int]:
     """Keyframes, their optimised poses, the graph, accepted closures and the counts of
-    candidates tried, rejected by verification and dropped by the consistency check."""
+    candidates tried, rejected by verification and dropped by the consistency check.
+    ``progress`` is called after each round with ``("loop closures", rounds done, rounds)``."""
     m = match.track
     local = np.column_stack([m.x_m, m.y_m, m.theta_rad])
     nodes = keyframes(local, params)
@@ -184,7 +186,9 @@ def optimise_with_closures(
     accepted: dict[tuple[int, int], Closure] = {}
     rejected = dropped = 0
     path = path_length(estimate)
-    for _ in range(params.rounds):
+    for done in range(params.rounds):
+        if progress is not None:
+            progress("loop closures", done, params.rounds)
         new = 0
         for i, j in candidates(estimate, np.arange(len(nodes)), params.closure):
             if (i, j) in tried:
@@ -216,6 +220,8 @@ def optimise_with_closures(
             e = closure_edges[worst]
             del accepted[(e.i, e.j)]
             dropped += 1
+    if progress is not None:
+        progress("loop closures", params.rounds, params.rounds)
     return nodes, estimate, graph, list(accepted.values()), len(tried), rejected, dropped
 
 
@@ -243,13 +249,15 @@ def slam_scans(
     odometry: PoseTrack,
     params: SlamParams | None = None,
     match_params: ScanMatchParams | None = None,
+    progress: Progress | None = None,
 ) -> SlamResult:
-    """Scan-match ``scans`` seeded by ``odometry``, close loops, optimise; see the module."""
+    """Scan-match ``scans`` seeded by ``odometry``, close loops, optimise; see the module.
+    ``progress`` is called with (stage, done, total) as each stage moves on."""
     params = params or SlamParams()
     started = time.perf_counter()
-    match = match_scans(scans, odometry, match_params)
+    match = match_scans(scans, odometry, match_params, progress)
     nodes, poses, graph, closures, tried, rejected, dropped = optimise_with_closures(
-        scans, match, params
+        scans, match, params, progress
     )
     track = carried(match, nodes, poses)
     odo = match.odometry
@@ -276,7 +284,10 @@ def slam_scans(
 
 
 def slam_log(
-    log: RangeLog, robot: RobotDescription | None, params: SlamParams | None = None
+    log: RangeLog,
+    robot: RobotDescription | None,
+    params: SlamParams | None = None,
+    progress: Progress | None = None,
 ) -> SlamResult:
     """:func:`slam_scans` on the laser scans of ``log`` within its odometry's time span."""
     match_params = ScanMatchParams()
@@ -289,12 +300,15 @@ def slam_log(
         stamp_ns=scans.stamp_ns[inside],
         points=[p for p, ok in zip(scans.points, inside, strict=True) if ok],
     )
-    return slam_scans(kept, log.poses, params, match_params)
+    return slam_scans(kept, log.poses, params, match_params, progress)
 
 
 def slam_corrected_log(
-    log: RangeLog, robot: RobotDescription | None, params: SlamParams | None = None
+    log: RangeLog,
+    robot: RobotDescription | None,
+    params: SlamParams | None = None,
+    progress: Progress | None = None,
 ) -> tuple[RangeLog, SlamResult]:
     """``log`` with its poses replaced by the optimised track, and the result."""
-    result = slam_log(log, robot, params)
+    result = slam_log(log, robot, params, progress)
     return dataclasses.replace(log, poses=corrected_track(log.poses, result.match)), result
