@@ -207,7 +207,11 @@ def expected_map(
     cell some samples' readings missed counts as the prior 0.5 in those; a cell none touched
     stays unknown. Perfect odometry gives one sample, the standard map to the bit. Readings
     whose heading standard deviation exceeds ``options.error_aware.max_heading_spread_rad``
-    are left out, as in the analytic model. ``progress`` counts the log's readings once."""
+    are left out, as in the analytic model. ``progress`` counts the log's readings once.
+
+    Memory: the running sum of the samples' probabilities (8 bytes a cell) and one sample's
+    grid, cut into row bands on a large map (:func:`sample_bands`); each band maps every sample
+    again, on the rows it holds."""
     if options.pose_belief is not None:
         return _belief_map(log, robot, options, options.pose_belief, progress, between_passes)
     if options.odometry_error is None:
