@@ -104,8 +104,9 @@ def test_trajectory_and_calibrate_report_scan_matching_on_a_terminal(
 ) -> None:
     log = _laser_log(tmp_path)
     code, _, stderr = run(
-        "trajectory", str(log), "-o", str(tmp_path / "t.tum"), "--robot", "p3at-lms200"
-    )
+        "trajectory", str(log), "-o", str(tmp_path / "t.tum"), "--robot", "p3at-lms200",
+        "--pose", "scan-matched",
+    )  # fmt: skip
     assert code == 0, stderr
     assert "scan matching" in terminal.getvalue()
     terminal.truncate(0)
