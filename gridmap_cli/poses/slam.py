@@ -184,20 +184,34 @@ def optimise_with_closures(
     accepted: dict[tuple[int, int], Closure] = {}
     rejected = dropped = 0
     path = path_length(estimate)
+    c = params.closure
     for _ in range(params.rounds):
         new = 0
-        for i, j in candidates(estimate, np.arange(len(nodes)), params.closure):
-            if (i, j) in tried:
+        # the path positions of the accepted closures' ends: a candidate next to one (both
+        # ends within decimate_m) adds little; one within coarse_link_m of a closure found
+        # this round is on a loop already caught, so no coarse search for it
+        ends = np.array([(path[k[0]], path[k[1]]) for k in accepted]).reshape(-1, 2)
+        fresh: list[tuple[float, float]] = []
+        searched: list[tuple[float, float]] = []  # coarse searches that found nothing
+        for i, j in candidates(estimate, np.arange(len(nodes)), c):
+            if (i, j) in tried or _near(ends, path[i], path[j], c.decimate_m):
                 continue
             tried.add((i, j))
             gap = path[i] - path[j]
-            c = params.closure
             radius = min(c.max_search_m, c.min_search_m + c.drift_per_m * gap)
-            closure = verify(i, j, relative(estimate, i, j), submaps, radius)
+            coarse = not (
+                _near(np.array(fresh).reshape(-1, 2), path[i], path[j], c.coarse_link_m)
+                or _near(np.array(searched).reshape(-1, 2), path[i], path[j], c.decimate_m)
+            )
+            closure = verify(i, j, relative(estimate, i, j), submaps, radius, coarse)
             if closure is None:
                 rejected += 1
+                if coarse:
+                    searched.append((path[i], path[j]))
                 continue
             accepted[(i, j)] = closure
+            ends = np.vstack([ends, [(path[i], path[j])]])
+            fresh.append((path[i], path[j]))
             new += 1
         if new == 0:
             break
@@ -217,6 +231,14 @@ def optimise_with_closures(
             del accepted[(e.i, e.j)]
             dropped += 1
     return nodes, estimate, graph, list(accepted.values()), len(tried), rejected, dropped
+
+
+def _near(ends: FloatArray, a: float, b: float, within_m: float) -> bool:
+    """Whether some pair of path positions in ``ends`` (M, 2) lies within ``within_m`` of
+    (``a``, ``b``) at both ends."""
+    if len(ends) == 0:
+        return False
+    return bool(((np.abs(ends[:, 0] - a) < within_m) & (np.abs(ends[:, 1] - b) < within_m)).any())
 
 
 def _closure_edge(c: Closure, p: SlamParams) -> Edge:
