@@ -21,7 +21,7 @@ from gridmap_cli.cli.common import (
 )
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.evaluation.relations import read_relations, score_track
-from gridmap_cli.poses.scan_match import STATUS_NAMES, match_log
+from gridmap_cli.poses.scan_match import STATUS_NAMES, corrected_track, match_log
 from gridmap_cli.poses.sync import POSE_SOURCES, select_poses
 from gridmap_cli.readers import format_names, read_logs
 from gridmap_cli.readers.options import ReadOptions
@@ -127,6 +127,7 @@ def trajectory(
             robot_desc = robot_from_log(logs[0], data.metadata)
         match = match_log(data, robot_desc)
         track = match.track
+        scored = corrected_track(data.poses, match)
         status = [STATUS_NAMES[int(s)] for s in match.status]
         summary["scan_match"] = match.summary()
     elif pose == "slam":
@@ -138,6 +139,7 @@ def trajectory(
 
         result = slam_log(data, robot_desc)
         track = result.track
+        scored = corrected_track(data.poses, result.match)
         status = [STATUS_NAMES[int(s)] for s in result.scan_matched.status]
         summary["slam"] = result.summary()
         belief = slam_belief(result)
@@ -146,9 +148,12 @@ def trajectory(
         summary["covariance"] = str(cov_path)
     else:
         track = select_poses(data, pose).poses
+        scored = track
     summary["poses"] = len(track)
     if relations is not None:
-        score = score_track(track, truth, data.poses, offset_s=relations_offset)
+        # a corrected track is scored at every odometry stamp too (the track `build` maps
+        # with), so a relation between two scans finds the pose the estimate gives at its time
+        score = score_track(scored, truth, data.poses, offset_s=relations_offset)
         if score.count == 0:
             raise GridmapError(
                 f"{relations}: no relation lies within the track's time span; is the clock "

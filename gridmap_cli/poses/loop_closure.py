@@ -30,6 +30,8 @@ FloatArray = npt.NDArray[np.float64]
 
 #: Metres of travel a radian of turning counts as when submaps are cut along the path.
 TURN_M = 1.0
+#: Submaps kept built (the most recently used): each holds about a megabyte.
+CACHED_SUBMAPS = 200
 
 
 @dataclass(frozen=True)
@@ -57,7 +59,7 @@ class ClosureParams:
     coarse_min_score: float = 0.5
     coarse_points: int = 250
     coarse_range_m: float = 15.0
-    max_candidates_per_node: int = 2
+    max_candidates_per_node: int = 1
     decimate_m: float = 1.0
     coarse_link_m: float = 5.0
 
@@ -138,9 +140,9 @@ class Submaps:
         params: ClosureParams,
     ) -> None:
         self.points, self.local, self.nodes, self.params = points, local, nodes, params
-        self._cache: dict[
+        self._cache: OrderedDict[
             tuple[int, bool], tuple[small_gicp.PointCloud, small_gicp.KdTree, cKDTree, FloatArray]
-        ] = {}
+        ] = OrderedDict()
         # travel along the scan-matched path, turning counted at TURN_M metres per radian
         steps = np.hypot(np.diff(local[:, 0]), np.diff(local[:, 1]))
         turns = np.abs(wrap_angle(np.diff(local[:, 2])))
@@ -183,6 +185,7 @@ class Submaps:
         """
         key = (node, wide)
         if key in self._cache:
+            self._cache.move_to_end(key)
             return self._cache[key]
         p = self.params
         s = int(self.nodes[node])
@@ -213,6 +216,8 @@ class Submaps:
         planar = np.asarray(cloud.points())[:, :2]
         entry = (cloud, tree, cKDTree(planar), planar)
         self._cache[key] = entry
+        if len(self._cache) > CACHED_SUBMAPS:
+            self._cache.popitem(last=False)
         return entry
 
 
