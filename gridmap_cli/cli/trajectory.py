@@ -176,7 +176,8 @@ def trajectory(
             sl = result.summary()
             line += (
                 f" ({sl['closures_accepted']:,} loop closures accepted, "
-                f"{sl['closures_rejected']:,} rejected)"
+                f"{sl['closures_rejected']:,} rejected; {sl['fallbacks']:,} scans fell back "
+                "to odometry)"
             )
         click.echo(line + f" in {summary['seconds']:.1f} s", err=True)
         if cov_path is not None:

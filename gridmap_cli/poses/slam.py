@@ -55,6 +55,10 @@ from gridmap_cli.robot import RobotDescription
 
 FloatArray = npt.NDArray[np.float64]
 
+#: A sequential edge bent by more than this many of its standard deviations on the optimised
+#: track warns: true closures bend the shared logs' tracks by under 2.
+BEND_WARN_SIGMA = 5.0
+
 
 @dataclass(frozen=True)
 class SlamParams:
@@ -84,6 +88,8 @@ class SlamResult:
     ``scan_matched``: the scan match as it was. ``keyframes`` (K,): scan index of each node;
     ``poses`` (K, 3) the optimised keyframe poses; ``covariance`` (K, 3, 3) their marginal
     covariances (node frame; None unless asked). ``closures``: the accepted closures.
+    ``bend_sigma``: the largest error of a sequential (scan-matching) edge on the optimised
+    track, in its own standard deviations: how far the closures bend the scan-matched track.
     """
 
     match: ScanMatch
@@ -100,6 +106,7 @@ class SlamResult:
     seconds: float
     #: the optimised graph, for its marginals and draws (:mod:`.pose_belief`)
     graph: PoseGraph | None = None
+    bend_sigma: float = 0.0
 
     @property
     def track(self) -> PoseTrack:
@@ -116,6 +123,11 @@ class SlamResult:
                 f"the optimised track fits its loop closures no better than the odometry "
                 f"({self.residual_m:.3f} m against {self.odometry_residual_m:.3f} m)"
             )
+        if self.bend_sigma > BEND_WARN_SIGMA:
+            return (
+                f"the loop closures bend the scan-matched track by {self.bend_sigma:.1f} "
+                "standard deviations somewhere: a closure may be false, check the map"
+            )
         return None
 
     def summary(self) -> dict[str, object]:
@@ -128,6 +140,8 @@ class SlamResult:
             "closures_dropped_by_consistency": self.dropped,
             "closure_residual_m": round(self.residual_m, 4),
             "closure_residual_odometry_m": round(self.odometry_residual_m, 4),
+            "sequential_bend_sigma": round(self.bend_sigma, 2),
+            "fallbacks": self.scan_matched.fallbacks,
             "scan_match": self.scan_matched.summary(),
             "seconds": round(self.seconds, 3),
             "warning": self.warning,
@@ -280,6 +294,10 @@ def slam_scans(
     before = edge_residuals(odo_nodes, closure_edges)
     after = edge_residuals(poses, closure_edges)
     covariance = graph.marginals(poses) if params.covariance else None
+    sequential = [e for e in graph.edges if not e.closure]
+    bend = edge_residuals(poses, sequential)
+    sigmas = np.array([(e.sigma_xy_m, e.sigma_theta_rad) for e in sequential]).reshape(-1, 2)
+    bend_sigma = float((bend / sigmas).max()) if len(sequential) else 0.0
     return SlamResult(
         match=dataclasses.replace(match, track=track),
         scan_matched=match,
@@ -294,6 +312,7 @@ def slam_scans(
         residual_m=float(after[:, 0].mean()) if len(after) else float("nan"),
         seconds=time.perf_counter() - started,
         graph=graph,
+        bend_sigma=bend_sigma,
     )
 
 
