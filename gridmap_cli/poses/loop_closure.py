@@ -31,7 +31,7 @@ FloatArray = npt.NDArray[np.float64]
 #: Metres of travel a radian of turning counts as when submaps are cut along the path.
 TURN_M = 1.0
 #: Submaps kept built (the most recently used): each holds about a megabyte.
-CACHED_SUBMAPS = 200
+CACHED_SUBMAPS = 60
 
 
 @dataclass(frozen=True)
@@ -164,7 +164,7 @@ class Submaps:
             p.max_search_m,
         )  # fmt: skip
         self._grids[node] = grid
-        if len(self._grids) > 16:
+        if len(self._grids) > 8:
             self._grids.popitem(last=False)
         return grid
 
