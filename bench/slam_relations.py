@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gridmap_cli.evaluation.relations import RelationScore, read_relations, score_track
+from gridmap_cli.poses.scan_match import corrected_track
 from gridmap_cli.poses.slam import slam_log
 from gridmap_cli.readers import read_logs
 from gridmap_cli.readers.options import ReadOptions
@@ -68,10 +69,11 @@ def run_log(name: str) -> LogScores:
     started = time.perf_counter()
     result = slam_log(data, robot_from_log(path, data.metadata))
     seconds = time.perf_counter() - started
+    # the corrected tracks at every odometry stamp, as `gridmap trajectory --relations` scores
     tracks = {
         "odometry": data.poses,
-        "scan-matched": result.scan_matched.track,
-        "slam": result.track,
+        "scan-matched": corrected_track(data.poses, result.scan_matched),
+        "slam": corrected_track(data.poses, result.match),
     }
     scores = {k: score_track(t, relations, data.poses, offset_s=offset) for k, t in tracks.items()}
     return LogScores(name, scores, len(result.closures), len(result.track), seconds)

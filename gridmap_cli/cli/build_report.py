@@ -94,7 +94,8 @@ def summary_line(s: dict[str, Any]) -> str:
         sl = s["slam"]
         matched = (
             f"; slam: {sl['closures_accepted']:,} loop closures accepted, "
-            f"{sl['closures_rejected']:,} rejected"
+            f"{sl['closures_rejected']:,} rejected, {sl['fallbacks']:,} scans fell back to "
+            "odometry"
         )
     skipped = ""
     if r["skipped"]:

@@ -22,7 +22,7 @@ from gridmap_cli.cli.common import (
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.evaluation.relations import read_relations, score_track
-from gridmap_cli.poses.scan_match import STATUS_NAMES, match_log
+from gridmap_cli.poses.scan_match import STATUS_NAMES, corrected_track, match_log
 from gridmap_cli.poses.sync import POSE_SOURCES, select_poses
 from gridmap_cli.readers import format_names, read_logs
 from gridmap_cli.readers.options import ReadOptions
@@ -130,6 +130,7 @@ def trajectory(
         with StageBars(quiet) as bars:
             match = match_log(data, robot_desc, progress=bars)
         track = match.track
+        scored = corrected_track(data.poses, match)
         status = [STATUS_NAMES[int(s)] for s in match.status]
         summary["scan_match"] = match.summary()
     elif pose == "slam":
@@ -142,6 +143,7 @@ def trajectory(
         with StageBars(quiet) as bars:
             result = slam_log(data, robot_desc, progress=bars)
         track = result.track
+        scored = corrected_track(data.poses, result.match)
         status = [STATUS_NAMES[int(s)] for s in result.scan_matched.status]
         summary["slam"] = result.summary()
         belief = slam_belief(result)
@@ -150,9 +152,12 @@ def trajectory(
         summary["covariance"] = str(cov_path)
     else:
         track = select_poses(data, pose).poses
+        scored = track
     summary["poses"] = len(track)
     if relations is not None:
-        score = score_track(track, truth, data.poses, offset_s=relations_offset)
+        # a corrected track is scored at every odometry stamp too (the track `build` maps
+        # with), so a relation between two scans finds the pose the estimate gives at its time
+        score = score_track(scored, truth, data.poses, offset_s=relations_offset)
         if score.count == 0:
             raise GridmapError(
                 f"{relations}: no relation lies within the track's time span; is the clock "
@@ -175,7 +180,8 @@ def trajectory(
             sl = result.summary()
             line += (
                 f" ({sl['closures_accepted']:,} loop closures accepted, "
-                f"{sl['closures_rejected']:,} rejected)"
+                f"{sl['closures_rejected']:,} rejected; {sl['fallbacks']:,} scans fell back "
+                "to odometry)"
             )
         click.echo(line + f" in {summary['seconds']:.1f} s", err=True)
         if cov_path is not None:
