@@ -21,6 +21,12 @@ modes, error-aware with the coefficients ``gridmap calibrate`` fits on it.
 OctoMap (``octomap-python``) on the laser rays is timed when importable, and skipped otherwise.
 Last, ``bench/bench_json.py`` on the JSON MCAP (one core): JSON messages decoded per second by
 msgspec (the reader's way), the standard library's ``json`` and orjson (when importable).
+
+Then memory on large maps (``--memory`` prints this table alone): the laser log at 4 mm cells
+(about 30 million cells) in every mode (standard trinary PNG, PGM and scale PNG; error-aware
+with its default sampled tracks and with ``--error-samples 0``), and the Freiburg-style real
+case, the ACES CARMEN log at 1 cm with its corrected poses, when ``../shared/data/carmen`` is
+there: peak RSS, bytes per map cell, and the budget, 12 bytes a cell plus 160 MiB (issue 21).
 """
 
 from __future__ import annotations
@@ -252,12 +258,72 @@ def octomap_rays(log: Path) -> float | None:
     return float(proc.stdout.strip())
 
 
+#: Cell size of the large-map cases: the laser log's map at 4 mm is about 30 million cells.
+LARGE_RESOLUTION_M = 0.004
+#: The memory budget of a build: bytes a map cell, plus a fixed allowance (MiB).
+BUDGET_BYTES_PER_CELL = 12
+BUDGET_FIXED_MIB = 160
+ACES = ROOT.parent / "shared" / "data" / "carmen" / "aces-corrected.log.gz"
+
+
+def memory_table(laser: Path, laser_robot: str, repeat: int) -> None:
+    """Peak RSS and bytes per map cell of large-map builds, against the budget."""
+    ea = error_aware_flags()
+    cases: list[tuple[str, Path, list[str], str]] = [
+        ("laser 4 mm, standard", laser, [], "png"),
+        ("laser 4 mm, standard", laser, [], "pgm"),
+        ("laser 4 mm, standard, scale", laser, ["--map-mode", "scale"], "png"),
+        ("laser 4 mm, error-aware (16 samples)", laser, ea, "png"),
+        ("laser 4 mm, error-aware, samples 0", laser, [*ea, "--error-samples", "0"], "png"),
+    ]
+    robots = {laser: laser_robot}
+    if ACES.is_file():
+        cases.append(("ACES 1 cm --pose global", ACES, ["--pose", "global"], "png"))
+    print(
+        f"\nMemory on large maps: peak RSS of the build process, median of {repeat}; budget "
+        f"{BUDGET_BYTES_PER_CELL} bytes a cell + {BUDGET_FIXED_MIB} MiB"
+    )
+    header = (
+        f"{'case':38} {'image':5} {'cells':>8} {'peak MiB':>9} {'bytes/cell':>10} "
+        f"{'budget MiB':>10}  verdict"
+    )
+    print(header)
+    print("-" * len(header))
+    with tempfile.TemporaryDirectory() as tmp:
+        for case, log, flags, image in cases:
+            resolution = LARGE_RESOLUTION_M if log == laser else 0.01
+            out = Path(tmp) / f"large.{image}"
+            cmd = [*gridmap(), "build", str(log), "-o", str(out), "--force", "--quiet", "--json",
+                   "--resolution", str(resolution), *flags]  # fmt: skip
+            if log in robots:
+                cmd += ["--robot", robots[log]]
+            run = median_run(one_core(cmd), repeat)
+            grid = json.loads(run.stdout)["map"]
+            cells = grid["width"] * grid["height"]
+            budget = BUDGET_BYTES_PER_CELL * cells / 2**20 + BUDGET_FIXED_MIB
+            verdict = "within" if run.peak_mib <= budget else "OVER"
+            print(
+                f"{case:38} {image:5} {cells / 1e6:7.1f}M {run.peak_mib:9.0f} "
+                f"{run.peak_mib * 2**20 / cells:10.1f} {budget:10.0f}  {verdict}",
+                flush=True,
+            )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=1, help="runs per command (median)")
     parser.add_argument("--quick", action="store_true", help="no 8 h log, no ROS 1 bag")
+    parser.add_argument("--memory", action="store_true", help="only the large-map memory table")
     args = parser.parse_args()
 
+    if args.memory:
+        CACHE.mkdir(parents=True, exist_ok=True)
+        robot = CACHE / "lms200-only.yaml"
+        robot.write_text(LASER_ROBOT)
+        laser = CACHE / f"laser_{_inputs_digest()}.csv"
+        _step("the laser log", laser, simulate(LASER_S, laser, robot=str(robot)))
+        memory_table(laser, str(robot), args.repeat)
+        return
     logs = prepare(args.quick)
     laser_robot = str(CACHE / "lms200-only.yaml")
     rows = [
@@ -336,6 +402,7 @@ def main() -> None:
         print(f"  OctoMap / gridmap: {octo / ours:.1f}x")
     script = str(ROOT / "bench" / "bench_json.py")
     subprocess.run(one_core([sys.executable, script, str(logs["mcap-json"])]), check=True)
+    memory_table(logs["laser"], laser_robot, args.repeat)
 
 
 if __name__ == "__main__":

@@ -520,13 +520,18 @@ def scan_matching() -> tuple[float, list[str]]:
     if taskset is not None:
         command = [taskset, "-c", "0", *command]
     subprocess.run(command, check=True, cwd=ROOT)
+    # then the SLAM benchmark's relations table, into the same page
+    subprocess.run([*command[:-1], command[-1].replace("scan_match.py", "slam_relations.py")],
+                   check=True, cwd=ROOT)  # fmt: skip
     seconds = time.perf_counter() - started
     return seconds, [
         "",
         "## Scan matching on the real logs",
         "",
-        "`bench/scan_match.py`, run by `make experiment` on one core: odometry, scan-matched "
-        "and reference tracks and their maps side by side on the same CARMEN logs, in "
+        "`bench/scan_match.py` and `bench/slam_relations.py`, run by `make experiment` on one "
+        "core: odometry, scan-matched and reference tracks and their maps side by side on the "
+        "same CARMEN logs, and the odometry, scan-matched and slam tracks scored on the SLAM "
+        "benchmark's relations beside the published figures, in "
         f"[scan-matching-results.md](scan-matching-results.md) ({seconds:.0f} s of this run).",
     ]
 

@@ -308,6 +308,12 @@ def write_doc(results: list[LogResult], sim: tuple[int, float] | None, path: Pat
         "![tracks and maps](images/scan-matching.png)",
         "",
     ]
+    # bench/slam_relations.py's section (the SLAM benchmark table) is its own: keep it
+    from slam_relations import kept_section
+
+    kept = kept_section(path)
+    if kept is not None:
+        text += [kept, ""]
     path.write_text("\n".join(text), encoding="utf-8")
 
 

@@ -30,6 +30,17 @@ class LimitError(InputFileError):
 _PIECE_CHARS = 1 << 22
 
 
+def too_many_beams(path: str, beams: int, line: int | None = None, where: str = "") -> LimitError:
+    """A scan of ``beams`` beams, above :data:`MAX_LASER_SAMPLES`; ``where`` places it in a
+    recording (``/scan at log time 1.2 s: ``), ``line`` in a text log."""
+    return LimitError(
+        path,
+        f"{where}a scan of {beams:,} beams, above gridmap's limit of {MAX_LASER_SAMPLES:,} beams "
+        "per laser (MAX_LASER_SAMPLES)",
+        line,
+    )
+
+
 def too_long(path: str, line: int) -> LimitError:
     return LimitError(
         path,

@@ -16,6 +16,7 @@ from gridmap_cli.cli.batch import batch
 from gridmap_cli.cli.build import build
 from gridmap_cli.cli.map_options import map_options
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
+from gridmap_cli.mapping.models.ray import RayParams
 from gridmap_cli.mapping.models.standard import StandardSonarParams
 from gridmap_cli.mapping.pipeline import BuildOptions
 from gridmap_cli.poses.odometry_error import OdometryError
@@ -114,6 +115,31 @@ def test_batch_scan_matched_and_slam_are_builds_maps(tmp_path: Path) -> None:
         assert (out / "room.png").read_bytes() == built.read_bytes(), pose
 
 
+def test_batch_error_aware_slam_maps_on_the_graphs_uncertainty_as_build_does(
+    tmp_path: Path,
+) -> None:
+    log = simulate_run(room_world(), [[2, 1.5], [10, 1.5], [10, 6.5], [2, 6.5], [2, 1.5]],
+                       drift=3.0)  # fmt: skip
+    log.metadata["robot"] = "p3at-lms200"
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    save_csv_log(log, logs / "room.csv")
+    # no --odometry-error: the pose graph's marginals are the pose uncertainty
+    args = ("--pose", "slam", "--mode", "error-aware", "--error-samples", "2",
+            "--map-mode", "scale", "-q")  # fmt: skip
+    code, _, err = run("batch", str(logs), "-o", str(tmp_path / "out"), *args)
+    assert code == 0, err
+    built = tmp_path / "built.png"
+    code, _, err = run("build", str(logs / "room.csv"), "-o", str(built), *args)
+    assert code == 0, err
+    plain = tmp_path / "standard.png"
+    code, _, err = run("build", str(logs / "room.csv"), "-o", str(plain), "--pose", "slam",
+                       "--map-mode", "scale", "-q")  # fmt: skip
+    assert code == 0, err
+    assert (tmp_path / "out" / "room.png").read_bytes() == built.read_bytes()
+    assert built.read_bytes() != plain.read_bytes()
+
+
 def test_every_option_that_changes_a_map_changes_its_key() -> None:
     base = BatchOptions()
     build = base.build
@@ -133,6 +159,7 @@ def test_every_option_that_changes_a_map_changes_its_key() -> None:
             ),
         ),
         dataclasses.replace(base, build=dataclasses.replace(build, error_samples=0)),
+        dataclasses.replace(base, build=dataclasses.replace(build, ray=RayParams(max_range_m=8.0))),
         dataclasses.replace(base, robot="p3dx"),
         dataclasses.replace(base, log_format="csv"),
         dataclasses.replace(base, pose="global"),
@@ -163,7 +190,7 @@ def test_every_option_that_changes_a_map_changes_its_key() -> None:
 @pytest.mark.parametrize(
     "changed",
     [("--no-echo-free", "0.5"), ("--sensors", "sonar[0-3]"), ("--start", "10"),
-     ("--end", "60"), ("--pose", "global"), ("--occupied", "0.7")],
+     ("--end", "60"), ("--pose", "global"), ("--occupied", "0.7"), ("--max-range", "3")],
 )  # fmt: skip
 def test_a_changed_option_rebuilds_and_the_same_one_skips(
     tmp_path: Path, changed: tuple[str, str]

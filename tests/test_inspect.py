@@ -21,6 +21,7 @@ from tests.readers.mcap_helpers import (
     sonar_range,
     static_tf,
 )
+from tests.readers.test_carmen_real import DATA as CARMEN
 from tests.readers.test_mcap_log import ros2_sonar_log, ros2_sonar_messages, write_json_log
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
@@ -536,3 +537,31 @@ def test_a_laserscans_range_is_shown_for_mcap(tmp_path: Path) -> None:
     assert d["build"]["lasers"] == [{"laser": "laser", "beams": 5, "min_range_m": 0.05,
                                      "max_range_m": 5.5, "range_from": "log"}]  # fmt: skip
     assert "  laser     laser: 5 beams, 0.05-5.5 m" in text_lines(path)
+
+
+def test_a_long_log_header_is_one_key_a_line_wrapped_to_the_text_width() -> None:
+    from gridmap_cli.describe.report import TEXT_WIDTH, header_lines
+
+    long = "the chain of the increments between 14541 ODOM lines, " * 4
+    lines = header_lines({"odometry": long.strip(), "skipped": "NEFF 910", "x": ""})
+    assert lines[0] == "Log header:"
+    assert all(len(line) <= TEXT_WIDTH for line in lines)
+    assert lines[1].startswith("  odometry  the chain of") and lines[2].startswith(" " * 12 + "b")
+    assert "  skipped   NEFF 910" in lines and "  x" in lines
+    # the wrapped lines hold the value, word for word
+    value = " ".join(line[12:] for line in lines[1:] if not line.startswith(("  skipped", "  x")))
+    assert value == long.strip()
+    assert header_lines({"robot": "p3at", "seed": "7"}) == ["Log header: robot: p3at, seed: 7"]
+
+
+@pytest.mark.skipif(not CARMEN.is_dir(), reason="../shared/data/carmen is not present")
+def test_a_carmen_logs_header_is_readable() -> None:
+    code, out, _ = run("inspect", str(CARMEN / "intel-corrected.log.gz"))
+    assert code == 0
+    lines = out.splitlines()
+    start = lines.index("Log header:")
+    block = lines[start + 1 : lines.index("", start)]
+    assert [line.split()[0] for line in block if not line.startswith("   ")] == [
+        "odometry", "truth", "carmen", "stamps", "frontlaser", "skipped",
+    ]  # fmt: skip
+    assert max(len(line) for line in lines) <= 100 + len(str(CARMEN))

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
 import pytest
 
+from gridmap_cli.poses.correlative import LikelihoodGrid, search
 from gridmap_cli.poses.loop_closure import ClosureParams, candidates
 from gridmap_cli.poses.pose_graph import Edge, PoseGraph, edge_residuals
 from gridmap_cli.poses.slam import SlamParams, keyframes
@@ -117,3 +119,59 @@ def test_keyframes_keep_the_ends_and_space_the_rest() -> None:
     nodes = keyframes(poses, SlamParams(keyframe_m=0.5))
     assert nodes[0] == 0 and nodes[-1] == 100 and len(nodes) == 21
     assert pytest.approx(np.diff(poses[nodes, 0]).min(), abs=1e-9) == 0.5
+
+
+def _room_outline(step_m: float = 0.05) -> np.ndarray:
+    """Wall points of an L-shaped room with a pillar: no symmetry that a match could confuse."""
+    corners = [(0, 0), (8, 0), (8, 3), (4, 3), (4, 7), (0, 7), (0, 0)]
+    walls = []
+    for (x0, y0), (x1, y1) in itertools.pairwise(corners):
+        n = max(2, int(math.hypot(x1 - x0, y1 - y0) / step_m))
+        walls.append(np.column_stack([np.linspace(x0, x1, n), np.linspace(y0, y1, n)]))
+    pillar = np.column_stack([np.full(20, 2.0), np.linspace(1.0, 2.0, 20)])
+    return np.vstack([*walls, pillar])
+
+
+def _moved_into(points: np.ndarray, pose: tuple[float, float, float]) -> np.ndarray:
+    """``points`` (target frame) as seen from ``pose``: the source whose true pose it is."""
+    x, y, th = pose
+    c, s = math.cos(th), math.sin(th)
+    d = points - np.array([x, y])
+    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+
+
+def test_the_correlative_search_finds_a_pose_metres_and_degrees_off() -> None:
+    target = _room_outline()
+    truth = (2.3, -1.7, math.radians(9.0))
+    source = _moved_into(target, truth)[::3]
+    grid = LikelihoodGrid(target, 0.05, 0.05, 5, 4.0)
+    found = search(grid, source, (0.0, 0.0, 0.0), 4.0, math.radians(15.0), math.radians(0.5), 0.5)
+    assert found is not None and found.score > 0.7
+    assert math.hypot(found.x_m - truth[0], found.y_m - truth[1]) < 0.08
+    assert abs(found.theta_rad - truth[2]) < math.radians(0.6)
+
+
+def test_branch_and_bound_gives_the_exhaustive_search_answer() -> None:
+    target = _room_outline()
+    source = _moved_into(target, (0.4, 0.3, math.radians(2.0)))[::4]
+    grid = LikelihoodGrid(target, 0.1, 0.1, 3, 1.0)
+    found = search(grid, source, (0.0, 0.0, 0.0), 1.0, math.radians(3.0), math.radians(1.0), 0.1)
+    assert found is not None
+    best = -1.0
+    offsets = np.array([(u, v) for u in range(-10, 11) for v in range(-10, 11)])
+    for k in range(-3, 4):
+        th = math.radians(k)
+        c, s = math.cos(th), math.sin(th)
+        moved = np.column_stack([c * source[:, 0] - s * source[:, 1],
+                                 s * source[:, 0] + c * source[:, 1]])  # fmt: skip
+        best = max(best, float(grid.score(0, grid.cells(moved), grid.offsets(offsets)).max()))
+    assert found.score == pytest.approx(best, abs=1e-6)
+
+
+def test_the_correlative_search_finds_nothing_where_nothing_matches() -> None:
+    target = _room_outline()
+    rng = np.random.default_rng(3)
+    clutter = rng.uniform(-20.0, -15.0, size=(200, 2))  # far from every wall
+    grid = LikelihoodGrid(target, 0.1, 0.1, 4, 2.0)
+    found = search(grid, clutter, (0.0, 0.0, 0.0), 2.0, math.radians(10.0), math.radians(1.0), 0.5)
+    assert found is None

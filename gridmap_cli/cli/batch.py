@@ -20,6 +20,7 @@ from gridmap_cli.cli.map_options import (
     error_samples_setting,
     image_format_option,
     map_options,
+    ray_params,
     sonar_params,
 )
 from gridmap_cli.errors import GridmapError, UsageError
@@ -99,7 +100,8 @@ def batch(
     map_mode: str,
     occupied: float,
     free: float,
-    no_echo_free: float,
+    no_echo_free: float | None,
+    max_range: float | None,
     pose: str,
     topics: ReadOptions,
     sensor_patterns: tuple[str, ...],
@@ -128,7 +130,7 @@ def batch(
     """
     started = time.perf_counter()
     options = _batch_options(image_format or "png", robot, log_format, resolution, mode,
-                             map_mode, occupied, free, no_echo_free, pose, topics,
+                             map_mode, occupied, free, no_echo_free, max_range, pose, topics,
                              sensor_patterns, start, end, odometry_file, coefficients,
                              trust_length, max_spread_deg, error_samples)  # fmt: skip
     if executor == "dask":
@@ -187,7 +189,8 @@ def _batch_options(
     map_mode: str,
     occupied: float,
     free: float,
-    no_echo_free: float,
+    no_echo_free: float | None,
+    max_range: float | None,
     pose: str,
     topics: ReadOptions,
     sensor_patterns: tuple[str, ...],
@@ -205,7 +208,7 @@ def _batch_options(
     check_map_outputs(Path(f"map.{image_format}"), map_mode, True)  # scale needs a PNG
     sonar = sonar_params(no_echo_free)
     error_aware, odometry_error = error_aware_settings(
-        mode, odometry_file, coefficients, trust_length, max_spread_deg
+        mode, odometry_file, coefficients, trust_length, max_spread_deg, pose == "slam"
     )
     samples = error_samples_setting(mode, error_samples)
     Selection.parse(sensor_patterns, start, end)  # bad patterns and times before any work
@@ -214,8 +217,8 @@ def _batch_options(
         if robot not in preset_names():
             robot = str(Path(robot).resolve())
     build = BuildOptions(resolution_m=resolution, mode=mode, sonar=sonar,
-                         error_aware=error_aware, odometry_error=odometry_error,
-                         error_samples=samples)  # fmt: skip
+                         ray=ray_params(no_echo_free, max_range), error_aware=error_aware,
+                         odometry_error=odometry_error, error_samples=samples)  # fmt: skip
     return BatchOptions(build=build, robot=robot, log_format=log_format, pose=pose,
                         topics=topics, sensors=sensor_patterns, start=start, end=end,
                         map_mode=map_mode, occupied=occupied, free=free,

@@ -40,8 +40,10 @@ from gridmap_cli.cli.map_options import (
     error_samples_setting,
     image_format_option,
     map_options,
+    ray_params,
     sonar_params,
 )
+from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import MixedLogsError, NotRecordingFolderError, UsageError
 from gridmap_cli.heap import TRIM_EVERY_BATCHES, TrimEvery, keep_scratch_memory, release_free_memory
 from gridmap_cli.mapping.pipeline import BuildOptions, build_map
@@ -56,6 +58,7 @@ from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, check_map_outputs, write_map
 
 if TYPE_CHECKING:
+    from gridmap_cli.poses.pose_belief import PoseBelief
     from gridmap_cli.poses.scan_match import ScanMatch
     from gridmap_cli.writers.preview import DrawnTrack
 
@@ -64,11 +67,17 @@ LASER_POSES = ("scan-matched", "slam")
 
 
 @click.command()
-@click.argument("logs", metavar="LOG...", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.argument(
+    "logs",
+    metavar="LOG...",
+    nargs=-1,
+    required=True,
+    type=click.Path(path_type=Path, readable=False),
+)
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="Map to write: an image (.png, .pgm or .bmp) with its YAML beside it, or an MCAP "
     "(.mcap) holding a nav_msgs/msg/OccupancyGrid on /map; - writes the image alone to standard "
     "output (with --fmt).",
@@ -76,7 +85,7 @@ LASER_POSES = ("scan-matched", "slam")
 @click.option(
     "-f",
     "basename",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="As map_saver_cli: write BASENAME.pgm (or --fmt) and BASENAME.yaml; instead of -o.",
 )
 @image_format_option(
@@ -134,7 +143,7 @@ def build(
     map_mode: str,
     occupied: float,
     free: float,
-    no_echo_free: float,
+    no_echo_free: float | None,
     pose: str,
     topics: ReadOptions,
     sensor_patterns: tuple[str, ...],
@@ -151,6 +160,7 @@ def build(
     scheduler: str | None,
     jobs: int,
     error_samples: int | None,
+    max_range: float | None,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -169,8 +179,9 @@ def build(
     check_thresholds(occupied, free)
     check_resolution(resolution)
     sonar = sonar_params(no_echo_free)
+    ray = ray_params(no_echo_free, max_range)
     error_aware, odometry_error = error_aware_settings(
-        mode, odometry_file, coefficients, trust_length, max_spread_deg
+        mode, odometry_file, coefficients, trust_length, max_spread_deg, pose == "slam"
     )
     samples = error_samples_setting(mode, error_samples)
     selection = Selection.parse(sensor_patterns, start, end)
@@ -208,7 +219,7 @@ def build(
                     read_options=dataclasses.replace(read_options, robot=None), pose=pose,
                     initial_pose=first, selection=selection,
                     robot_spec=_robot_spec(robot), options=BuildOptions(resolution_m=resolution,
-                                                                         sonar=sonar))
+                                                                         sonar=sonar, ray=ray))
             for log, first in zip(logs, placed, strict=True)
         ]  # fmt: skip
         if scheduler is not None:
@@ -223,21 +234,29 @@ def build(
     # a long log's readings stay in its file, read again for each pass, unless scan matching
     # or a time window needs them held
     stream = pose not in LASER_POSES and selection.start is None and selection.end is None
-    whole = _read_logs(logs, log_format, dataclasses.replace(read_options, stream=stream))
+    with reading(_names(logs), quiet):
+        whole = _read_logs(logs, log_format, dataclasses.replace(read_options, stream=stream))
     data = whole
     if robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
     match: ScanMatch | None = None
     slam_summary: dict[str, object] | None = None
+    belief: PoseBelief | None = None
     if pose == "scan-matched":
         from gridmap_cli.poses.scan_match import scan_matched_log  # scipy, small_gicp: only here
 
-        data, match = scan_matched_log(data, robot_desc)
+        with StageBars(quiet) as bars:
+            data, match = scan_matched_log(data, robot_desc, progress=bars)
     elif pose == "slam":
         from gridmap_cli.poses.slam import slam_corrected_log  # gtsam: only here
 
-        data, slam = slam_corrected_log(data, robot_desc)
+        with StageBars(quiet) as bars:
+            data, slam = slam_corrected_log(data, robot_desc, progress=bars)
         slam_summary = slam.summary()
+        if mode == "error-aware":  # the graph's marginals and draws, not the odometry's
+            from gridmap_cli.poses.pose_belief import slam_belief
+
+            belief = slam_belief(slam, samples, BuildOptions.error_seed)
         if slam.warning:
             warn((f"--pose slam: {slam.warning}",), quiet)
     else:
@@ -251,10 +270,12 @@ def build(
         resolution_m=resolution,
         mode=mode,
         sonar=sonar,
+        ray=ray,
         error_aware=error_aware,
         odometry_error=odometry_error,
         error_samples=samples,
         jobs=jobs,
+        pose_belief=belief,
     )
     with progress_bar(data.reading_count, quiet, "mapping") as bar:
         trim = TrimEvery(TRIM_EVERY_BATCHES)
@@ -296,6 +317,11 @@ def build(
     if slam_summary is not None:
         summary["slam"] = slam_summary
     report(summary, summary_line(summary), as_json, quiet)
+
+
+def _names(logs: tuple[Path, ...]) -> str:
+    """The logs as the reading stage names them."""
+    return logs[0].name if len(logs) == 1 else f"{len(logs)} logs"
 
 
 def _read_logs(logs: tuple[Path, ...], log_format: str | None, options: ReadOptions) -> RangeLog:

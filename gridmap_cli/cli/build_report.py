@@ -12,7 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.cli.common import json_text
-from gridmap_cli.mapping.grid import OccupancyMap
+from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
 from gridmap_cli.mapping.pipeline import BuildResult
 
 #: Share of the observed cells between the thresholds above which a trinary map warns.
@@ -22,10 +22,11 @@ UNDECIDED_SHARE = 0.5
 def undecided_note(prob: npt.NDArray[np.float64], occupied: float, free: float) -> tuple[str, ...]:
     """A warning when most observed cells (not NaN) of ``prob`` (rows, cols) fall between the
     thresholds, which a trinary image draws as unknown: the error-aware map of a drifting log."""
-    seen = prob[~np.isnan(prob)]
-    if seen.size == 0:
+    spec = GridSpec(0.0, 0.0, 1.0, prob.shape[1], prob.shape[0])
+    observed, high, low = OccupancyMap(spec, prob).cell_counts(occupied, free)
+    if observed == 0:
         return ()
-    share = float(np.count_nonzero((seen > free) & (seen < occupied))) / seen.size
+    share = float(observed - high - low) / observed
     if share <= UNDECIDED_SHARE:
         return ()
     return (
@@ -37,8 +38,8 @@ def undecided_note(prob: npt.NDArray[np.float64], occupied: float, free: float) 
 
 def _map_and_cells(omap: OccupancyMap, occupied: float, free: float) -> dict[str, Any]:
     """The summary's "map" (size, cell size in m, origin) and "cells" (counts by threshold)."""
-    spec, prob = omap.spec, omap.prob
-    known = ~np.isnan(prob)
+    spec = omap.spec
+    observed, high, low = omap.cell_counts(occupied, free)
     return {
         "map": {
             "width": spec.width,
@@ -47,9 +48,9 @@ def _map_and_cells(omap: OccupancyMap, occupied: float, free: float) -> dict[str
             "origin": [spec.origin_x_m, spec.origin_y_m, 0.0],
         },
         "cells": {
-            "observed": int(known.sum()),
-            "occupied": int((prob[known] >= occupied).sum()),
-            "free": int((prob[known] <= free).sum()),
+            "observed": observed,
+            "occupied": high,
+            "free": low,
         },
     }
 
@@ -93,7 +94,8 @@ def summary_line(s: dict[str, Any]) -> str:
         sl = s["slam"]
         matched = (
             f"; slam: {sl['closures_accepted']:,} loop closures accepted, "
-            f"{sl['closures_rejected']:,} rejected"
+            f"{sl['closures_rejected']:,} rejected, {sl['fallbacks']:,} scans fell back to "
+            "odometry"
         )
     skipped = ""
     if r["skipped"]:

@@ -19,6 +19,7 @@ from gridmap_cli.cli.common import (
     read_input,
     selection_options,
 )
+from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.readers import STDIN_NAME, format_names
@@ -31,11 +32,11 @@ if TYPE_CHECKING:
 
 
 @click.command()
-@click.argument("log", type=click.Path(path_type=Path))
+@click.argument("log", type=click.Path(path_type=Path, readable=False))
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="Odometry-error YAML to write (what build takes); default: print only.",
 )
 @click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
@@ -114,10 +115,11 @@ def calibrate(
     if output is not None:
         check_output(output, force)
         check_output_folder(output)
-    data = read_input([log], log_format)
+    with reading(log.name, quiet):
+        data = read_input([log], log_format)
     data = apply_selection(data, selection, None, need_readings=pose != "odometry").log
     if pose == "scan-matched":
-        data = _scan_matched(log, data, robot)
+        data = _scan_matched(log, data, robot, quiet)
     result = calibrate_log(data, window_m, math.radians(window_deg), sonar_error)
     if output is not None:
         save_odometry_error(
@@ -138,14 +140,16 @@ def calibrate(
         click.echo(_calibration_table(STDIN_NAME if log == STDIO else str(log), result, output))
 
 
-def _scan_matched(path: Path, data: RangeLog, robot: str | None) -> RangeLog:
+def _scan_matched(path: Path, data: RangeLog, robot: str | None, quiet: bool) -> RangeLog:
     """The log with its odometry replaced by the scan-matched track (one pose per scan), the
     track whose residual drift against the reference is then calibrated."""
     from gridmap_cli.poses.scan_match import match_log
     from gridmap_cli.robot import load_robot, robot_from_log
 
     description = load_robot(robot) if robot else robot_from_log(path, data.metadata)
-    return dataclasses.replace(data, poses=match_log(data, description).track)
+    with StageBars(quiet) as bars:
+        track = match_log(data, description, progress=bars).track
+    return dataclasses.replace(data, poses=track)
 
 
 def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:

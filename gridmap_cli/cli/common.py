@@ -8,6 +8,8 @@ import functools
 import json
 import math
 import numbers
+import os
+import re
 import shutil
 import sys
 import tempfile
@@ -86,8 +88,22 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
 
 def one_line(text: str) -> str:
     """``text`` with its line breaks (and runs of spaces around them) folded into one space:
-    every error is one line, whatever a library put in its message."""
-    return " ".join(part.strip() for part in text.splitlines() if part.strip())
+    every error is one line, whatever a library put in its message; numpy scalars' reprs
+    (``np.float64(nan)``, from a tuple or ``!r``) as the plain numbers they are."""
+    return plain_numbers(" ".join(part.strip() for part in text.splitlines() if part.strip()))
+
+
+#: numpy 2's repr of a scalar: ``np.float64(1.5)``, ``np.int32(3)``, ``np.str_('a')``.
+_NUMPY_REPR = re.compile(
+    r"\bnp\.(?:float|int|uint|bool|str|bytes|complex|longdouble)\w*\(([^()]*)\)"
+)
+
+_NUMPY_BOOL = re.compile(r"\bnp\.(True|False)_")
+
+
+def plain_numbers(text: str) -> str:
+    """``text`` with every numpy scalar repr replaced by its value (``nan``, ``1.5``)."""
+    return _NUMPY_BOOL.sub(r"\1", _NUMPY_REPR.sub(r"\1", text))
 
 
 def debug_enabled() -> bool:
@@ -130,14 +146,31 @@ def progress_bar(total: int, quiet: bool, desc: str) -> tqdm[Any] | _NoBar:
 STDIO = Path("-")
 
 
-def check_input(log: Path) -> None:
-    """A log must exist: a file, or a folder (rosbag2); ``-`` is standard input."""
+def check_input(log: Path, folder_ok: bool = True) -> None:
+    """A log must exist and be readable: a file, or a folder (rosbag2) when ``folder_ok``;
+    ``-`` is standard input. What cannot be read is bad data (exit 1), as a missing file is,
+    never a usage error: click's own readability check is off on every input path."""
     if log == STDIO:
         return
     if not log.exists():
+        if log.is_symlink():
+            raise InputFileError(
+                log, f"a symbolic link to {os.readlink(log)}, which does not exist"
+            )
         raise InputFileError(log, "no such file")
-    if not (log.is_file() or log.is_dir()):
+    if log.is_dir():
+        if not folder_ok:
+            raise InputFileError(log, "a directory, where a file is expected")
+        if not os.access(log, os.R_OK | os.X_OK):
+            raise InputFileError(log, "cannot read the folder: permission denied")
+        return
+    if not log.is_file():
         raise InputFileError(log, "not a regular file or folder")
+    try:
+        with open(log, "rb"):
+            pass
+    except OSError as exc:
+        raise InputFileError(log, f"cannot read: {exc.strerror or exc}") from exc
 
 
 def read_input(
@@ -268,7 +301,7 @@ def selection_options(sensors: bool = True) -> Callable[[Callable[P, R]], Callab
 def warn(notes: tuple[str, ...], quiet: bool = False) -> None:
     if not quiet:
         for note in notes:
-            click.echo(f"Warning: {note}", err=True)
+            click.echo(f"Warning: {one_line(note)}", err=True)
 
 
 def _plain(value: Any) -> Any:

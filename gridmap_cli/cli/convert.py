@@ -25,8 +25,8 @@ from gridmap_cli.writers.mcap_log import ENCODINGS
 
 
 @click.command()
-@click.argument("log", type=click.Path(path_type=Path))
-@click.argument("output", type=click.Path(path_type=Path))
+@click.argument("log", type=click.Path(path_type=Path, readable=False))
+@click.argument("output", type=click.Path(path_type=Path, readable=False))
 @click.option(
     "--to",
     "out_format",

@@ -17,10 +17,11 @@ from gridmap_cli.cli.common import (
     selection_options,
     warn,
 )
-from gridmap_cli.errors import InputFileError, UsageError
+from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
+from gridmap_cli.poses.sync import POSE_SOURCES
 from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.writers import check_output
@@ -31,23 +32,24 @@ if TYPE_CHECKING:
     # scipy.ndimage (0.3 s) comes with it: imported when the command runs
     from gridmap_cli.evaluation.evaluate import Evaluation, ProbabilityMap
     from gridmap_cli.mapping.grid import GridSpec
+    from gridmap_cli.poses.pose_uncertainty import PoseUncertainty
     from gridmap_cli.records import RangeLog
     from gridmap_cli.robot import RobotDescription
 
 
 @click.command()
-@click.argument("map_yaml", metavar="MAP.yaml", type=click.Path(path_type=Path))
+@click.argument("map_yaml", metavar="MAP.yaml", type=click.Path(path_type=Path, readable=False))
 @click.option(
     "--truth",
     "truth_yaml",
     required=True,
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="Ground-truth world map (map_server YAML, e.g. samples/worlds/*.yaml).",
 )
 @click.option(
     "--log",
     "log_path",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="The log the map was built from (with ground truth): places the odometry frame in the "
     "world and limits the scores to the cells its sensors could have sensed.",
 )
@@ -57,24 +59,31 @@ if TYPE_CHECKING:
     help="Robot preset, YAML or ARIA .p file for the sensors of --log; default: its '# robot:'.",
 )
 @click.option(
+    "--pose",
+    type=click.Choice((*POSE_SOURCES, "slam")),
+    help="The track the map was built with (build's --pose; default odometry): global puts the "
+    "map in the world frame; odometry, scan-matched and slam in the odometry frame, placed by "
+    "--log. --spread-plot draws that track's pose spread: the odometry error along the "
+    "odometry or the scan-matched track, or the pose graph's own uncertainty (slam).",
+)
+@click.option(
     "--frame",
     type=click.Choice(["odometry", "world"]),
-    default="odometry",
-    show_default=True,
-    help="Frame of the map: odometry (built from odometry: the frame starts at the log's first "
-    "true pose, needs --log) or world (built with --pose global).",
+    help="Frame of the map: odometry (built from odometry, scan-matched or slam poses: the "
+    "frame starts at the log's first true pose, needs --log) or world (built with --pose "
+    "global)  [default: from --pose, else odometry]",
 )
 @selection_options()
 @click.option("--json", "as_json", is_flag=True, help="Print the scores as JSON on stdout.")
 @click.option("-q", "--quiet", is_flag=True, help="No table on stdout (with --plot: just draw).")
 @click.option(
     "--plot",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="Write a PNG: the map with the true walls, and a reliability diagram (needs matplotlib).",
 )
 @click.option(
     "--spread-plot",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="Write a PNG of where the map's uncertainty comes from: per cell, the smallest "
     "position spread (and its heading spread) of the pose at which a reading of --log crossed "
     "it, the pose covariance carried along the odometry from --odometry-error (needs --log and "
@@ -83,7 +92,7 @@ if TYPE_CHECKING:
 @click.option(
     "--odometry-error",
     "odometry_file",
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="--spread-plot: the odometry-error file the map was built with (gridmap calibrate).",
 )
 @click.option("--force", is_flag=True, help="Overwrite existing --plot / --spread-plot outputs.")
@@ -94,7 +103,8 @@ def evaluate(
     log_path: Path | None,
     log_format: str | None,
     robot: str | None,
-    frame: str,
+    pose: str | None,
+    frame: str | None,
     sensor_patterns: tuple[str, ...],
     start: str | None,
     end: str | None,
@@ -113,9 +123,9 @@ def evaluate(
     region scored is the world cells the log's sensors could have sensed from the true path;
     without it, the whole world map.
 
-    A map built from odometry is in the odometry frame, which starts at the log's first true
-    pose: --log places it in the world. A map built with --pose global is in the world frame
-    already: give --frame world.
+    A map built from odometry (or scan-matched or slam poses) is in the odometry frame, which
+    starts at the log's first true pose: --log places it in the world. A map built with --pose
+    global is in the world frame already: give --pose global (or --frame world).
     """
     from gridmap_cli.evaluation import evaluate as ev
     from gridmap_cli.poses.sync import sensors_for_log
@@ -125,6 +135,7 @@ def evaluate(
             raise UsageError(
                 f"{given}: {what} must be a map's YAML file (the image is named inside it)"
             )
+    pose, frame = _pose_and_frame(pose, frame)
     if frame == "odometry" and log_path is None:
         raise UsageError(
             "a map in the odometry frame needs --log (its first true pose places the frame in "
@@ -133,7 +144,14 @@ def evaluate(
     selection = Selection.parse(sensor_patterns, start, end)
     if selection and log_path is None:
         raise UsageError("--sensors, --start and --end choose part of --log; give --log")
-    if spread_plot is not None and (log_path is None or odometry_file is None):
+    if spread_plot is not None and pose == "slam" and log_path is None:
+        raise UsageError("--spread-plot draws the pose spread of the readings of --log: give it")
+    if spread_plot is not None and pose == "slam" and odometry_file is not None:
+        raise UsageError(
+            "--pose slam: the pose spread is the pose graph's own; --odometry-error is for "
+            "odometry and scan-matched maps"
+        )
+    if spread_plot is not None and pose != "slam" and (log_path is None or odometry_file is None):
         raise UsageError(
             "--spread-plot draws the pose spread of the readings of --log under the odometry "
             "error of --odometry-error FILE: give both"
@@ -148,10 +166,9 @@ def evaluate(
     if log_path is not None:
         check_input(log_path)
     if odometry_file is not None:
-        check_input(odometry_file)
+        check_input(odometry_file, folder_ok=False)
     for given in (map_yaml, truth_yaml):
-        if not given.is_file():
-            raise InputFileError(given, "no such file" if not given.exists() else "not a file")
+        check_input(given, folder_ok=False)
     for out, flag in ((plot, "--plot"), (spread_plot, "--spread-plot")):
         if out is None:
             continue
@@ -176,6 +193,9 @@ def evaluate(
         log_world = data.metadata.get("world")
         if robot_desc is None:
             robot_desc = robot_from_log(log_path, data.metadata)
+        if spread_plot is not None:
+            placed, uncertainty = _pose_spread(data, robot_desc, pose, odometry)
+            readings_log = apply_selection(placed, selection, robot_desc).log
         selected = apply_selection(data, selection, robot_desc)
         warn(selected.notes)
         data = selected.log
@@ -185,9 +205,11 @@ def evaluate(
         if frame == "odometry":
             map_to_world = ev.odometry_frame_in_world(data)
         region = ev.sensed_region(truth.world, true_path, sensors)
-        if odometry is not None:
+        if spread_plot is not None:
             # robot_desc is None for logs that describe their own sensors (CARMEN)
-            spread = _spread_in_world(data, robot_desc, odometry, pmap, truth.spec, map_to_world)
+            spread = _spread_in_world(
+                readings_log, robot_desc, uncertainty, pmap, truth.spec, map_to_world
+            )
     warn(
         ev.check_comparable(
             pmap, truth.spec, map_to_world, str(map_yaml), str(truth_yaml), log_world
@@ -224,6 +246,7 @@ def evaluate(
             "map": str(map_yaml),
             "truth": str(truth_yaml),
             "log": str(log_path) if log_path else None,
+            "pose": pose,
             "frame": frame,
             "map_to_world": list(map_to_world),
             "region": "sensed from the true path" if log_path else "whole world",
@@ -238,10 +261,45 @@ def evaluate(
         click.echo(f"gridmap: pose-spread plot written to {spread_plot}", err=True)
 
 
+def _pose_and_frame(pose: str | None, frame: str | None) -> tuple[str, str]:
+    """--pose and --frame, each from the other when not given; a usage error when they
+    disagree."""
+    if pose is None:
+        pose = "global" if frame == "world" else "odometry"
+    wanted = "world" if pose == "global" else "odometry"
+    if frame is not None and frame != wanted:
+        raise UsageError(
+            f"a map built with --pose {pose} is in the {wanted} frame, not --frame {frame}"
+        )
+    return pose, wanted
+
+
+def _pose_spread(
+    log: RangeLog, robot: RobotDescription | None, pose: str, odometry: OdometryError | None
+) -> tuple[RangeLog, PoseUncertainty]:
+    """``log`` with the poses the map was built with, and their covariance as build's
+    error-aware mode takes it: the pose graph's (slam), or the odometry error carried along
+    the odometry or the scan-matched track."""
+    from gridmap_cli.poses.pose_uncertainty import StepNoise, propagate
+
+    if pose == "slam":
+        from gridmap_cli.poses.pose_belief import slam_belief
+        from gridmap_cli.poses.slam import slam_corrected_log  # gtsam: only here
+
+        placed, result = slam_corrected_log(log, robot)
+        return placed, slam_belief(result).uncertainty
+    if pose == "scan-matched":
+        from gridmap_cli.poses.scan_match import scan_matched_log
+
+        log, _ = scan_matched_log(log, robot)
+    assert odometry is not None  # the usage checks ask for it
+    return log, propagate(log.poses, StepNoise.of(odometry))
+
+
 def _spread_in_world(
     log: RangeLog,
     robot: RobotDescription | None,
-    odometry: OdometryError,
+    uncertainty: PoseUncertainty,
     pmap: ProbabilityMap,
     world: GridSpec,
     map_to_world: tuple[float, float, float],
@@ -250,11 +308,9 @@ def _spread_in_world(
     position spread (m) and the heading spread (deg), shape ``world.shape``."""
     from gridmap_cli.evaluation import evaluate as ev
     from gridmap_cli.evaluation.spread_map import pose_spread_map
-    from gridmap_cli.poses.pose_uncertainty import StepNoise, propagate
     from gridmap_cli.poses.sync import synchronise
 
     readings, _ = synchronise(log, robot)
-    uncertainty = propagate(log.poses, StepNoise.of(odometry))
     spread = pose_spread_map(pmap.spec, readings, uncertainty)
     placed = [
         ev.map_in_world(ev.ProbabilityMap(pmap.spec, values, 0.5), world, map_to_world)

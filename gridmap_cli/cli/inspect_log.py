@@ -3,26 +3,38 @@
 from __future__ import annotations
 
 import dataclasses
+import io
 import sys
 from pathlib import Path
 
 import click
 
 from gridmap_cli.cli.common import (
+    STDIO,
     check_input,
     handle_errors,
     json_text,
+    one_line,
+    plain_numbers,
     selection_options,
     topic_options,
 )
+from gridmap_cli.cli.progress import reading
+from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.selection import Selection
-from gridmap_cli.readers import format_names, resolve_format
+from gridmap_cli.readers import STDIN_NAME, format_names, held_text, resolve_format
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot
 
 
 @click.command()
-@click.argument("logs", metavar="LOG...", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.argument(
+    "logs",
+    metavar="LOG...",
+    nargs=-1,
+    required=True,
+    type=click.Path(path_type=Path, readable=False),
+)
 @click.option("--robot", help="Robot preset, robot YAML file or ARIA .p file.")
 @click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
 @topic_options
@@ -39,8 +51,9 @@ def inspect(
     end: str | None,
     as_json: bool,
 ) -> None:
-    """Describe LOG (CSV, ARIA .2d, MCAP, ROS 1 bag, rosbag2 folder, CARMEN) and what build
-    would make of it; several ROS recordings are described as the one build would merge.
+    """Describe LOG (CSV, ARIA .2d, MCAP, ROS 1 bag, rosbag2 folder, CARMEN; - reads a text log
+    from standard input) and what build would make of it; several ROS recordings are described
+    as the one build would merge.
 
     Channels or columns, message counts, time span, rates, distance travelled, sensors and
     their mounting poses, and the topics, frames and robot build would use. Exits 1, after
@@ -53,13 +66,25 @@ def inspect(
     robot_desc = load_robot(robot) if robot else None
     for log in logs:
         check_input(log)
-    fmt = resolve_format(logs[0], log_format)
     read_options = dataclasses.replace(topics, robot=robot_desc)
-    if fmt.sources is None:
+    held = None
+    if STDIO in logs:  # as build reads it: a text log, its format from --format or its head
+        if len(logs) > 1:
+            raise UsageError("- (standard input) is one log; it cannot be read with others")
+        data = sys.stdin.buffer.read()
+        fmt, text = held_text(data, STDIN_NAME, log_format)
         read_options.refuse_topic_flags(fmt.name.upper())
-    description = describe_log(logs, fmt, read_options, selection)
-    click.echo(json_text(description) if as_json else render_text(description))
+        assert fmt.text_reader is not None  # held_text refuses the others
+        held = (fmt.text_reader(io.StringIO(text), STDIN_NAME, read_options), len(data))
+        logs = (Path(STDIN_NAME),)
+    else:
+        fmt = resolve_format(logs[0], log_format)
+        if fmt.sources is None:
+            read_options.refuse_topic_flags(fmt.name.upper())
+    with reading(logs[0].name if len(logs) == 1 else f"{len(logs)} logs", quiet=False):
+        description = describe_log(logs, fmt, read_options, selection, held)
+    click.echo(json_text(description) if as_json else plain_numbers(render_text(description)))
     if not description["build"]["ready"]:
         # the description is printed; the verdict is the line build would print, and its exit
-        click.echo(f"Error: {description['build']['problem']}", err=True)
+        click.echo(f"Error: {one_line(description['build']['problem'])}", err=True)
         sys.exit(1)

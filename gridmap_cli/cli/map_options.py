@@ -17,9 +17,10 @@ from typing import Any, TypeVar
 
 import click
 
-from gridmap_cli.cli.common import selection_options, topic_options
+from gridmap_cli.cli.common import check_input, selection_options, topic_options
 from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
+from gridmap_cli.mapping.models.ray import LASER_NO_ECHO_FREE_M, RayParams
 from gridmap_cli.mapping.models.standard import StandardSonarParams
 from gridmap_cli.mapping.pipeline import MAPPING_MODES, MAX_RESOLUTION_M, BuildOptions
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
@@ -98,9 +99,19 @@ free_option = click.option(
 no_echo_free_option = click.option(
     "--no-echo-free",
     type=float,
-    default=StandardSonarParams.no_echo_free_m,
-    show_default=True,
-    help="Metres of free space a max-range (no echo) reading clears; 0 ignores them.",
+    default=None,
+    metavar="METRES",
+    help="Metres of free space a max-range (no echo) reading clears, at most the sensor's "
+    f"range; 0 ignores them [default: sonars {StandardSonarParams.no_echo_free_m:g}, lasers "
+    f"{LASER_NO_ECHO_FREE_M:g}].",
+)
+max_range_option = click.option(
+    "--max-range",
+    type=float,
+    default=None,
+    metavar="METRES",
+    help="Lasers: cut longer readings to free space up to METRES (no wall at their end); "
+    "they never set the map's bounds [default: the laser's own range].",
 )
 pose_option = click.option(
     "--pose",
@@ -117,7 +128,7 @@ ERROR_AWARE_OPTIONS = (
     click.option(
         "--odometry-error",
         "odometry_file",
-        type=click.Path(path_type=Path),
+        type=click.Path(path_type=Path, readable=False),
         help="Error-aware mode: odometry-error YAML (what gridmap calibrate writes).",
     ),
     click.option(
@@ -167,7 +178,7 @@ def error_samples_setting(mode: str, error_samples: int | None) -> int:
 
 
 #: Every map option, in help order: the command receives robot, log_format, resolution, mode,
-#: map_mode, occupied, free, no_echo_free, pose, topics (a ReadOptions), sensor_patterns,
+#: map_mode, occupied, free, no_echo_free, max_range, pose, topics (a ReadOptions), sensor_patterns,
 #: start, end, odometry_file, coefficients, trust_length and max_spread_deg.
 MAP_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     robot_option,
@@ -178,6 +189,7 @@ MAP_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     occupied_option,
     free_option,
     no_echo_free_option,
+    max_range_option,
     pose_option,
     topic_options,
     selection_options(),
@@ -211,12 +223,28 @@ def check_resolution(resolution: float) -> None:
         )
 
 
-def sonar_params(no_echo_free: float) -> StandardSonarParams:
-    """The standard model's settings from --no-echo-free."""
+def sonar_params(no_echo_free: float | None) -> StandardSonarParams:
+    """The standard model's settings from --no-echo-free (None: the model's default)."""
     try:
-        return StandardSonarParams(no_echo_free_m=no_echo_free)
+        return StandardSonarParams(
+            no_echo_free_m=StandardSonarParams.no_echo_free_m if no_echo_free is None
+            else no_echo_free
+        )  # fmt: skip
     except ValueError as exc:
-        raise UsageError(str(exc)) from exc
+        raise UsageError(f"--no-echo-free: {exc}") from exc
+
+
+def ray_params(no_echo_free: float | None, max_range: float | None) -> RayParams:
+    """The ray (laser) model's settings from --no-echo-free and --max-range (None: defaults)."""
+    if max_range is not None and not (max_range > 0.0 and math.isfinite(max_range)):
+        raise UsageError(f"--max-range must be a positive number of metres, got {max_range}")
+    try:
+        return RayParams(
+            no_echo_free_m=LASER_NO_ECHO_FREE_M if no_echo_free is None else no_echo_free,
+            max_range_m=math.inf if max_range is None else max_range,
+        )
+    except ValueError as exc:
+        raise UsageError(f"--no-echo-free: {exc}") from exc
 
 
 def error_aware_settings(
@@ -225,9 +253,11 @@ def error_aware_settings(
     coefficients: tuple[str, ...],
     trust_length: float,
     max_spread_deg: float = math.degrees(ErrorAwareParams.max_heading_spread_rad),
+    graph_uncertainty: bool = False,
 ) -> tuple[ErrorAwareParams, OdometryError | None]:
     """The error-aware model's settings from :data:`ERROR_AWARE_OPTIONS` (usage errors before
-    any reading)."""
+    any reading). ``graph_uncertainty``: the pose uncertainty comes from a pose graph
+    (``--pose slam``), so the odometry error is optional (only its sonar range error is used)."""
     ctx = click.get_current_context()
     trust_given = any(
         ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT
@@ -241,7 +271,7 @@ def error_aware_settings(
                 "--max-heading-spread apply to --mode error-aware"
             )
         return ErrorAwareParams(), None
-    if not given:
+    if not given and not graph_uncertainty:
         raise UsageError(
             "--mode error-aware needs the odometry error: --odometry-error FILE (gridmap "
             "calibrate writes one) or --odometry-coefficient NAME=VALUE"
@@ -267,6 +297,8 @@ def error_aware_settings(
             overrides[name] = float(text)
         except ValueError:
             raise UsageError(f"--odometry-coefficient {item!r}: {text!r} is not a number") from None
+    if odometry_file is not None:
+        check_input(odometry_file, folder_ok=False)
     model = load_odometry_error(odometry_file) if odometry_file is not None else OdometryError()
     try:
         return params, dataclasses.replace(model, **overrides)

@@ -10,13 +10,14 @@ import numpy as np
 
 from gridmap_cli.cli.common import (
     STDIO,
+    check_input,
     check_not_folder,
     check_output_folder,
     handle_errors,
     json_text,
     stdout_file,
 )
-from gridmap_cli.errors import InputFileError, UsageError
+from gridmap_cli.errors import UsageError
 from gridmap_cli.robot import load_robot
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.convert import output_writer, write_log, writer_names
@@ -24,13 +25,13 @@ from gridmap_cli.writers.mcap_log import ENCODINGS
 
 
 @click.command()
-@click.argument("world", type=click.Path(path_type=Path))
-@click.argument("path_file", metavar="PATH", type=click.Path(path_type=Path))
+@click.argument("world", type=click.Path(path_type=Path, readable=False))
+@click.argument("path_file", metavar="PATH", type=click.Path(path_type=Path, readable=False))
 @click.option(
     "-o",
     "--output",
     required=True,
-    type=click.Path(path_type=Path),
+    type=click.Path(path_type=Path, readable=False),
     help="Log to write: .csv (gridmap CSV), .2d (ARIA with sonar lines) or .mcap.",
 )
 @click.option(
@@ -95,8 +96,7 @@ def simulate(
         raise UsageError("-o - writes the log to standard output; --json would mix with it")
     robot_desc = load_robot(robot)
     for given in (world, path_file):
-        if not given.is_file():
-            raise InputFileError(given, "not a regular file" if given.exists() else "no such file")
+        check_input(given, folder_ok=False)
     if output != STDIO:
         check_output(output, force)
         check_output_folder(output)

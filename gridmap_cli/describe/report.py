@@ -4,6 +4,7 @@ their sections together in the order a person reads them.
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -37,21 +38,25 @@ def describe_log(
     fmt: LogFormat,
     options: ReadOptions,
     selection: Selection | None = None,
+    held: tuple[RangeLog, int] | None = None,
 ) -> dict[str, Any]:
     """Describe a log of any format (several ROS recordings as one, as build reads them), or the
-    part of it ``selection`` chooses. ``fmt`` is the format of the first.
+    part of it ``selection`` chooses. ``fmt`` is the format of the first. ``held`` is a log
+    already read (standard input) and its size in bytes; ``paths`` then holds its name.
 
     Raises what the reader raises for a broken CSV/ARIA file, and what
     :func:`~gridmap_cli.mapping.selection.apply_selection` raises for a selection the log cannot
     meet.
     """
     path = paths[0]
-    size = sum(_bytes(p) for p in paths)
+    size = held[1] if held is not None else sum(_bytes(p) for p in paths)
     out: dict[str, Any] = {"file": " + ".join(map(str, paths)), "format": fmt.name, "bytes": size}
     problem: str | None = None
     mcap: RecordingRead | None = None
-    sources = recording_sources(paths, fmt.name if len(paths) == 1 else None)
-    if sources is not None:
+    sources = None if held else recording_sources(paths, fmt.name if len(paths) == 1 else None)
+    if held is not None:
+        log = held[0]
+    elif sources is not None:
         mcap = read_recording(sources, options, strict=False, every_topic=True)
         problem = None if mcap.problem is None else str(mcap.problem)
         log = mcap.log
@@ -102,6 +107,29 @@ def _log_part(
     }
 
 
+#: Width the text description's long lines are wrapped to.
+TEXT_WIDTH = 100
+
+
+def header_lines(metadata: dict[str, str]) -> list[str]:
+    """The log's header as text: one line when it fits in :data:`TEXT_WIDTH` columns
+    ("Log header: robot: p3at, seed: 7"); else one key a line, its value wrapped beside it (a
+    CARMEN log's notes on its odometry, stamps and laser run to 600 characters)."""
+    line = "Log header: " + ", ".join(f"{k}: {v}" for k, v in metadata.items())
+    if len(line) <= TEXT_WIDTH:
+        return [line]
+    key_width = max(len(k) for k in metadata)
+    indent = " " * (2 + key_width + 2)
+    lines = ["Log header:"]
+    for key, value in metadata.items():
+        wrapped = textwrap.wrap(
+            str(value), TEXT_WIDTH, initial_indent=f"  {key:<{key_width}}  ",
+            subsequent_indent=indent, break_on_hyphens=False,
+        ) or [f"  {key}"]  # fmt: skip
+        lines += wrapped
+    return lines
+
+
 def render_text(d: dict[str, Any]) -> str:
     """The description as text for people, one section per subject."""
     head = f"{d['file']}: {d['format'].upper()} log, {size_text(d['bytes'])}"
@@ -117,6 +145,6 @@ def render_text(d: dict[str, Any]) -> str:
     lines += readings_lines(log["readings"])
     lines += sensor_lines(log["sensors"])
     if log["metadata"]:
-        lines += ["", "Log header: " + ", ".join(f"{k}: {v}" for k, v in log["metadata"].items())]
+        lines += ["", *header_lines(log["metadata"])]
     lines += build_lines(d)
     return "\n".join(lines)

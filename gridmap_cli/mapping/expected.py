@@ -222,9 +222,11 @@ def cast(
     if isinstance(entry.model, RayModel):
         return _cast_rays(grid, entry, entry.model, motion, resolution_m)
     updates = 0
+    whole = compiled() is not None  # the kernel holds nothing per cone: a chunk in one call
     for owner, cones in zip(entry.owner, entry.sectors, strict=True):
         keys = np.zeros_like(owner) if motion is None else owner
-        for start, stop in _batches(owner.shape[0]):
+        n = owner.shape[0]
+        for start, stop in [(0, n)] if whole else _batches(n):
             sl = slice(start, stop)
             moves = _IDENTITY if motion is None else motion
             updates += cast_sectors(grid, cones.take(sl), keys[sl], moves)
@@ -246,7 +248,7 @@ def cast_sectors(grid: LogOddsAccumulator, cones: Cones, owner: I64, motion: Mot
             spec.origin_x_m, spec.origin_y_m, spec.resolution_m, spec.width, spec.height,
             *(f64(getattr(cones, f.name)) for f in dataclasses.fields(cones)),
             f64(owner, dtype=np.int64), f64(motion.cos), f64(motion.sin), f64(motion.txy),
-            values, observations,
+            grid.scale, values, observations,
         )
     )  # fmt: skip
 
@@ -291,11 +293,15 @@ def _cast_rays(
 ) -> int:
     updates = 0
     ratio = resolution_m / grid.spec.resolution_m
+    whole = compiled() is not None  # the kernel holds nothing per ray: a chunk in one call
     for owner, seg in zip(entry.owner, entry.rays, strict=True):
         keys = np.zeros_like(owner) if motion is None else owner
-        # a ray's rows: its length in cells and its two end rows (a motion keeps the length)
-        rows = np.hypot(seg.x1_m - seg.x0_m, seg.y1_m - seg.y0_m) / grid.spec.resolution_m + 2.0
-        for start, stop in _row_batches(rows):
+        if whole:
+            batches: Iterable[tuple[int, int]] = [(0, owner.shape[0])]
+        else:  # a ray's rows: its length in cells and its two end rows (a motion keeps it)
+            rows = np.hypot(seg.x1_m - seg.x0_m, seg.y1_m - seg.y0_m) / grid.spec.resolution_m
+            batches = _row_batches(rows + 2.0)
+        for start, stop in batches:
             sl = slice(start, stop)
             part = RaySegments(seg.x0_m[sl], seg.y0_m[sl], seg.x1_m[sl], seg.y1_m[sl], seg.echo[sl])
             updates += cast_rays(
@@ -327,7 +333,7 @@ def cast_rays(
             spec.origin_x_m, spec.origin_y_m, spec.resolution_m, spec.width, spec.height,
             f64(seg.x0_m), f64(seg.y0_m), f64(seg.x1_m), f64(seg.y1_m),
             seg.echo.astype(np.int64), f64(owner, dtype=np.int64), f64(motion.cos),
-            f64(motion.sin), f64(motion.txy), l_free, l_end, values, observations,
+            f64(motion.sin), f64(motion.txy), l_free, l_end, grid.scale, values, observations,
         )
     )  # fmt: skip
 

@@ -108,10 +108,59 @@ class OccupancyMap:
     spec: GridSpec
     prob: npt.NDArray[np.float64]
 
+    def cell_counts(self, occupied: float, free: float) -> tuple[int, int, int]:
+        """Cells observed (not NaN), at or above ``occupied`` and at or below ``free``; counted
+        in row strips, with no map-sized temporary."""
+        counts = np.zeros(3, dtype=np.int64)
+        step = strip_rows(self.spec.width)
+        for r0 in range(0, self.prob.shape[0], step):
+            part = self.prob[r0 : r0 + step]
+            counts += (
+                np.count_nonzero(~np.isnan(part)),
+                np.count_nonzero(part >= occupied),  # NaN compares False
+                np.count_nonzero(part <= free),
+            )
+        observed, high, low = (int(c) for c in counts)
+        return observed, high, low
+
 
 def logodds(p: float) -> float:
     """log(p / (1 - p))."""
     return math.log(p / (1.0 - p))
+
+
+#: The largest |log-odds| one update may add: the fixed-point sums (:class:`LogOddsAccumulator`)
+#: are sized for it. logit(1 - 1e-27) is about 62; the models' defaults are below 1.
+VALUE_LIMIT = 64.0
+#: Readings one grid takes at most: its observation counts are uint32, exact modulo 2**32, so
+#: a count is 0 only for a cell no reading touched while fewer readings than this are mapped.
+MAX_GRID_READINGS = 2**32 - 1
+#: Fraction bits of the fixed-point log-odds: 2**-32 (2.3e-10) per update, unless the log is so
+#: long that a cell's total could leave int64 (:func:`value_bits`).
+MAX_VALUE_BITS = 32
+#: Cells converted at a time when a grid is finished (:meth:`LogOddsAccumulator.finish`): the
+#: temporaries are a few of these arrays, never the grid's size.
+STRIP_CELLS = 1 << 18
+
+
+def value_bits(readings: int) -> int:
+    """Fraction bits of the fixed-point sums of a grid taking ``readings`` readings.
+
+    A reading adds at most two updates to a cell (the sonar's nested disks; the ray's free run
+    and its end cell), each at most :data:`VALUE_LIMIT` = 2**6, so a cell's total stays below
+    2 * readings * 2**6 * 2**bits, which must stay below 2**63: 32 bits up to 2**24 readings, one
+    fewer for each doubling beyond (24 at the uint32 limit of the counts).
+    """
+    if readings > MAX_GRID_READINGS:
+        raise MapSizeError(
+            f"{readings} readings in one map: more than the {MAX_GRID_READINGS} a grid counts"
+        )
+    return min(MAX_VALUE_BITS, 63 - 1 - 6 - max(int(readings), 1).bit_length())
+
+
+def strip_rows(width: int) -> int:
+    """Rows of a strip of about :data:`STRIP_CELLS` cells (at least one row)."""
+    return max(1, STRIP_CELLS // max(width, 1))
 
 
 class SpanSums:
@@ -119,59 +168,86 @@ class SpanSums:
 
     A run ``[col0, col1]`` of row ``r`` with value ``v`` adds ``v`` at ``(r, col0)`` and ``-v`` at
     ``(r, col1 + 1)``; one cumulative sum along each row at the end gives every cell its total.
-    The cost of a run is O(1), not its number of cells, and sums do not depend on order. Integer
-    sums (counts) are exact: the weights are whole numbers far below 2**53.
+    The cost of a run is O(1), not its number of cells. Integer sums are exact in any order
+    (unsigned ones modulo their range, as numpy's wrap) and cost no grid-sized temporary;
+    float64 sums are added per call, through one ``np.bincount`` over the grid.
+
+    ``rows``: the window ``[row0, row1)`` of the grid held (default: every row); runs in other
+    rows are dropped.
     """
 
-    def __init__(self, spec: GridSpec, dtype: type[np.float64] | type[np.int64]) -> None:
+    def __init__(
+        self, spec: GridSpec, dtype: type[np.generic], rows: tuple[int, int] | None = None
+    ) -> None:
         self.spec = spec
+        self.rows = (0, spec.height) if rows is None else rows
+        if not 0 <= self.rows[0] <= self.rows[1] <= spec.height:
+            raise ValueError(f"rows {self.rows} outside a grid of {spec.height} rows")
         self._stride = spec.width + 1
-        self._sums = np.zeros(spec.height * self._stride, dtype=dtype)
+        self._sums = np.zeros((self.rows[1] - self.rows[0]) * self._stride, dtype=dtype)
 
     def add(
         self,
         row: npt.NDArray[np.int64],
         col0: npt.NDArray[np.int64],
         col1: npt.NDArray[np.int64],
-        value: npt.NDArray[np.float64] | npt.NDArray[np.int64],
+        value: npt.NDArray[Any],
     ) -> None:
         """Add ``value[k]`` to every cell of run k; all arrays shape (S,)."""
+        row0, row1 = self.rows
+        if (row0, row1) != (0, self.spec.height):
+            keep = (row >= row0) & (row < row1)
+            row, col0, col1, value = row[keep], col0[keep], col1[keep], value[keep]
         if row.shape[0] == 0:
             return
-        base = row * self._stride
-        delta = np.bincount(
-            np.concatenate([base + col0, base + col1 + 1]),
+        base = (row - row0) * self._stride
+        at = np.concatenate([base + col0, base + col1 + 1])
+        if self._sums.dtype.kind in "iu":
+            signed = np.asarray(value).astype(np.int64)
+            np.add.at(self._sums, at, np.concatenate([signed, -signed]).astype(self._sums.dtype))
+            return
+        self._sums += np.bincount(
+            at,
             weights=np.concatenate([value, -value]).astype(np.float64),
             minlength=self._sums.shape[0],
         )
-        if self._sums.dtype == np.int64:
-            self._sums += np.rint(delta).astype(np.int64)
-        else:
-            self._sums += delta
 
     def difference_array(self) -> npt.NDArray[Any]:
-        """The running difference array itself, shape (height * (width + 1),), row-major: for
+        """The running difference array itself, shape (rows * (width + 1),), row-major: for
         compiled kernels, which must add to it exactly as :meth:`add` does."""
         return self._sums
 
     def total(self) -> npt.NDArray[Any]:
-        """The sum per cell, shape (height, width)."""
-        grid = self._sums.reshape(self.spec.height, self._stride)
-        return np.cumsum(grid, axis=1)[:, : self.spec.width]
+        """The sum per cell of the rows held, shape (rows, width), in the sums' dtype."""
+        grid = self._sums.reshape(self.rows[1] - self.rows[0], self._stride)
+        return np.cumsum(grid, axis=1, dtype=self._sums.dtype)[:, : self.spec.width]
 
 
 class LogOddsAccumulator:
-    """Sums log-odds evidence over runs of cells (:class:`SpanSums`).
+    """Sums log-odds evidence over runs of cells (:class:`SpanSums`), in fixed point.
 
-    The cost of a reading is its number of rows, not its number of cells. Observation counts
-    (how many readings touched a cell) are kept the same way, in integers, so "never observed" is
-    exact. Because log-odds updates are sums, the result does not depend on reading order.
+    The cost of a reading is its number of rows, not its number of cells. Each update is rounded
+    once to a multiple of 2**-bits (:func:`value_bits`: 2**-32 unless ``readings``, the most
+    readings the grid will take, is above 2**24) and summed as int64, so sums are exact and do
+    not depend on order or on how the readings are cut into shards; observation counts (how
+    many readings touched a cell) are uint32, so "never observed" is exact. That is 12 bytes a
+    cell and no grid-sized temporary: :meth:`finish` turns the sums into the map's probabilities
+    in place.
     """
 
-    def __init__(self, spec: GridSpec) -> None:
+    def __init__(
+        self,
+        spec: GridSpec,
+        readings: int = 1 << 24,
+        rows: tuple[int, int] | None = None,
+    ) -> None:
         self.spec = spec
-        self._values = SpanSums(spec, np.float64)
-        self._counts = SpanSums(spec, np.int64)
+        self.readings = readings
+        self.bits = value_bits(readings)
+        self.scale = float(2**self.bits)
+        self._values = SpanSums(spec, np.int64, rows)
+        self._counts = SpanSums(spec, np.uint32, rows)
+        self.rows = self._values.rows
 
     def add_values(
         self,
@@ -180,8 +256,12 @@ class LogOddsAccumulator:
         col1: npt.NDArray[np.int64],
         value: npt.NDArray[np.float64],
     ) -> None:
-        """Add ``value[k]`` to every cell of run k; all arrays shape (S,)."""
-        self._values.add(row, col0, col1, value)
+        """Add ``value[k]`` (log-odds, |value| <= :data:`VALUE_LIMIT`) to every cell of run k;
+        all arrays shape (S,). Raises ValueError for a value beyond the limit or not finite."""
+        value = np.asarray(value, dtype=np.float64)
+        if value.size and not bool(np.all(np.abs(value) <= VALUE_LIMIT)):
+            raise ValueError(f"log-odds evidence outside +-{VALUE_LIMIT}")
+        self._values.add(row, col0, col1, np.rint(value * self.scale).astype(np.int64))
 
     def add_observations(
         self, row: npt.NDArray[np.int64], col0: npt.NDArray[np.int64], col1: npt.NDArray[np.int64]
@@ -189,27 +269,70 @@ class LogOddsAccumulator:
         """Count one observation in every cell of each run; arrays shape (S,)."""
         self._counts.add(row, col0, col1, np.ones(row.shape[0], dtype=np.int64))
 
-    def difference_arrays(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
-        """The value and count difference arrays (:meth:`SpanSums.difference_array`)."""
+    def difference_arrays(self) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.uint32]]:
+        """The value (fixed point, :attr:`scale` per log-odds unit) and count difference arrays
+        (:meth:`SpanSums.difference_array`) of the rows held (:attr:`rows`)."""
         return self._values.difference_array(), self._counts.difference_array()
 
     def log_odds(self) -> npt.NDArray[np.float64]:
-        """Summed log-odds per cell, shape (height, width)."""
-        return self._values.total().astype(np.float64, copy=False)
+        """Summed log-odds per cell of the rows held, shape (rows, width)."""
+        return self._values.total().astype(np.float64) * (1.0 / self.scale)
 
     def observations(self) -> npt.NDArray[np.int64]:
-        """Number of readings that touched each cell, shape (height, width)."""
-        return self._counts.total().astype(np.int64, copy=False)
+        """Number of readings that touched each cell of the rows held, shape (rows, width)."""
+        return self._counts.total().astype(np.int64)
 
     def occupancy_map(self, clamp_p: tuple[float, float] = DEFAULT_CLAMP_P) -> OccupancyMap:
         """Probabilities from the log-odds clamped to ``clamp_p`` (min, max); never observed: NaN.
+        The accumulator is left as it was (:meth:`finish` spends it instead, in place).
 
         Raises ValueError unless 0 < min < 0.5 < max < 1.
         """
-        if not 0.0 < clamp_p[0] < 0.5 < clamp_p[1] < 1.0:
-            raise ValueError("clamp probabilities must satisfy 0 < min < 0.5 < max < 1")
-        lo, hi = logodds(clamp_p[0]), logodds(clamp_p[1])
-        clamped = np.clip(self.log_odds(), lo, hi)
-        prob = 1.0 - 1.0 / (1.0 + np.exp(clamped))
+        lo, hi = _clamp_log_odds(clamp_p)
+        prob = _probability(self.log_odds(), lo, hi)
         prob[self.observations() == 0] = np.nan
         return OccupancyMap(self.spec, prob)
+
+    def finish(self, clamp_p: tuple[float, float] = DEFAULT_CLAMP_P) -> tuple[OccupancyMap, int]:
+        """:meth:`occupancy_map`, to the bit, computed strip by strip into the memory of the
+        value sums (the counts are let go): the peak is the accumulator's 12 bytes a cell. Also
+        returns the cell updates (observations summed over the cells). The map covers the rows
+        held (a window's own when :attr:`rows` is not the whole grid). The accumulator cannot
+        be used afterwards.
+        """
+        lo, hi = _clamp_log_odds(clamp_p)
+        width, stride = self.spec.width, self.spec.width + 1
+        height = self.rows[1] - self.rows[0]
+        flat = self._values.difference_array()
+        values = flat.reshape(height, stride)
+        counts = self._counts.difference_array().reshape(height, stride)
+        out = flat.view(np.float64)
+        step = strip_rows(stride)
+        updates = 0
+        for r0 in range(0, height, step):
+            r1 = min(height, r0 + step)
+            total = np.cumsum(values[r0:r1], axis=1)[:, :width]
+            seen = np.cumsum(counts[r0:r1], axis=1, dtype=np.uint32)[:, :width]
+            updates += int(seen.sum(dtype=np.uint64))
+            prob = _probability(total.astype(np.float64) * (1.0 / self.scale), lo, hi)
+            prob[seen == 0] = np.nan
+            # rows r0..r1 compacted to width cells: never past the sums not yet read
+            out[r0 * width : r1 * width] = prob.ravel()
+        self._counts = self._values = None  # type: ignore[assignment]
+        prob_all = out[: height * width].reshape(height, width)
+        spec = self.spec
+        if height != spec.height:
+            origin_y = round(spec.origin_y_m + self.rows[0] * spec.resolution_m, 9)
+            spec = GridSpec(spec.origin_x_m, origin_y, spec.resolution_m, width, height)
+        return OccupancyMap(spec, prob_all), updates
+
+
+def _clamp_log_odds(clamp_p: tuple[float, float]) -> tuple[float, float]:
+    if not 0.0 < clamp_p[0] < 0.5 < clamp_p[1] < 1.0:
+        raise ValueError("clamp probabilities must satisfy 0 < min < 0.5 < max < 1")
+    return logodds(clamp_p[0]), logodds(clamp_p[1])
+
+
+def _probability(log_odds: npt.NDArray[np.float64], lo: float, hi: float) -> npt.NDArray[Any]:
+    """p of log-odds clamped to [lo, hi]."""
+    return 1.0 - 1.0 / (1.0 + np.exp(np.clip(log_odds, lo, hi)))

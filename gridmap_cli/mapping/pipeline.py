@@ -19,6 +19,7 @@ from gridmap_cli.mapping import expected
 from gridmap_cli.mapping.grid import (
     DEFAULT_CLAMP_P,
     DEFAULT_MAX_CELLS,
+    STRIP_CELLS,
     GridSpec,
     LogOddsAccumulator,
     OccupancyMap,
@@ -41,13 +42,21 @@ from gridmap_cli.mapping.shards import (
     batch_bounds as batch_bounds,  # callers cut batches as build does
 )
 from gridmap_cli.poses.odometry_error import OdometryError, travelled
-from gridmap_cli.poses.pose_uncertainty import StepNoise, propagate, sample_offsets
+from gridmap_cli.poses.pose_belief import PoseBelief
+from gridmap_cli.poses.pose_uncertainty import (
+    PoseUncertainty,
+    StepNoise,
+    propagate,
+    sample_offsets,
+)
 from gridmap_cli.poses.sync import (
+    SensorReadings,
     SyncStats,
+    select_readings,
     sensors_for_log,
     synchronise,
 )
-from gridmap_cli.records import RangeLog, cut_chunks, span_text
+from gridmap_cli.records import PoseTrack, RangeLog, cut_chunks, span_text
 from gridmap_cli.robot import RangeSensor, RobotDescription
 
 MAPPING_MODES = ("standard", "error-aware")
@@ -80,6 +89,10 @@ class BuildOptions:
     #: Processes mapping the readings; the map does not depend on it
     #: (:mod:`gridmap_cli.mapping.shards`).
     jobs: int = 1
+    #: Error-aware mode: the pose graph's belief about the track (``--pose slam``), used instead
+    #: of the odometry-error model: its marginals fade the readings, its draws are the sampled
+    #: tracks. None: the covariance carried along the odometry by ``odometry_error``.
+    pose_belief: PoseBelief | None = None
 
 
 @dataclass(frozen=True)
@@ -92,7 +105,7 @@ class BuildResult:
 
     @property
     def observed_cells(self) -> int:
-        return int(np.count_nonzero(~np.isnan(self.map.prob)))
+        return self.map.cell_counts(1.0, 0.0)[0]
 
 
 #: Log readings synchronised at a time, by build and by inspect: with the models' bounds kept and
@@ -174,9 +187,9 @@ def build_map(
         between_passes()
     spec, stats = plan.spec, plan.sync
     # both modes sum log-odds: the error-aware mode is the standard one with faded evidence
-    grid = LogOddsAccumulator(spec)
+    grid = LogOddsAccumulator(spec, stats.used)
     updates = accumulate(plan, grid, options, progress)
-    omap = grid.occupancy_map(options.clamp_p)
+    omap, _ = grid.finish(options.clamp_p)
     return BuildResult(map=omap, sync=stats, cell_updates=updates)
 
 
@@ -197,7 +210,13 @@ def expected_map(
     stays unknown. Perfect odometry is the standard build, to the bit. Readings whose heading
     standard deviation exceeds ``options.error_aware.max_heading_spread_rad`` are left out, as
     in the analytic model. ``progress`` counts the log's readings once; one process maps
-    them whatever ``options.jobs`` is."""
+    them whatever ``options.jobs`` is.
+
+    With a pose graph's belief (``options.pose_belief``) the tracks are its draws, each mapped
+    in full (:func:`_belief_map`): the running sum of the samples' probabilities (8 bytes a
+    cell) and one sample's grid, cut into row bands on a large map (:func:`sample_bands`)."""
+    if options.pose_belief is not None:
+        return _belief_map(log, robot, options, options.pose_belief, progress, between_passes)
     if options.odometry_error is None:
         raise GridmapError(
             "error-aware mode needs the odometry error model (gridmap calibrate writes one)"
@@ -207,10 +226,11 @@ def expected_map(
     if between_passes is not None:
         between_passes()
     noise = StepNoise.of(options.odometry_error)
-    if noise.is_zero:  # one sample, the standard map to the bit
-        grid = LogOddsAccumulator(plan.spec)
+    if noise.is_zero:  # the standard build, to the bit
+        grid = LogOddsAccumulator(plan.spec, plan.sync.used)
         updates = accumulate(plan, grid, standard, progress)
-        return BuildResult(grid.occupancy_map(standard.clamp_p), plan.sync, updates)
+        omap, _ = grid.finish(standard.clamp_p)
+        return BuildResult(map=omap, sync=plan.sync, cell_updates=updates)
     heading = propagate(log.poses, noise)
     limit = options.error_aware.max_heading_spread_rad
     cutoff = None
@@ -224,6 +244,134 @@ def expected_map(
     casts = expected.collect(plan, heading, offsets, cutoff, progress)
     omap, updates = expected.average(plan, casts, offsets, standard.clamp_p)
     return BuildResult(map=omap, sync=plan.sync, cell_updates=updates)
+
+
+def _belief_map(
+    log: RangeLog,
+    robot: RobotDescription | None,
+    options: BuildOptions,
+    belief: PoseBelief,
+    progress: Callable[[int], object] | None,
+    between_passes: Callable[[], object] | None,
+) -> BuildResult:
+    """:func:`expected_map` with the tracks drawn from a pose graph's belief; readings whose
+    heading standard deviation (the graph's, which falls where a loop closed) exceeds the limit
+    are left out one by one."""
+    standard = dataclasses.replace(options, mode="standard")
+    plan = plan_build(log, robot, standard)
+    if between_passes is not None:
+        between_passes()
+    limit = options.error_aware.max_heading_spread_rad
+    if limit < math.inf:
+        steady = belief.uncertainty
+        models: list[tuple[SensorModel, str]] = [
+            (_Steady(model, steady, limit), kind) for model, kind in plan.models
+        ]
+        plan = dataclasses.replace(plan, models=models)
+    count = min(options.error_samples, belief.draws.shape[0])
+    tracks = belief.tracks(log.poses, count) if count else [log.poses]
+    return _mean_map(log, plan, standard, tracks, progress)
+
+
+def _mean_map(
+    log: RangeLog,
+    plan: BuildPlan,
+    standard: BuildOptions,
+    tracks: list[PoseTrack],
+    progress: Callable[[int], object] | None,
+) -> BuildResult:
+    """The mean probability of the standard maps of ``log`` placed by each of ``tracks``."""
+    count = len(tracks)
+    spec = plan.spec
+    bands = sample_bands(spec, count)
+    # the running sum of the samples' probabilities, negated while no sample has seen the cell
+    total = np.zeros(spec.height * spec.width)
+    updates = 0
+    done = [0, 0]  # readings mapped over all samples and bands, readings reported
+    passes = count * len(bands)
+
+    def report(n: int) -> None:  # the caller counts the log's readings once
+        done[0] += n
+        if progress is not None and done[0] // passes > done[1]:
+            progress(done[0] // passes - done[1])
+            done[1] = done[0] // passes
+
+    for rows in bands:
+        for track in tracks:
+            moved = dataclasses.replace(log, poses=track)
+            part = dataclasses.replace(plan, log=moved, travelled=travelled(track))
+            grid = LogOddsAccumulator(spec, plan.sync.used, rows)
+            accumulate(part, grid, standard, report)
+            band, band_updates = grid.finish(standard.clamp_p)
+            updates += band_updates
+            _add_sample(total[rows[0] * spec.width : rows[1] * spec.width], band.prob.ravel())
+            del grid, band
+    _mean_in_place(total, count)
+    mean = OccupancyMap(spec, total.reshape(spec.shape))
+    return BuildResult(map=mean, sync=plan.sync, cell_updates=updates)
+
+
+#: Bytes a cell the sampled expected map may take on top of its running sum (8 bytes a cell):
+#: the per-sample grid (12 bytes a cell) is cut into row bands to stay within it, so that the
+#: whole build stays within 12 bytes a cell plus a fixed allowance (README, "Speed").
+SAMPLE_GRID_BYTES_PER_CELL = 4
+#: Cells of the per-sample grid always allowed in one band (96 MiB at 12 bytes a cell): maps
+#: up to about 8 million cells are mapped in one band, each sample's readings in one pass.
+SAMPLE_GRID_FREE_CELLS = 8 << 20
+
+
+def sample_bands(spec: GridSpec, samples: int) -> list[tuple[int, int]]:
+    """The row bands ``[row0, row1)`` the sampled expected map maps each sample in: one band
+    unless the map is large (:data:`SAMPLE_GRID_BYTES_PER_CELL`). Each band reads the log's
+    readings again for every sample, so a band costs a pass over the log per sample; the map is
+    the same for any bands (integer sums, each cell in one band)."""
+    cells = spec.height * spec.width
+    allowed = SAMPLE_GRID_FREE_CELLS + cells * SAMPLE_GRID_BYTES_PER_CELL // 12
+    if samples <= 1 or cells <= allowed:
+        return [(0, spec.height)]
+    n = -(-cells // allowed)
+    step = -(-spec.height // n)
+    return [(r, min(spec.height, r + step)) for r in range(0, spec.height, step)]
+
+
+def _add_sample(total: npt.NDArray[np.float64], prob: npt.NDArray[np.float64]) -> None:
+    """Add one sample's probabilities (NaN where it saw nothing: counts as the prior 0.5) to
+    the running sum, strip by strip; a cell stays negated until some sample has seen it. The
+    sum's magnitude is the plain sum over the samples in order, as ``total += where(seen, p,
+    0.5)`` makes it (to the bit)."""
+    step = STRIP_CELLS
+    for k in range(0, total.shape[0], step):
+        t, p = total[k : k + step], prob[k : k + step]
+        known = ~np.isnan(p)
+        s = np.abs(t) + np.where(known, p, 0.5)
+        total[k : k + step] = np.where((t > 0.0) | known, s, -s)
+
+
+def _mean_in_place(total: npt.NDArray[np.float64], count: int) -> None:
+    """The running sum as the mean over ``count`` samples; NaN where no sample saw the cell."""
+    step = STRIP_CELLS
+    for k in range(0, total.shape[0], step):
+        t = total[k : k + step]
+        total[k : k + step] = np.where(t > 0.0, t / count, np.nan)
+
+
+class _Steady:
+    """A model that maps only the readings whose heading standard deviation is within
+    ``limit_rad`` (the covariance of ``uncertainty`` at their stamps)."""
+
+    def __init__(self, model: SensorModel, uncertainty: PoseUncertainty, limit_rad: float) -> None:
+        self.model = model
+        self.uncertainty = uncertainty
+        self.limit_rad = limit_rad
+
+    def bounds(self, readings: SensorReadings) -> tuple[float, float, float, float]:
+        return self.model.bounds(readings)
+
+    def accumulate(self, grid: LogOddsAccumulator, readings: SensorReadings) -> int:
+        keep = self.uncertainty.at(readings.stamp_ns)[:, 2, 2] <= self.limit_rad**2
+        if not keep.any():
+            return 0
+        return self.model.accumulate(grid, select_readings(readings, keep))
 
 
 def accumulate(
@@ -282,20 +430,23 @@ def _mapping_models(
 
 
 def _pose_spread(log: RangeLog, options: BuildOptions) -> PoseSpread:
-    """The pose covariance along the log's track, from the odometry-error model."""
-    if options.odometry_error is None:
+    """The pose covariance along the log's track: the pose graph's (``options.pose_belief``)
+    or that carried along the odometry by the odometry-error model."""
+    belief = options.pose_belief
+    if options.odometry_error is None and belief is None:
         raise GridmapError(
             "error-aware mode needs the odometry error model (gridmap calibrate writes one)"
         )
-    model = options.odometry_error
-    noise = StepNoise.of(model)
+    model = options.odometry_error or OdometryError()  # with a belief: the sonar's k only
     params = FadeParams(
         trust_length_m=options.error_aware.trust_length_m,
         sonar_relative_error=model.sonar_relative_error,
         laser_relative_error=options.error_aware.laser_relative_error,
         max_heading_spread_rad=options.error_aware.max_heading_spread_rad,
     )
-    return PoseSpread(propagate(log.poses, noise), params)
+    if belief is not None:
+        return PoseSpread(belief.uncertainty, params)
+    return PoseSpread(propagate(log.poses, StepNoise.of(model)), params)
 
 
 def _why_empty(log: RangeLog, stats: SyncStats) -> str:

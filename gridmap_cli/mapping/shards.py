@@ -4,11 +4,12 @@ the same to the byte whatever N is.
 Both modes sum log-odds (the error-aware maps are standard maps, of sampled tracks or with faded
 evidence). Each sensor model's share of each chunk of synchronised readings
 (:meth:`~gridmap_cli.mapping.plan.BuildPlan.parts`) is cut into shards of at most
-:data:`SHARD_READINGS` readings (at a change of stamp, as batches are), the same shards for every
-N. Each shard is mapped into zeroed difference arrays of the whole grid (:func:`log_odds_shard`,
-on a worker when N > 1), and the main process adds the shards' arrays to the grid's in shard
-order. Counts are integers, exact in any order; the float sums are added in one fixed order, so
-``--jobs 1`` and ``--jobs 8`` give the same bits. Nothing is clamped per shard: the summed
+:data:`SHARD_READINGS` readings (at a change of stamp, as batches are). The grid's sums are
+integers (fixed-point log-odds and counts, :class:`~gridmap_cli.mapping.grid.LogOddsAccumulator`),
+exact in any order and any grouping, so ``--jobs 1`` maps every batch straight into the grid (no
+shard-sized copy of it), and with N > 1 each worker maps a shard into zeroed difference arrays of
+the whole grid (:func:`log_odds_shard`) that the main process adds: the same bits either way.
+Each shard in flight costs one grid (12 bytes a cell). Nothing is clamped per shard: the summed
 log-odds are clamped once, when the map is finished
 (:meth:`~gridmap_cli.mapping.grid.LogOddsAccumulator.occupancy_map`), as ``--fuse`` clamps its
 total.
@@ -81,13 +82,30 @@ def in_order(fn: Callable[..., T], tasks: Iterable[tuple[Any, ...]], jobs: int) 
             yield result
 
 
+def _accumulate_here(
+    plan: BuildPlan,
+    grid: LogOddsAccumulator,
+    batch_size: int,
+    progress: Callable[[int], object] | None,
+) -> int:
+    updates = 0
+    for model, part in plan.parts():
+        for start, stop in batch_bounds(part.stamp_ns, SHARD_READINGS):
+            shard = select_readings(part, slice(start, stop))
+            for lo, hi in batch_bounds(shard.stamp_ns, batch_size):
+                updates += model.accumulate(grid, select_readings(shard, slice(lo, hi)))
+            if progress is not None:
+                progress(len(shard))
+    return updates
+
+
 def log_odds_shard(
-    spec: GridSpec, model: Any, readings: SensorReadings, batch_size: int
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], int, int]:
+    spec: GridSpec, model: Any, readings: SensorReadings, batch_size: int, grid_readings: int
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.uint32], int, int]:
     """One shard's evidence: the value and count difference arrays of a zeroed grid over
-    ``spec`` after the shard's batches (shape ``(height * (width + 1),)``), the cell updates and
-    the readings mapped."""
-    grid = LogOddsAccumulator(spec)
+    ``spec`` (fixed point for ``grid_readings`` readings, as the main grid's) after the shard's
+    batches (shape ``(height * (width + 1),)``), the cell updates and the readings mapped."""
+    grid = LogOddsAccumulator(spec, grid_readings)
     updates = 0
     for start, stop in batch_bounds(readings.stamp_ns, batch_size):
         updates += model.accumulate(grid, select_readings(readings, slice(start, stop)))
@@ -105,9 +123,11 @@ def accumulate_log_odds(
     """Add every reading of ``plan`` to ``grid`` shard by shard; returns the cell updates.
 
     A shard is a model's share of one chunk of :meth:`BuildPlan.parts`, cut at
-    :data:`SHARD_READINGS`: the same shards whatever ``jobs`` is."""
+    :data:`SHARD_READINGS`. On one process the batches go straight into ``grid``."""
+    if jobs <= 1:
+        return _accumulate_here(plan, grid, batch_size, progress)
     tasks = (
-        (grid.spec, model, select_readings(part, slice(start, stop)), batch_size)
+        (grid.spec, model, select_readings(part, slice(start, stop)), batch_size, grid.readings)
         for model, part in plan.parts()
         for start, stop in batch_bounds(part.stamp_ns, SHARD_READINGS)
     )

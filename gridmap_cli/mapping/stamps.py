@@ -19,15 +19,23 @@ MIN_STEP_NS = 100_000
 
 
 def stamp_problem(log: RangeLog) -> str | None:
-    """What is wrong with the stamps of ``log`` (poses and held readings together), or None."""
+    """What is wrong with the stamps of ``log`` (poses and readings together), or None.
+
+    Streamed readings (:attr:`RangeLog.stream`) count by each sensor's first and last stamp,
+    which their reader's checking pass found: a jump among them shows as it does held."""
     parts = [t for t in (log.poses.stamp_ns, log.readings.stamp_ns) if len(t)]
+    n_readings = len(log.readings)
+    if log.stream is not None:
+        kept = (log.stream.index >= 0) & (log.stream.counts > 0)
+        parts += [t[kept] for t in (log.stream.first_ns, log.stream.last_ns) if kept.any()]
+        n_readings += len(log.stream)
     if not parts:
         return None
     # readings share their scan's stamp: drop repeats first (linear) so the sort is per scan
     stamps = np.sort(np.concatenate([t[np.r_[True, t[1:] != t[:-1]]] for t in parts]))
     span_ns = int(stamps[-1] - stamps[0])
     # records: poses, or scans when there is no pose track (a scan's readings share a stamp)
-    records = max(len(log.poses), len(log.readings) // max(len(log.sensor_names), 1))
+    records = max(len(log.poses), n_readings // max(len(log.sensor_names), 1))
     if records >= 3 and span_ns < (records - 1) * MIN_STEP_NS:
         return (
             f"the stamps do not advance ({records:,} records within {span_ns / 1e9:g} s from "

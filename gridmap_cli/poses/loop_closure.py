@@ -15,6 +15,7 @@ a featureless corridor), and the correction from the estimate lies within the se
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,8 +24,14 @@ import small_gicp
 from scipy.spatial import cKDTree
 
 from gridmap_cli.geometry import compose, inverse, wrap_angle
+from gridmap_cli.poses.correlative import LikelihoodGrid, search
 
 FloatArray = npt.NDArray[np.float64]
+
+#: Metres of travel a radian of turning counts as when submaps are cut along the path.
+TURN_M = 1.0
+#: Submaps kept built (the most recently used): each holds about a megabyte.
+CACHED_SUBMAPS = 60
 
 
 @dataclass(frozen=True)
@@ -35,17 +42,26 @@ class ClosureParams:
     drift_per_m: float = 0.05
     min_search_m: float = 1.0
     max_search_m: float = 6.0
-    submap_scans: int = 10
+    submap_m: float = 5.0
+    source_m: float = 5.0
+    thin_m: float = 0.2
     voxel_m: float = 0.1
+    source_voxel_m: float = 0.2
     correspondence_m: float = 0.8
     inlier_m: float = 0.15
     min_inlier_fraction: float = 0.45
     degenerate_ratio: float = 0.05
-    coarse_step_m: float = 0.8
-    coarse_steps: int = 1
-    coarse_from_m: float = 100.0
-    coarse_headings_rad: tuple[float, ...] = (0.0, math.radians(-12.0), math.radians(12.0))
-    max_candidates_per_node: int = 2
+    coarse_from_m: float = 1.5
+    coarse_resolution_m: float = 0.1
+    coarse_sigma_m: float = 0.1
+    coarse_window_rad: float = math.radians(15.0)
+    coarse_step_rad: float = math.radians(1.0)
+    coarse_min_score: float = 0.5
+    coarse_points: int = 250
+    coarse_range_m: float = 15.0
+    max_candidates_per_node: int = 1
+    decimate_m: float = 1.0
+    coarse_link_m: float = 5.0
 
 
 @dataclass(frozen=True)
@@ -124,23 +140,67 @@ class Submaps:
         params: ClosureParams,
     ) -> None:
         self.points, self.local, self.nodes, self.params = points, local, nodes, params
-        self._cache: dict[int, tuple[small_gicp.PointCloud, small_gicp.KdTree, cKDTree, FloatArray]]
-        self._cache = {}
+        self._cache: OrderedDict[
+            tuple[int, bool], tuple[small_gicp.PointCloud, small_gicp.KdTree, cKDTree, FloatArray]
+        ] = OrderedDict()
+        # travel along the scan-matched path, turning counted at TURN_M metres per radian
+        steps = np.hypot(np.diff(local[:, 0]), np.diff(local[:, 1]))
+        turns = np.abs(wrap_angle(np.diff(local[:, 2])))
+        self.travel = np.concatenate([[0.0], np.cumsum(steps + TURN_M * turns)])
+        self._grids: OrderedDict[int, LikelihoodGrid] = OrderedDict()
+        self.coarse_runs = 0
+
+    def grid(self, node: int) -> LikelihoodGrid:
+        """Node ``node``'s submap within ``coarse_range_m`` as a likelihood grid for the
+        correlative search (the last few are kept: each holds a few megabytes)."""
+        if node in self._grids:
+            self._grids.move_to_end(node)
+            return self._grids[node]
+        p = self.params
+        planar = self.get(node)[3]
+        near = planar[np.hypot(planar[:, 0], planar[:, 1]) <= p.coarse_range_m]
+        grid = LikelihoodGrid(
+            near if len(near) else planar, p.coarse_resolution_m, p.coarse_sigma_m, 5,
+            p.max_search_m,
+        )  # fmt: skip
+        self._grids[node] = grid
+        if len(self._grids) > 8:
+            self._grids.popitem(last=False)
+        return grid
+
+    def sample(self, node: int) -> FloatArray:
+        """At most ``coarse_points`` of node ``node``'s submap points, spread over it."""
+        planar = self.get(node, wide=False)[3]
+        stride = max(1, len(planar) // self.params.coarse_points)
+        return planar[::stride]
 
     def get(
-        self, node: int
+        self, node: int, wide: bool = True
     ) -> tuple[small_gicp.PointCloud, small_gicp.KdTree, cKDTree, FloatArray]:
-        if node in self._cache:
-            return self._cache[node]
+        """Node ``node``'s submap: GICP cloud and tree, 2D tree and points (node frame).
+
+        ``wide``: the target's extent (``submap_m`` of travel either side), else the source's
+        (``source_m``); scans closer than ``thin_m`` of travel to the last one taken are left
+        out, so a slow or dense log costs what a sparse one does.
+        """
+        key = (node, wide)
+        if key in self._cache:
+            self._cache.move_to_end(key)
+            return self._cache[key]
+        p = self.params
         s = int(self.nodes[node])
-        w = self.params.submap_scans
-        lo, hi = max(0, s - w), min(len(self.points), s + w + 1)
+        reach = p.submap_m if wide else p.source_m
+        lo = int(np.searchsorted(self.travel, self.travel[s] - reach, side="left"))
+        hi = int(np.searchsorted(self.travel, self.travel[s] + reach, side="right"))
         ix, iy, ith = inverse(self.local[s, 0], self.local[s, 1], self.local[s, 2])
         parts = []
-        for k in range(lo, hi):
+        last = -math.inf
+        for k in (s, *(k for k in range(lo, hi) if k != s)):
             pts = self.points[k]
-            if len(pts) == 0:
+            if len(pts) == 0 or (k != s and abs(self.travel[k] - last) < p.thin_m):
                 continue
+            if k != s:
+                last = float(self.travel[k])
             rx, ry, rth = compose(ix, iy, ith, self.local[k, 0], self.local[k, 1], self.local[k, 2])
             c, sn = math.cos(float(rth)), math.sin(float(rth))
             parts.append(
@@ -149,43 +209,45 @@ class Submaps:
                 )
             )
         flat = np.vstack(parts) if parts else np.zeros((0, 2))
-        voxel = self.params.voxel_m
+        voxel = p.voxel_m if wide else p.source_voxel_m
         cloud, tree = small_gicp.preprocess_points(
             _sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
         )
         planar = np.asarray(cloud.points())[:, :2]
         entry = (cloud, tree, cKDTree(planar), planar)
-        self._cache[node] = entry
+        self._cache[key] = entry
+        if len(self._cache) > CACHED_SUBMAPS:
+            self._cache.popitem(last=False)
         return entry
 
 
 def verify(
-    i: int, j: int, guess: tuple[float, float, float], submaps: Submaps, radius_m: float
+    i: int,
+    j: int,
+    guess: tuple[float, float, float],
+    submaps: Submaps,
+    radius_m: float,
+    coarse: bool = True,
 ) -> Closure | None:
     """Register node ``i``'s submap onto node ``j``'s from ``guess`` (i in j's frame); the
-    accepted closure (j's pose in i's frame) or None."""
+    accepted closure (j's pose in i's frame) or None. ``coarse``: whether the correlative
+    search may find a start where GICP from ``guess`` fails."""
     p = submaps.params
     target, target_tree, target_2d, _ = submaps.get(j)
-    source, _, _, source_2d = submaps.get(i)
+    source, _, _, source_2d = submaps.get(i, wide=False)
     if len(source_2d) < 50 or target.size() < 50:
         return None
     best = _align(target, target_tree, target_2d, source, source_2d, guess, p)
-    if (best is None or best[0] < p.min_inlier_fraction) and radius_m > p.coarse_from_m:
-        reach = min(radius_m, p.coarse_step_m * p.coarse_steps)
-        steps = np.linspace(-reach, reach, 2 * p.coarse_steps + 1)
-        for ox in steps:
-            for oy in steps:
-                for oth in p.coarse_headings_rad:
-                    if ox == 0 and oy == 0 and oth == 0:
-                        continue
-                    gx, gy, gth = (np.asarray(v) for v in guess)
-                    start = compose(gx, gy, gth, ox, oy, oth)
-                    trial = _align(
-                        target, target_tree, target_2d, source, source_2d,
-                        (float(start[0]), float(start[1]), float(start[2])), p,
-                    )  # fmt: skip
-                    if trial is not None and (best is None or trial[0] > best[0]):
-                        best = trial
+    poor = best is None or best[0] < p.min_inlier_fraction
+    if poor and coarse and radius_m > p.coarse_from_m:
+        submaps.coarse_runs += 1
+        found = search(
+            submaps.grid(j), submaps.sample(i), guess, radius_m, p.coarse_window_rad,
+            p.coarse_step_rad, p.coarse_min_score,
+        )  # fmt: skip
+        if found is not None:
+            start = (found.x_m, found.y_m, found.theta_rad)
+            best = _align(target, target_tree, target_2d, source, source_2d, start, p)
     if best is None or best[0] < p.min_inlier_fraction:
         return None
     fraction, pose, hessian = best

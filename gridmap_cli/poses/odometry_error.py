@@ -84,7 +84,7 @@ class OdometryError:
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise ValueError(f"{f.name} must be a number, got {value!r}")
             if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"{f.name} must be a finite number >= 0, got {value!r}")
+                raise ValueError(f"{f.name} must be a finite number >= 0, got {float(value)}")
 
     def f(self, distance_m: npt.ArrayLike) -> FloatArray:
         """Range spread (metres) after ``distance_m`` metres driven; any shape, same shape out."""

@@ -90,6 +90,53 @@ class PoseGraph:
         marginals = gtsam.Marginals(self._factors(), values)
         return np.stack([marginals.marginalCovariance(k) for k in range(len(poses))])
 
+    def sample(self, poses: FloatArray, count: int, seed: int = 0) -> FloatArray:
+        """``count`` joint draws of every node's pose from the graph's Gaussian at ``poses``
+        (the optimum): shape (count, N, 3).
+
+        The graph is linearised there and eliminated into its square-root information R (upper
+        triangular, R^T R the information); ``R d = z`` with ``z`` standard normal gives a
+        tangent step ``d`` whose covariance is the inverse information, so the draws keep the
+        correlations along the path (neighbours move together, as the edges between them say)
+        and each node's spread is its marginal's. (gtsam's own ``GaussianBayesNet.sample``
+        adds the conditionals' unit sigmas after solving, not ``R^-1 z``: not this.)
+        """
+        values = gtsam.Values()
+        for k, (x, y, th) in enumerate(poses):
+            values.insert(k, gtsam.Pose2(float(x), float(y), float(th)))
+        net = self._factors().linearize(values).eliminateSequential()
+        mean = net.optimize()  # about 0 at the optimum; kept so the draws centre on the belief
+        rng = np.random.default_rng(seed)
+        out = np.empty((count, len(poses), 3))
+        for s in range(count):
+            z = gtsam.VectorValues()
+            for k in range(len(poses)):
+                z.insert(k, rng.standard_normal(3))
+            spread = net.backSubstitute(z)
+            step = gtsam.VectorValues()
+            for k in range(len(poses)):
+                step.insert(k, spread.at(k) + mean.at(k))
+            out[s] = _poses(values.retract(step), len(poses))
+        return out
+
+    def covariance_product(self, poses: FloatArray, vectors: FloatArray) -> FloatArray:
+        """``Sigma v`` for each ``v`` of ``vectors`` (M, N, 3), ``Sigma`` the joint covariance
+        of every node at ``poses`` (each node's block in its own frame, as :meth:`marginals`):
+        shape (M, N, 3). Two triangular solves per vector with the square-root information, so
+        the joint covariance (3N x 3N) is never formed."""
+        values = gtsam.Values()
+        for k, (x, y, th) in enumerate(poses):
+            values.insert(k, gtsam.Pose2(float(x), float(y), float(th)))
+        net = self._factors().linearize(values).eliminateSequential()
+        out = np.empty(vectors.shape)
+        for m, vector in enumerate(vectors):
+            rhs = gtsam.VectorValues()
+            for k in range(len(poses)):
+                rhs.insert(k, np.ascontiguousarray(vector[k], dtype=np.float64))
+            product = net.backSubstitute(net.backSubstituteTranspose(rhs))
+            out[m] = [product.at(k) for k in range(len(poses))]
+        return out
+
 
 def _poses(values: gtsam.Values, n: int) -> FloatArray:
     out = np.empty((n, 3))

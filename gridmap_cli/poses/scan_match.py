@@ -25,6 +25,7 @@ import dataclasses
 import math
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,6 +40,8 @@ from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription
 
 FloatArray = npt.NDArray[np.float64]
+#: A caller's progress callback: (stage, done, total), e.g. ("scan matching", 120, 4000).
+Progress = Callable[[str, int, int], object]
 
 #: Per-scan outcome codes of :attr:`ScanMatch.status`.
 MATCHED, FALLBACK, DEGENERATE, FIRST = 0, 1, 2, 3
@@ -238,11 +241,15 @@ class _LocalMap:
 
 
 def match_scans(
-    scans: Scans, odometry: PoseTrack, params: ScanMatchParams | None = None
+    scans: Scans,
+    odometry: PoseTrack,
+    params: ScanMatchParams | None = None,
+    progress: Progress | None = None,
 ) -> ScanMatch:
     """Register each scan against the local map, seeded by ``odometry`` (odometry frame).
 
     Scans outside the odometry's time span are an error (the caller keeps only those inside).
+    ``progress`` is called after each scan with ``("scan matching", scans done, scans)``.
     """
     params = params or ScanMatchParams()
     started = time.perf_counter()
@@ -269,6 +276,8 @@ def match_scans(
             poses[k], status[k], score[k] = _match_one(pts, guess, step_m, local, params)
         if len(pts) and local.wants(tuple(poses[k])):
             local.add(_transform(pts, tuple(poses[k])), tuple(poses[k]))
+        if progress is not None:
+            progress("scan matching", k + 1, n)
     track = PoseTrack(
         stamp_ns=scans.stamp_ns.copy(),
         x_m=np.ascontiguousarray(poses[:, 0]),
@@ -338,7 +347,10 @@ def _match_one(
 
 
 def match_log(
-    log: RangeLog, robot: RobotDescription | None, params: ScanMatchParams | None = None
+    log: RangeLog,
+    robot: RobotDescription | None,
+    params: ScanMatchParams | None = None,
+    progress: Progress | None = None,
 ) -> ScanMatch:
     """Match the laser scans of ``log`` that lie within its odometry's time span."""
     params = params or ScanMatchParams()
@@ -355,7 +367,7 @@ def match_log(
         stamp_ns=scans.stamp_ns[inside],
         points=[p for p, ok in zip(scans.points, inside, strict=True) if ok],
     )
-    return match_scans(kept, log.poses, params)
+    return match_scans(kept, log.poses, params, progress)
 
 
 def corrected_track(odometry: PoseTrack, match: ScanMatch) -> PoseTrack:
@@ -378,8 +390,11 @@ def corrected_track(odometry: PoseTrack, match: ScanMatch) -> PoseTrack:
 
 
 def scan_matched_log(
-    log: RangeLog, robot: RobotDescription | None, params: ScanMatchParams | None = None
+    log: RangeLog,
+    robot: RobotDescription | None,
+    params: ScanMatchParams | None = None,
+    progress: Progress | None = None,
 ) -> tuple[RangeLog, ScanMatch]:
     """``log`` with its poses replaced by the scan-matched track, and the match itself."""
-    match = match_log(log, robot, params)
+    match = match_log(log, robot, params, progress)
     return dataclasses.replace(log, poses=corrected_track(log.poses, match)), match

@@ -42,6 +42,7 @@ from gridmap_cli.poses.pose_graph import Edge, PoseGraph, edge_residuals
 from gridmap_cli.poses.scan_match import (
     FALLBACK,
     NoLaserError,
+    Progress,
     ScanMatch,
     ScanMatchParams,
     Scans,
@@ -54,6 +55,10 @@ from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RobotDescription
 
 FloatArray = npt.NDArray[np.float64]
+
+#: A sequential edge bent by more than this many of its standard deviations on the optimised
+#: track warns: true closures bend the shared logs' tracks by under 2.
+BEND_WARN_SIGMA = 5.0
 
 
 @dataclass(frozen=True)
@@ -84,6 +89,8 @@ class SlamResult:
     ``scan_matched``: the scan match as it was. ``keyframes`` (K,): scan index of each node;
     ``poses`` (K, 3) the optimised keyframe poses; ``covariance`` (K, 3, 3) their marginal
     covariances (node frame; None unless asked). ``closures``: the accepted closures.
+    ``bend_sigma``: the largest error of a sequential (scan-matching) edge on the optimised
+    track, in its own standard deviations: how far the closures bend the scan-matched track.
     """
 
     match: ScanMatch
@@ -98,6 +105,9 @@ class SlamResult:
     odometry_residual_m: float
     residual_m: float
     seconds: float
+    #: the optimised graph, for its marginals and draws (:mod:`.pose_belief`)
+    graph: PoseGraph | None = None
+    bend_sigma: float = 0.0
 
     @property
     def track(self) -> PoseTrack:
@@ -114,6 +124,11 @@ class SlamResult:
                 f"the optimised track fits its loop closures no better than the odometry "
                 f"({self.residual_m:.3f} m against {self.odometry_residual_m:.3f} m)"
             )
+        if self.bend_sigma > BEND_WARN_SIGMA:
+            return (
+                f"the loop closures bend the scan-matched track by {self.bend_sigma:.1f} "
+                "standard deviations somewhere: a closure may be false, check the map"
+            )
         return None
 
     def summary(self) -> dict[str, object]:
@@ -126,6 +141,8 @@ class SlamResult:
             "closures_dropped_by_consistency": self.dropped,
             "closure_residual_m": round(self.residual_m, 4),
             "closure_residual_odometry_m": round(self.odometry_residual_m, 4),
+            "sequential_bend_sigma": round(self.bend_sigma, 2),
+            "fallbacks": self.scan_matched.fallbacks,
             "scan_match": self.scan_matched.summary(),
             "seconds": round(self.seconds, 3),
             "warning": self.warning,
@@ -168,10 +185,11 @@ def sequential_edges(
 
 
 def optimise_with_closures(
-    scans: Scans, match: ScanMatch, params: SlamParams
+    scans: Scans, match: ScanMatch, params: SlamParams, progress: Progress | None = None
 ) -> tuple[npt.NDArray[np.intp], FloatArray, PoseGraph, list[Closure], int, int, int]:
     """Keyframes, their optimised poses, the graph, accepted closures and the counts of
-    candidates tried, rejected by verification and dropped by the consistency check."""
+    candidates tried, rejected by verification and dropped by the consistency check.
+    ``progress`` is called after each round with ``("loop closures", rounds done, rounds)``."""
     m = match.track
     local = np.column_stack([m.x_m, m.y_m, m.theta_rad])
     nodes = keyframes(local, params)
@@ -182,20 +200,36 @@ def optimise_with_closures(
     accepted: dict[tuple[int, int], Closure] = {}
     rejected = dropped = 0
     path = path_length(estimate)
-    for _ in range(params.rounds):
+    c = params.closure
+    for done in range(params.rounds):
+        if progress is not None:
+            progress("loop closures", done, params.rounds)
         new = 0
-        for i, j in candidates(estimate, np.arange(len(nodes)), params.closure):
-            if (i, j) in tried:
+        # the path positions of the accepted closures' ends: a candidate next to one (both
+        # ends within decimate_m) adds little; one within coarse_link_m of a closure found
+        # this round is on a loop already caught, so no coarse search for it
+        ends = np.array([(path[k[0]], path[k[1]]) for k in accepted]).reshape(-1, 2)
+        fresh: list[tuple[float, float]] = []
+        searched: list[tuple[float, float]] = []  # coarse searches that found nothing
+        for i, j in candidates(estimate, np.arange(len(nodes)), c):
+            if (i, j) in tried or _near(ends, path[i], path[j], c.decimate_m):
                 continue
             tried.add((i, j))
             gap = path[i] - path[j]
-            c = params.closure
             radius = min(c.max_search_m, c.min_search_m + c.drift_per_m * gap)
-            closure = verify(i, j, relative(estimate, i, j), submaps, radius)
+            coarse = not (
+                _near(np.array(fresh).reshape(-1, 2), path[i], path[j], c.coarse_link_m)
+                or _near(np.array(searched).reshape(-1, 2), path[i], path[j], c.decimate_m)
+            )
+            closure = verify(i, j, relative(estimate, i, j), submaps, radius, coarse)
             if closure is None:
                 rejected += 1
+                if coarse:
+                    searched.append((path[i], path[j]))
                 continue
             accepted[(i, j)] = closure
+            ends = np.vstack([ends, [(path[i], path[j])]])
+            fresh.append((path[i], path[j]))
             new += 1
         if new == 0:
             break
@@ -214,7 +248,17 @@ def optimise_with_closures(
             e = closure_edges[worst]
             del accepted[(e.i, e.j)]
             dropped += 1
+    if progress is not None:
+        progress("loop closures", params.rounds, params.rounds)
     return nodes, estimate, graph, list(accepted.values()), len(tried), rejected, dropped
+
+
+def _near(ends: FloatArray, a: float, b: float, within_m: float) -> bool:
+    """Whether some pair of path positions in ``ends`` (M, 2) lies within ``within_m`` of
+    (``a``, ``b``) at both ends."""
+    if len(ends) == 0:
+        return False
+    return bool(((np.abs(ends[:, 0] - a) < within_m) & (np.abs(ends[:, 1] - b) < within_m)).any())
 
 
 def _closure_edge(c: Closure, p: SlamParams) -> Edge:
@@ -241,13 +285,15 @@ def slam_scans(
     odometry: PoseTrack,
     params: SlamParams | None = None,
     match_params: ScanMatchParams | None = None,
+    progress: Progress | None = None,
 ) -> SlamResult:
-    """Scan-match ``scans`` seeded by ``odometry``, close loops, optimise; see the module."""
+    """Scan-match ``scans`` seeded by ``odometry``, close loops, optimise; see the module.
+    ``progress`` is called with (stage, done, total) as each stage moves on."""
     params = params or SlamParams()
     started = time.perf_counter()
-    match = match_scans(scans, odometry, match_params)
+    match = match_scans(scans, odometry, match_params, progress)
     nodes, poses, graph, closures, tried, rejected, dropped = optimise_with_closures(
-        scans, match, params
+        scans, match, params, progress
     )
     track = carried(match, nodes, poses)
     odo = match.odometry
@@ -256,6 +302,10 @@ def slam_scans(
     before = edge_residuals(odo_nodes, closure_edges)
     after = edge_residuals(poses, closure_edges)
     covariance = graph.marginals(poses) if params.covariance else None
+    sequential = [e for e in graph.edges if not e.closure]
+    bend = edge_residuals(poses, sequential)
+    sigmas = np.array([(e.sigma_xy_m, e.sigma_theta_rad) for e in sequential]).reshape(-1, 2)
+    bend_sigma = float((bend / sigmas).max()) if len(sequential) else 0.0
     return SlamResult(
         match=dataclasses.replace(match, track=track),
         scan_matched=match,
@@ -269,11 +319,16 @@ def slam_scans(
         odometry_residual_m=float(before[:, 0].mean()) if len(before) else float("nan"),
         residual_m=float(after[:, 0].mean()) if len(after) else float("nan"),
         seconds=time.perf_counter() - started,
+        graph=graph,
+        bend_sigma=bend_sigma,
     )
 
 
 def slam_log(
-    log: RangeLog, robot: RobotDescription | None, params: SlamParams | None = None
+    log: RangeLog,
+    robot: RobotDescription | None,
+    params: SlamParams | None = None,
+    progress: Progress | None = None,
 ) -> SlamResult:
     """:func:`slam_scans` on the laser scans of ``log`` within its odometry's time span."""
     match_params = ScanMatchParams()
@@ -286,12 +341,15 @@ def slam_log(
         stamp_ns=scans.stamp_ns[inside],
         points=[p for p, ok in zip(scans.points, inside, strict=True) if ok],
     )
-    return slam_scans(kept, log.poses, params, match_params)
+    return slam_scans(kept, log.poses, params, match_params, progress)
 
 
 def slam_corrected_log(
-    log: RangeLog, robot: RobotDescription | None, params: SlamParams | None = None
+    log: RangeLog,
+    robot: RobotDescription | None,
+    params: SlamParams | None = None,
+    progress: Progress | None = None,
 ) -> tuple[RangeLog, SlamResult]:
     """``log`` with its poses replaced by the optimised track, and the result."""
-    result = slam_log(log, robot, params)
+    result = slam_log(log, robot, params, progress)
     return dataclasses.replace(log, poses=corrected_track(log.poses, result.match)), result

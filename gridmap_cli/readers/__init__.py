@@ -299,6 +299,15 @@ def read_bytes(
     The format is ``format_name``, else sniffed from the first bytes. MCAP files and bags are
     refused: their readers seek through the file, so they need it on disk.
     """
+    fmt, text = held_text(data, name, format_name)
+    assert fmt.text_reader is not None  # held_text refuses the others
+    return fmt.text_reader(io.StringIO(text), name, options or ReadOptions())
+
+
+def held_text(data: bytes, name: str = STDIN_NAME, format_name: str | None = None) -> tuple[
+    LogFormat, str
+]:  # fmt: skip
+    """The format and decoded text of a text log held in memory (see :func:`read_bytes`)."""
     if data[:2] == compressed.MAGIC:
         data = compressed.decompress_bytes(data, name)
     if format_name is not None:
@@ -316,10 +325,9 @@ def read_bytes(
             "through the file); give the file's name"
         )
     try:
-        text = data.decode(fmt.encoding)
+        return fmt, data.decode(fmt.encoding)
     except UnicodeDecodeError as exc:
         raise InputFileError(name, f"not {fmt.encoding} text ({exc.reason})") from exc
-    return fmt.text_reader(io.StringIO(text), name, options or ReadOptions())
 
 
 def recording_sources(
@@ -341,6 +349,10 @@ def recording_sources(
                 f"(MCAP, bag, rosbag2 folder); this is a {fmt.name} log"
             )
         out.extend(fmt.sources(path))
+    if len(out) > 1:
+        from gridmap_cli.readers.repeats import refuse_repeats
+
+        refuse_repeats([Path(source.path) for source in out])
     return out
 
 

@@ -27,6 +27,8 @@ class ReadOptions:
     from the file at each pass (:attr:`gridmap_cli.records.RangeLog.stream`): for a caller that
     goes through them by :meth:`~gridmap_cli.records.RangeLog.reading_chunks` and cuts no time
     window. CSV files do it above :data:`gridmap_cli.readers.text.csv_stream.STREAM_FROM_BYTES`.
+    ``poses_only``: the caller wants the tracks alone (``gridmap trajectory --pose odometry`` or
+    ``global``), so a recording without range topics is read rather than refused.
     """
 
     odom_topic: str | None = None
@@ -37,6 +39,7 @@ class ReadOptions:
     map_frame: str | None = None
     robot: RobotDescription | None = None
     stream: bool = False
+    poses_only: bool = False
 
     def topic_flags(self) -> list[str]:
         """The MCAP-only flags that were given, spelled as on the command line."""

@@ -109,6 +109,7 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
     if robot is None:
         robot = robot_from_log(job.log, data.metadata)
     warnings: list[str] = []
+    build = options.build
     if options.pose == "scan-matched":
         from gridmap_cli.poses.scan_match import scan_matched_log  # scipy, small_gicp: only here
 
@@ -119,13 +120,18 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
         data, slam = slam_corrected_log(data, robot)
         if slam.warning:
             warnings.append(f"--pose slam: {slam.warning}")
+        if build.mode == "error-aware":  # the graph's marginals and draws, as build maps them
+            from gridmap_cli.poses.pose_belief import slam_belief
+
+            belief = slam_belief(slam, build.error_samples, build.error_seed)
+            build = dataclasses.replace(build, pose_belief=belief)
     else:
         data = select_poses(data, options.pose)
     selected = apply_selection(dataclasses.replace(data, truth=None), selection, robot)
     warnings.extend(selected.notes)
     seconds["read"] = time.perf_counter() - mark
     mark = time.perf_counter()
-    result = build_map(selected.log, robot, options.build)
+    result = build_map(selected.log, robot, build)
     seconds["map"] = time.perf_counter() - mark
     mark = time.perf_counter()
     write_map(job.output, result.map, mode=options.map_mode, occupied_thresh=options.occupied,

@@ -121,7 +121,7 @@ def partial_of(job: FuseJob) -> Partial:
     selected = apply_selection(data, job.selection, robot)
     log: RangeLog = selected.log
     plan = plan_build(log, robot, job.options)
-    grid = LogOddsAccumulator(plan.spec)
+    grid = LogOddsAccumulator(plan.spec, plan.sync.used)
     accumulate(plan, grid, job.options)
     notes = tuple(f"{job.log}: {note}" for note in selected.notes)
     return Partial(plan.spec, grid.log_odds(), grid.observations(), (content_key(job.log),),

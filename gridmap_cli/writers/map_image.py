@@ -121,17 +121,40 @@ def occupancy_percent(
     ``prob``: shape (height, width), values in [0, 1], NaN unknown. Returns round(100 p) (half to
     even; 0 under unknown cells) as uint8 and the mask of NaN cells: what a ``raw`` image and an
     OccupancyGrid hold. Raises ``ValueError`` for an array that is not 2-D or holds values outside
-    [0, 1], which would otherwise wrap around in the 8-bit result.
+    [0, 1], which would otherwise wrap around in the 8-bit result. Computed in row strips: the
+    temporaries stay a few MiB whatever the map's size.
     """
+    prob = _checked(prob)
+    percent = np.empty(prob.shape, dtype=np.uint8)
+    unknown = np.empty(prob.shape, dtype=bool)
+    for rows in _strips(prob):
+        part = prob[rows]
+        unknown[rows] = np.isnan(part)
+        percent[rows] = np.rint(100.0 * np.where(unknown[rows], 0.0, part)).astype(np.uint8)
+    return percent, unknown
+
+
+#: Cells of a map turned into pixels at a time.
+_STRIP_CELLS = 1 << 18
+
+
+def _strips(prob: npt.NDArray[np.float64]) -> list[slice]:
+    """Row slices of about :data:`_STRIP_CELLS` cells covering ``prob``."""
+    height, width = prob.shape
+    step = max(1, _STRIP_CELLS // max(width, 1))
+    return [slice(r, min(height, r + step)) for r in range(0, height, step)]
+
+
+def _checked(prob: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """``prob`` as a 2-D float64 array whose known values lie in [0, 1] (ValueError otherwise)."""
     prob = np.asarray(prob, dtype=np.float64)
     if prob.ndim != 2:
         raise ValueError(f"a probability map must be 2-D, got shape {prob.shape}")
-    unknown = np.isnan(prob)
-    known = prob[~unknown]
-    if known.size and not (known.min() >= 0.0 and known.max() <= 1.0):
-        raise ValueError("probabilities must lie in [0, 1] (NaN for unknown)")
-    percent = np.rint(100.0 * np.where(unknown, 0.0, prob)).astype(np.uint8)
-    return percent, unknown
+    for rows in _strips(prob):
+        part = prob[rows]
+        if np.any(part < 0.0) or np.any(part > 1.0):  # NaN compares False
+            raise ValueError("probabilities must lie in [0, 1] (NaN for unknown)")
+    return prob
 
 
 def map_pixels(
@@ -148,31 +171,38 @@ def map_pixels(
     - raw: grey round(100 p); NaN -> 255.
 
     Rounding is half to even. Raises :class:`UsageError` unless 0 <= free < occupied <= 1, and
-    ``ValueError`` for an array that is not 2-D or holds values outside [0, 1].
+    ``ValueError`` for an array that is not 2-D or holds values outside [0, 1]. The image is the
+    only map-sized array made (1 byte a cell, 2 in scale mode): the rest goes in row strips.
     """
     if mode not in MAP_MODES:
         raise UsageError(f"unknown map mode '{mode}' (known: {', '.join(MAP_MODES)})")
     _check_thresholds(occupied_thresh, free_thresh)
-    percent, unknown = occupancy_percent(prob)
-    # NaN-free copy so the arithmetic below raises no warnings; unknown cells are overwritten
-    p = np.where(unknown, 0.0, np.asarray(prob, dtype=np.float64))
-
-    if mode == "trinary":
-        grey = np.full(p.shape, UNKNOWN_GREY, dtype=np.uint8)
-        grey[p <= free_thresh] = FREE_GREY
-        grey[p >= occupied_thresh] = OCCUPIED_GREY
-        grey[unknown] = UNKNOWN_GREY
-        image: npt.NDArray[np.uint8] = grey
-    elif mode == "raw":
-        image = percent
-        image[unknown] = RAW_UNKNOWN_GREY
-    else:
-        grey = np.rint(255.0 * (1.0 - p)).astype(np.uint8)
-        grey[unknown] = transparent_grey(occupied_thresh, free_thresh)
-        alpha = np.where(unknown, 0, 255).astype(np.uint8)
-        image = np.stack([grey, alpha], axis=-1)
-    # map row 0 is the bottom of the map, image row 0 the top
-    return np.ascontiguousarray(image[::-1])
+    prob = _checked(prob)
+    height, width = prob.shape
+    image = np.empty((height, width, 2) if mode == "scale" else (height, width), dtype=np.uint8)
+    hidden = transparent_grey(occupied_thresh, free_thresh)
+    for rows in _strips(prob):
+        part = prob[rows]
+        unknown = np.isnan(part)
+        # NaN-free copy so the arithmetic below raises no warnings; unknown cells are overwritten
+        p = np.where(unknown, 0.0, part)
+        if mode == "trinary":
+            grey = np.full(p.shape, UNKNOWN_GREY, dtype=np.uint8)
+            grey[p <= free_thresh] = FREE_GREY
+            grey[p >= occupied_thresh] = OCCUPIED_GREY
+            grey[unknown] = UNKNOWN_GREY
+            pixels: npt.NDArray[np.uint8] = grey
+        elif mode == "raw":
+            pixels = np.rint(100.0 * p).astype(np.uint8)
+            pixels[unknown] = RAW_UNKNOWN_GREY
+        else:
+            grey = np.rint(255.0 * (1.0 - p)).astype(np.uint8)
+            grey[unknown] = hidden
+            alpha = np.where(unknown, 0, 255).astype(np.uint8)
+            pixels = np.stack([grey, alpha], axis=-1)
+        # map row 0 is the bottom of the map, image row 0 the top
+        image[height - rows.stop : height - rows.start] = pixels[::-1]
+    return image
 
 
 def _yaml_string(name: str) -> str:

@@ -40,7 +40,7 @@ def occupancy_values(prob: npt.NDArray[np.float64]) -> npt.NDArray[np.int8]:
     round(100 p) with halves to even, -1 for NaN (unknown). ``ValueError`` as
     :func:`~gridmap_cli.writers.map_image.occupancy_percent` raises it."""
     percent, unknown = occupancy_percent(prob)
-    values = percent.astype(np.int8)
+    values = percent.view(np.int8)  # 0..100: the same bytes
     values[unknown] = -1
     return values
 

@@ -477,6 +477,41 @@ edited_mcap_case(
 )
 
 
+# issue 21: a schema that does not match its messages' type (fields missing, renamed, retyped):
+# the decoder gives a message without the type's fields; one line naming topic and message
+
+HEADER_DEFS = (
+    "=" * 80 + "\nMSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n"
+    + "=" * 80 + "\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n"
+)  # fmt: skip
+
+
+def _schema_of(type_end: str, text: str) -> Callable[[str, bytes], bytes]:
+    return lambda n, d: text.encode() if n.endswith(type_end) else d
+
+
+for _name, _base, _topic, _type, _schema, _fragment in [
+    ("range-schema-lacks-fields", "ros2", "/sonar", "Range",
+     "std_msgs/Header header\nuint8 radiation_type\n" + HEADER_DEFS, "min_range"),
+    ("range-schema-renamed-fields", "ros2", "/sonar", "Range",
+     "std_msgs/Header header\nuint8 kind\nfloat32 fov\nfloat32 lo\nfloat32 hi\nfloat32 r\n"
+     + HEADER_DEFS, "min_range"),
+    ("range-schema-no-header", "ros2", "/sonar", "Range",
+     "uint8 radiation_type\nfloat32 field_of_view\nfloat32 min_range\nfloat32 max_range\n"
+     "float32 range\n", "header"),
+    ("odometry-schema-other", "ros2", "/odom", "Odometry", "float64 x\n", "header"),
+    ("odometry-schema-no-pose", "ros2", "/odom", "Odometry",
+     "std_msgs/Header header\nstring child_frame_id\n" + HEADER_DEFS, "pose"),
+    ("tf-schema-other", "ros2", "/tf_static", "TFMessage", "int32 n\n", "transforms"),
+    ("ros1-scan-schema-lacks-ranges", "ros1", "/scan", "LaserScan",
+     "std_msgs/Header header\nfloat32 angle_min\nfloat32 angle_max\nfloat32 angle_increment\n"
+     "================================================================================\n"
+     "MSG: std_msgs/Header\nuint32 seq\ntime stamp\nstring frame_id\n", "ranges"),
+]:  # fmt: skip
+    edited_mcap_case(_name, _base, f": message 1 of {_topic} ", f"no attribute '{_fragment}'",
+                     schema=_schema_of(_type, _schema))  # fmt: skip
+
+
 # ROS 1 bags
 
 
@@ -671,6 +706,193 @@ _sqlite_damage(_garbage_db3, "db3-not-a-database", ": ", "rosbag2")
 _sqlite_damage(_cdr_cut, "db3-messages-cut", ": message 1 ", "does not decode")
 
 
+# issue 21: metadata.yaml that contradicts the files (compression, storage): one line, the file
+
+
+def _zstd(data: bytes) -> bytes:
+    from backports import zstd  # rosbags' own zstd (compression.zstd from Python 3.14)
+
+    return bytes(zstd.compress(data))
+
+
+def _compress_file(bag: Path) -> None:
+    path = next(p for p in bag.iterdir() if p.name != "metadata.yaml")
+    path.write_bytes(_zstd(path.read_bytes()))
+
+
+def _metadata_case(
+    name: str, base: str, names_file: bool, place: str, fragment: str,
+    edits: dict[str, str], also: Callable[[Path], None] | None = None,
+) -> None:  # fmt: skip
+    """A rosbag2 folder whose metadata says ``edits`` (key: new value); the error names the
+    data file (``names_file``) or metadata.yaml."""
+
+    def build(folder: Path) -> None:
+        shutil.copytree(bases()[base], folder / "bag")
+        meta = folder / "bag" / "metadata.yaml"
+        lines = meta.read_text().splitlines(keepends=True)
+        for key, value in edits.items():
+            lines = [f"  {key}: {value}\n" if x.startswith(f"  {key}:") else x for x in lines]
+        meta.write_text("".join(lines))
+        if also is not None:
+            also(folder / "bag")
+        data = next(p for p in (folder / "bag").iterdir() if p.name != "metadata.yaml")
+        (folder / "bag.input").write_text(data.name if names_file else "metadata.yaml")
+
+    case(f"rosbag2-{name}", "rosbag2", "bag/*", place, fragment)(build)
+
+
+ZSTD = {"compression_format": "zstd"}
+for _name, _base, _file, _place, _fragment, _edits, _also in [
+    ("zstd-messages-over-plain-sqlite", "sqlite", True, ": message 1 of /tf_static: ",
+     "not zstd-compressed", {**ZSTD, "compression_mode": "MESSAGE"}, None),
+    ("zstd-file-over-plain-sqlite", "sqlite", True, ": ",
+     "but this is an sqlite3 database, not compressed", {**ZSTD, "compression_mode": "FILE"},
+     None),
+    ("plain-over-zstd-file", "sqlite", True, ": ", "no compression, but this is zstd", {},
+     _compress_file),
+    ("lz4-file", "sqlite", False, ": ", "compression_format 'lz4'",
+     {"compression_format": "lz4", "compression_mode": "FILE"}, None),
+    ("compression-mode-unknown", "sqlite", False, ": ", "unknown compression_mode 'sometimes'",
+     {**ZSTD, "compression_mode": "sometimes"}, None),
+    ("mcap-storage-over-sqlite", "sqlite", True, ": ", "says storage mcap, but this is an sqlite3",
+     {"storage_identifier": "mcap"}, None),
+    ("sqlite-storage-over-mcap", "mcap-storage", True, ": ",
+     "says storage sqlite3, but this is an MCAP file", {"storage_identifier": "sqlite3"}, None),
+    ("zstd-messages-over-mcap", "mcap-storage", False, ": ", "message compression over MCAP",
+     {**ZSTD, "compression_mode": "MESSAGE"}, None),
+    ("zstd-file-over-mcap", "mcap-storage", False, ": ", "zstd-compressed MCAP storage files",
+     {**ZSTD, "compression_mode": "FILE"}, None),
+    ("zstd-file-over-zstd-mcap", "mcap-storage", False, ": ", "zstd-compressed MCAP storage",
+     {**ZSTD, "compression_mode": "FILE"}, _compress_file),
+]:  # fmt: skip
+    _metadata_case(_name, _base, _file, _place, _fragment, _edits, _also)
+
+
+# issue 21: a zero-norm or non-finite quaternion (odometry, TF, a static mount) is no rotation:
+# refused with the message's topic and log time, in every container (bulk and one by one)
+
+QUATERNIONS = {
+    "zero": ({"x": 0.0, "y": 0.0, "z": 0.0, "w": 0.0}, "has zero norm"),
+    "nan": ({"x": 0.0, "y": 0.0, "z": float("nan"), "w": 1.0}, "is not finite"),
+    "inf": ({"x": 0.0, "y": 0.0, "z": 0.0, "w": float("inf")}, "is not finite"),
+}
+#: where the bad rotation is: (topic, log time of the bad message, what the error says)
+ROTATION_PLACES = {
+    "odometry": ("/odom", "1.300000000", "orientation quaternion"),
+    "tf": ("/tf", "1.300000000", "transform odom -> base_link: quaternion"),
+    "static-mount": ("/tf_static", "1.000000000", "transform base_link -> s0: quaternion"),
+}
+
+
+def _rotation_recording(path: Path, where: str, q: dict[str, float]) -> Path:
+    from tests.readers.mcap_helpers import Recording, S, odometry, sonar_range, static_tf
+
+    with Recording(path) as rec:
+        mount = rec.transform(0, "base_link", "s0", 0.0, 0.0, 0.0)
+        if where == "static-mount":
+            mount["transform"]["rotation"] = q
+        static_tf(rec, mount)
+        for k in range(11):
+            ns = S + k * S // 10
+            if where == "tf":
+                t = rec.transform(ns, "odom", "base_link", 0.1 * k, 0.0, 0.0)
+                if k == 3:
+                    t["transform"]["rotation"] = q
+                rec.write("/tf", "tf2_msgs/TFMessage", ns, {"transforms": [t]})
+                continue
+            msg = odometry(rec, ns, 0.1 * k, 0.0, 0.0)
+            if k == 3 and where == "odometry":
+                msg["pose"]["pose"]["orientation"] = q
+            rec.write("/odom", "nav_msgs/Odometry", ns, msg)
+        rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "s0", 1.0))
+    return path
+
+
+def _rotation_case(container: str, where: str, kind: str) -> None:
+    from tests.readers.bag_helpers import write_bag, write_rosbag2
+
+    topic, at, what = ROTATION_PLACES[where]
+    q, problem = QUATERNIONS[kind]
+    name = {"mcap": "log.mcap", "bag": "log.bag", "rosbag2": "bag"}[container]
+
+    def build(folder: Path) -> None:
+        if container == "mcap":
+            _rotation_recording(folder / name, where, q)
+            return
+        source = _rotation_recording(folder / "source.mcap", where, q)
+        if container == "bag":
+            write_bag(source, folder / name)
+        else:
+            write_rosbag2(source, folder / name)
+        source.unlink()
+
+    place = f": {topic} at log time {at} s: "
+    fragment = f"{what} ({', '.join(f'{v:g}' for v in q.values())}) {problem}"
+    case(f"{container}-{where}-quaternion-{kind}", container, name, place, fragment)(build)
+
+
+for _container in ("mcap", "bag", "rosbag2"):
+    for _where in ROTATION_PLACES:
+        for _kind in QUATERNIONS:
+            _rotation_case(_container, _where, _kind)
+
+
+# issue 21: the beam-count limit (MAX_LASER_SAMPLES) in every reader of scans, not only in
+# robot descriptions and ARIA: CARMEN's laser lines, LaserScan messages of every container
+
+BEAMS = 100_001
+_POSE9 = "0.0 0.0 0.0"
+for _name, _line in [
+    ("flaser-too-many-beams",
+     f"FLASER {BEAMS} " + "1 " * BEAMS + f"{_POSE9} {_POSE9} 1.3 host 1.3\n"),
+    ("robotlaser-too-many-beams",
+     f"ROBOTLASER1 0 -1.5 3.1 0.00003 80 0.01 0 {BEAMS} " + "1 " * BEAMS
+     + f"0 {_POSE9} {_POSE9} 0 0 0 0 0 1.3 host 1.3\n"),
+]:  # fmt: skip
+    text_case(f"carmen-{_name}", "carmen", "run.log", carmen_text({10: _line}), 10,
+              "MAX_LASER_SAMPLES")  # fmt: skip
+
+
+def _wide_scan_recording(path: Path, ros: int = 2) -> Path:
+    from tests.readers.mcap_helpers import Recording, S, drive, static_tf
+
+    with Recording(path, ros=ros) as rec:
+        static_tf(rec, rec.transform(0, "base_link", "laser", 0.0, 0.0, 0.0))
+        drive(rec)
+        scan = {
+            "header": rec.header(S, "laser"), "angle_min": -1.5, "angle_max": 1.5,
+            "angle_increment": 3.0 / (BEAMS - 1), "range_min": 0.1, "range_max": 5.0,
+            "ranges": [1.0] * BEAMS, "intensities": [],
+        }  # fmt: skip
+        rec.write("/scan", "sensor_msgs/LaserScan", S, scan)
+    return path
+
+
+def _wide_scan_case(container: str) -> None:
+    from tests.readers.bag_helpers import write_bag, write_rosbag2
+
+    name = {"mcap": "log.mcap", "ros1-mcap": "log.mcap", "bag": "log.bag", "rosbag2": "bag"}
+
+    def build(folder: Path) -> None:
+        target = folder / name[container]
+        if container in ("mcap", "ros1-mcap"):
+            _wide_scan_recording(target, 1 if container == "ros1-mcap" else 2)
+            return
+        source = _wide_scan_recording(folder / "source.mcap")
+        (write_bag if container == "bag" else write_rosbag2)(source, target)
+        source.unlink()
+
+    reader = "mcap" if container == "ros1-mcap" else container
+    place = ": /scan at log time 1.000000000 s: laser 'laser': "
+    case(f"{container}-scan-too-many-beams", reader, name[container], place,
+         f"a scan of {BEAMS:,} beams")(build)  # fmt: skip
+
+
+for _container in ("mcap", "ros1-mcap", "bag", "rosbag2"):
+    _wide_scan_case(_container)
+
+
 def good_inputs(folder: Path) -> list[tuple[str, Path]]:
     """The unbroken inputs every case starts from, as (command, path): each must succeed, so
     that a case fails for the one change its name says."""
@@ -696,20 +918,20 @@ def all_cases() -> list[Case]:
 
 def build_case(name: str, folder: Path) -> Path:
     """Write case ``name`` into ``folder`` (created); returns the input path gridmap is given
-    (for ``bag/*.mcap`` cases, the rosbag2 folder; the error names the file inside)."""
+    (for ``bag/*`` cases, the rosbag2 folder; the error names the file inside)."""
     for c, build in _CASES:
         if c.name == name:
             folder.mkdir(parents=True, exist_ok=True)
             build(folder)
             if c.command == "world":
                 return folder / "world.yaml"
-            return folder / "bag" if c.input == "bag/*.mcap" else folder / c.input
+            return folder / "bag" if c.input.startswith("bag/*") else folder / c.input
     raise KeyError(name)
 
 
 def named_path(c: Case, folder: Path) -> Path:
     """The file the error must name."""
-    if c.input == "bag/*.mcap":
+    if c.input.startswith("bag/*"):
         return folder / "bag" / (folder / "bag.input").read_text()
     return folder / c.input
 

@@ -90,4 +90,9 @@ def test_case(name: str, tmp_path: Path, good: dict[str, Path]) -> None:
     assert err.startswith(expected), f"{err!r} does not start with {expected!r}"
     assert c.fragment in err, err
     assert "internal error" not in err and "Traceback" not in err
+    assert "np." not in err, err  # numpy reprs (np.float64(nan)) are not for people
     assert snapshot(out) == before
+    if c.command == "build":  # inspect reads it as build does: no crash, no numpy reprs
+        code, stdout, err = run("inspect", str(given))
+        assert "internal error" not in err and "Traceback" not in err, err
+        assert "np." not in stdout + err, stdout + err

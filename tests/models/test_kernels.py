@@ -125,18 +125,28 @@ def test_a_kernel_refuses_arrays_of_the_wrong_size() -> None:
     with pytest.raises(ValueError, match="y: expected 3 items"):
         _ckernels.sector_batch(
             0.0, 0.0, 0.05, SPEC.width, SPEC.height, m, np.zeros(2), m, m, m, m, j, j, m, m, m,
-            m, values, counts,
+            m, grid.scale, 0, values, counts,
         )  # fmt: skip
     with pytest.raises(ValueError, match="count_sums"):
         _ckernels.sector_batch(
             0.0, 0.0, 0.05, SPEC.width, SPEC.height, m, m, m, m, m, m, j, j, m, m, m, m,
-            values, counts[:-1],
+            grid.scale, 0, values, counts[:-1],
+        )  # fmt: skip
+    with pytest.raises(ValueError, match="window of whole grid rows"):
+        _ckernels.sector_batch(
+            0.0, 0.0, 0.05, SPEC.width, SPEC.height, m, m, m, m, m, m, j, j, m, m, m, m,
+            grid.scale, 1, values, counts,
+        )  # fmt: skip
+    with pytest.raises(ValueError, match="outside"):
+        _ckernels.sector_batch(
+            0.0, 0.0, 0.05, SPEC.width, SPEC.height, m, m, m, m, m, m, j, j + 1, m,
+            np.full(3, 100.0), m, m, grid.scale, 0, values, counts,
         )  # fmt: skip
     with pytest.raises(ValueError, match="read-only"):
         values.flags.writeable = False
         _ckernels.sector_batch(
             0.0, 0.0, 0.05, SPEC.width, SPEC.height, m, m, m, m, m, m, j, j, m, m, m, m,
-            values, counts,
+            grid.scale, 0, values, counts,
         )  # fmt: skip
 
 
@@ -230,10 +240,10 @@ def test_the_moved_kernels_refuse_a_key_pose_that_is_not_there() -> None:
     with pytest.raises(ValueError, match="owner"):
         _ckernels.moved_sector_batch(
             0.0, 0.0, 0.05, SPEC.width, SPEC.height, m, m, m, m, m, m, m, m, m, m, bad, one,
-            one, two, values, counts,
+            one, two, grid.scale, values, counts,
         )  # fmt: skip
     with pytest.raises(ValueError, match="owner"):
         _ckernels.moved_ray_batch(
             0.0, 0.0, 0.05, SPEC.width, SPEC.height, m, m, m, m, bad, bad, one, one, two, -0.4,
-            0.8, values, counts,
+            0.8, grid.scale, values, counts,
         )  # fmt: skip

@@ -273,16 +273,27 @@ def test_accumulation_does_not_depend_on_reading_order_or_batches() -> None:
     assert np.allclose(grid.log_odds(), lo, atol=1e-12)
 
 
-def test_bounds_hold_start_and_end_points() -> None:
+def test_bounds_hold_start_points_and_echoes_not_free_only_ends() -> None:
     model = RayModel(RayParams(no_echo_free_m=2.0), 0.05)
     r = readings([1.0, LASER.max_range_m], [0.0, math.pi / 2], [0.5, -1.0], [0.0, 0.25])
-    assert model.bounds(r) == pytest.approx((-1.0, 0.0, 1.5, 2.25))
+    # the no-echo beam's free segment (to y = 2.25) is clipped to the map, never grows it
+    assert model.bounds(r) == pytest.approx((-1.0, 0.0, 1.5, 0.25))
+
+
+def test_max_range_cuts_long_readings_to_free_space() -> None:
+    model = RayModel(RayParams(max_range_m=2.0), 0.05)
+    r = readings([1.0, 3.0], [0.0, 0.0], [0.0, 0.0], [0.0, 1.0])
+    seg = model.segments(r)
+    assert seg.echo.tolist() == [True, False]  # cut: no wall at its end
+    assert seg.x1_m.tolist() == pytest.approx([1.0, 2.0])
+    assert model.bounds(r) == pytest.approx((0.0, 0.0, 1.0, 1.0))
 
 
 @pytest.mark.parametrize(
     "kwargs",
     [{"p_occupied": 0.5}, {"p_occupied": 1.0}, {"p_free": 0.5}, {"p_free": 0.0},
-     {"no_echo_free_m": -1.0}, {"no_echo_free_m": math.nan}],
+     {"no_echo_free_m": -1.0}, {"no_echo_free_m": math.nan}, {"max_range_m": 0.0},
+     {"max_range_m": math.nan}],
 )  # fmt: skip
 def test_params_are_validated(kwargs: dict[str, float]) -> None:
     with pytest.raises(ValueError):

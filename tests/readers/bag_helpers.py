@@ -58,11 +58,17 @@ def write_rosbag2(
     keep: Callable[[str], bool] = lambda topic: True,
     storage: StoragePlugin = StoragePlugin.SQLITE3,
     rename: dict[str, str] | None = None,
+    compression: str = "none",
 ) -> Path:
     """A rosbag2 folder (sqlite3 or MCAP storage) of the ``keep`` topics of ``source``, topics
-    renamed as ``rename`` says."""
+    renamed as ``rename`` says, zstd-compressed by ``compression`` (none, file, message)."""
     store = _typestore(source)
-    with Bag2Writer(target, version=8, storage_plugin=storage) as writer:
+    writer = Bag2Writer(target, version=8, storage_plugin=storage)
+    if compression != "none":
+        from rosbags.rosbag2 import CompressionFormat, CompressionMode
+
+        writer.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
+    with writer:
         connections = {}
         for topic, msgtype, log_time, data in _messages(source, keep):
             conn = connections.get(topic)

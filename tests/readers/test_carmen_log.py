@@ -95,10 +95,10 @@ def test_params_mount_the_laser_and_cap_its_range(tmp_path: Path) -> None:
     assert log.sensors is not None
     assert log.sensors[0].x_m == 0.25 and log.sensors[0].max_range_m == 2.5
     assert math.degrees(log.sensors[1].yaw_rad - log.sensors[0].yaw_rad) == pytest.approx(0.5)
-    # 3.0 and 2.5 are at or beyond the maximum, 0 is no reading: left out
-    np.testing.assert_allclose(log.readings.range_m, [1.0, 2.0])
+    # 3.0 and 2.5 are at or beyond the maximum: no echo (inf); 0 is no reading: left out
+    np.testing.assert_allclose(log.readings.range_m, [1.0, 2.0, math.inf, math.inf])
     assert (
-        "(PARAM robot_front_laser_max); 2 readings at or beyond it left out"
+        "(PARAM robot_front_laser_max); 2 readings at or beyond it: no echo"
         in log.metadata["frontlaser"]
     )
 
@@ -108,7 +108,7 @@ def test_a_repeated_largest_reading_is_the_no_echo_value(tmp_path: Path) -> None
     lines += [flaser([50.0, 3.0, 50.0], (0, 0, 0), 1.0 + 0.1 * i) for i in range(6)]
     log = read_carmen_log(write(tmp_path, lines))
     assert log.sensors is not None and log.sensors[0].max_range_m == 50.0
-    np.testing.assert_allclose(log.readings.range_m, [3.0] * 6)
+    np.testing.assert_allclose(log.readings.range_m, [math.inf, 3.0, math.inf] * 6)
 
 
 def test_rear_laser_faces_backward_behind_the_centre(tmp_path: Path) -> None:

@@ -53,8 +53,10 @@ def test_scans_beams_and_maximum_range(
     # every ODOM line but the restarts, plus one pose per scan
     assert len(data.poses) == odom
     assert len(np.unique(data.readings.stamp_ns)) == scans
-    assert len(data.readings) == scans * beams - no_echo
-    assert f"{no_echo} readings at or beyond it left out" in data.metadata["frontlaser"]
+    # the no-echo readings are kept as such (inf): the ray model clears up to its cap
+    assert len(data.readings) == scans * beams
+    assert int(np.isinf(data.readings.range_m).sum()) == no_echo
+    assert f"{no_echo} readings at or beyond it: no echo" in data.metadata["frontlaser"]
     assert np.all(np.diff(data.poses.stamp_ns) > 0) and np.all(np.diff(data.truth.stamp_ns) > 0)
     # both tracks have a pose at every scan's own stamp
     assert np.isin(data.readings.stamp_ns, data.poses.stamp_ns).all()

@@ -132,7 +132,7 @@ def accumulate_sectors(grid: LogOddsAccumulator, ev: SectorEvidence) -> int:
             spec.origin_x_m, spec.origin_y_m, spec.resolution_m, spec.width, spec.height,
             f64(ev.x_m), f64(ev.y_m), np.sin(right), np.cos(right), np.sin(left), np.cos(left),
             j0, counts, f64(ev.outer_m), f64(ev.outer_value), f64(ev.inner_m),
-            f64(ev.inner_value), values, observations,
+            f64(ev.inner_value), grid.scale, grid.rows[0], values, observations,
         )
     )  # fmt: skip
 

@@ -13,8 +13,16 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.limits import MAX_LASER_SAMPLES, too_many_beams
 from gridmap_cli.readers.ros.bulk import TF_TYPES, Columns
-from gridmap_cli.readers.ros.frames import Transform, TransformSeries, frame_name, yaw_of
+from gridmap_cli.readers.ros.frames import (
+    Transform,
+    TransformSeries,
+    bad_rotations,
+    frame_name,
+    rotation_problem,
+    yaw_of,
+)
 from gridmap_cli.readers.ros.messages import MessageAccumulator
 from gridmap_cli.readers.ros.messages.fields import _f32
 from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar, _Track
@@ -33,7 +41,7 @@ def add_columns(
         return
     plan = acc.plan
     if type_name in TF_TYPES:
-        _tf(acc, cols, static=topic in plan.static_topics)
+        _tf(acc, topic, cols, static=topic in plan.static_topics)
     elif type_name in ("nav_msgs/Odometry", "gridmap.Pose2D"):
         track = {plan.odom_topic: acc.odom, plan.truth_topic: acc.truth}.get(topic)
         if track is None and topic == plan.reference_topic:
@@ -145,6 +153,9 @@ def _scans(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
             float(a["range_min"][row]),
             float(a["range_max"][row]),
         )
+        if geometry.count > MAX_LASER_SAMPLES:  # a frame's scans all have its first's beams
+            where = f"{_where(acc, topic, cols, row)}: laser '{frame}': "
+            raise too_many_beams(acc.message_path, geometry.count, where=where)
         known.append(acc.scans.get(frame, geometry))
     k_min = np.array([k.angle_min for k in known])[index]
     k_inc = np.array([k.angle_increment for k in known])[index]
@@ -224,6 +235,15 @@ def _poses(acc: MessageAccumulator, track: _Track, topic: str, cols: Columns) ->
     if "theta" in a:  # gridmap.Pose2D
         thetas = a["theta"].astype(np.float64)
     else:
+        rotations = np.column_stack([a[k].astype(np.float64) for k in ("qx", "qy", "qz", "qw")])
+        bad = bad_rotations(rotations)
+        if bad.any():
+            row = int(np.argmax(bad))
+            qx, qy, qz, qw = rotations[row].tolist()
+            problem = rotation_problem((qx, qy, qz, qw))
+            raise InputFileError(
+                acc.message_path, f"{_where(acc, topic, cols, row)}: orientation {problem}"
+            )
         thetas = np.empty(len(stamps))
         for start in range(0, len(stamps), _YAW_ROWS):  # a slice at a time: no 4 whole lists
             part = slice(start, start + _YAW_ROWS)
@@ -247,12 +267,24 @@ def _poses(acc: MessageAccumulator, track: _Track, topic: str, cols: Columns) ->
     track.extend(stamps, np.column_stack((xs, ys, thetas)))
 
 
-def _tf(acc: MessageAccumulator, cols: Columns, static: bool) -> None:
+def _tf(acc: MessageAccumulator, topic: str, cols: Columns, static: bool) -> None:
     a = cols.arrays
     parent_index, parents = _frames(cols, "parent")
     child_index, children = _frames(cols, "child")
     names = ("tx", "ty", "tz", "qx", "qy", "qz", "qw")
     values = np.column_stack([a[k].astype(np.float64) for k in names])
+    bad = bad_rotations(values[:, 3:]) | ~np.isfinite(values[:, :3]).all(axis=1)
+    if bad.any():
+        row = int(np.argmax(bad))
+        v = values[row].tolist()
+        problem = rotation_problem((v[3], v[4], v[5], v[6]))
+        if problem is None:
+            problem = f"translation {(v[0], v[1], v[2])} is not finite"
+        raise InputFileError(
+            acc.message_path,
+            f"{_where(acc, topic, cols, row)}: transform {parents[int(parent_index[row])]} -> "
+            f"{children[int(child_index[row])]}: {problem}",
+        )
     if static:
         for p, c, v in zip(
             parent_index.tolist(), child_index.tolist(), values.tolist(), strict=True

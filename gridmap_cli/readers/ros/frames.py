@@ -31,6 +31,29 @@ def frame_name(frame_id: str) -> str:
     return frame_id.lstrip("/")
 
 
+#: A quaternion shorter than this is no rotation (a zeroed message field), not a tiny one.
+MIN_QUATERNION_NORM = 1e-6
+
+
+def rotation_problem(q: Quaternion) -> str | None:
+    """What makes ``q`` no rotation (not finite, or zero norm: ROS zero-fills an unset
+    orientation), or None; taken as identity it would map nonsense without a word."""
+    norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
+    text = f"quaternion ({', '.join(f'{float(v):g}' for v in q)})"
+    if not math.isfinite(norm2):
+        return f"{text} is not finite"
+    if norm2 < MIN_QUATERNION_NORM * MIN_QUATERNION_NORM:
+        return f"{text} has zero norm: not a rotation"
+    return None
+
+
+def bad_rotations(q: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
+    """:func:`rotation_problem` is not None, for (N, 4) quaternions at once."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        norm2 = np.sum(q * q, axis=1)
+    return np.asarray(~np.isfinite(norm2) | (norm2 < MIN_QUATERNION_NORM**2), dtype=np.bool_)
+
+
 def yaw_of(q: Quaternion) -> float:
     """Heading (rad, wrapped) of the x axis of a frame rotated by quaternion ``q``.
 

@@ -252,7 +252,7 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
         range_topics = tuple(dict.fromkeys(ranges))
     else:
         range_topics = tuple(c.topic for c in by_role.get("range", []))
-        if not range_topics:
+        if not range_topics and not options.poses_only:
             refuse(
                 InputFileError(
                     path,

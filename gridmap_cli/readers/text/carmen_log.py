@@ -27,7 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.limits import numbered_lines
+from gridmap_cli.limits import MAX_LASER_SAMPLES, numbered_lines, too_many_beams
 from gridmap_cli.readers.text.carmen_layout import layout_from_params
 from gridmap_cli.readers.text.carmen_tracks import Event, build_tracks
 from gridmap_cli.readers.text.csv_log import seconds_to_ns
@@ -224,6 +224,8 @@ class _Parser:
         if len(tokens) < 2:
             raise self.error(line, f"{message}: expected num_readings after the message name")
         n = self.count(line, message, tokens[1], "num_readings")
+        if n > MAX_LASER_SAMPLES:
+            raise too_many_beams(self.path, n, line, f"{message}: ")
         expected = n + 2 + 6 + _TRAILER
         if len(tokens) != expected:
             raise self.error(
@@ -272,6 +274,8 @@ class _Parser:
                 f"{10 + n + n_rem + tail} fields, found {len(tokens)}",
             )
         n_config, n, _ = layout
+        if n > MAX_LASER_SAMPLES:
+            raise too_many_beams(self.path, n, line, f"{message}: ")
         what = ("laser_type", "start_angle", "fov", "angular_resolution", "maximum_range")
         config = [self.number(line, message, t, w) for t, w in zip(tokens[1:6], what, strict=True)]
         ranges = self.ranges(line, message, tokens[n_config + 2 : n_config + 2 + n])
@@ -307,14 +311,14 @@ class _Parser:
             if event.kind != "scan":
                 continue
             scan = self.scans[event.scan]
-            # at or beyond the maximum: SICK's error codes (81.83, 81.91) or a clipped 50 m;
-            # as "no echo" they would clear free space straight through the building's walls
+            # at or beyond the maximum: SICK's error codes (81.83, 81.91) or a clipped 50 m: no
+            # echo, which the ray model clears only up to its cap (--no-echo-free)
             beyond = scan.ranges >= layouts[scan.laser].max_range_m
             no_echo[scan.laser] += int(np.count_nonzero(beyond))
-            present = ~np.isnan(scan.ranges) & ~beyond
+            present = ~np.isnan(scan.ranges)
             stamps.append(np.full(int(present.sum()), stamp_ns, dtype=np.int64))
             index.append(offsets[scan.laser] + np.nonzero(present)[0])
-            ranges.append(scan.ranges[present])
+            ranges.append(np.where(beyond, np.inf, scan.ranges)[present])
         readings = RangeReadings(
             stamp_ns=np.concatenate(stamps),
             sensor=np.concatenate(index).astype(np.int32),
@@ -327,7 +331,7 @@ class _Parser:
             metadata[LASER_NAMES[number]] = (
                 f"{lasers[number]}, {count} beams from {math.degrees(start):g} deg every "
                 f"{math.degrees(step):g} deg, max range {laser.max_range_m:g} m "
-                f"({laser.max_from}); {no_echo[number]} readings at or beyond it left out"
+                f"({laser.max_from}); {no_echo[number]} readings at or beyond it: no echo"
                 + (f"; PARAM {laser.params_read}" if laser.params_read else "")
             )
         skipped = [f"{m} {c}" for m, c in sorted(self.skipped.items())]

@@ -11,18 +11,17 @@ and the MCAP that ``mcap convert`` makes of it give the same canonical stream.
 
 from __future__ import annotations
 
+import importlib
 import struct
 from collections import Counter
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.limits import read_settings_text
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros.bag.integrity import verify_bag
+from gridmap_cli.readers.ros.bag.metadata import ROSBAG2_METADATA, ZSTD_MAGIC, read_metadata
 from gridmap_cli.readers.ros.mcap.bulk import Batch
 from gridmap_cli.readers.ros.mcap.log import McapSource
 from gridmap_cli.readers.ros.recording import (
@@ -33,12 +32,9 @@ from gridmap_cli.readers.ros.recording import (
 )
 from gridmap_cli.readers.ros.topics import ChannelInfo, Survey, fold_type, qos_text
 from gridmap_cli.records import RangeLog
-from gridmap_cli.yamlfile import yaml_problem
 
 #: The first line of every ROS 1 bag (format 2.0, the only one rosbag has written since 2010).
 BAG_MAGIC = b"#ROSBAG V2.0\n"
-#: The file naming a rosbag2 folder's storage, files and topics.
-ROSBAG2_METADATA = "metadata.yaml"
 
 
 def sniff(head: bytes) -> bool:
@@ -58,7 +54,10 @@ def _damaged() -> tuple[type[BaseException], ...]:
     from rosbags.rosbag2 import ReaderError as Bag2Error
     from rosbags.serde import SerdeError
 
+    # rosbags' zstd (compression.zstd, or its backport): a message or file that is not zstd
+    zstd_error = importlib.import_module("rosbags.rosbag2.reader").zstd.ZstdError
     return (
+        zstd_error,
         AnyReaderError,
         Bag1Error,
         Bag2Error,
@@ -180,6 +179,8 @@ class BagSource:
                         msg = reader.deserialize(raw, con.msgtype)
                     except Exception as exc:  # the deserialisers raise anything on bad bytes
                         text = " ".join(str(exc).split())[:200]
+                        if bytes(raw[:4]) == ZSTD_MAGIC:
+                            text += f"; it is zstd-compressed, and {ROSBAG2_METADATA} says not"
                         raise InputFileError(
                             self.path,
                             f"message {seen[con.topic]} of {con.topic} ({type_name}, log time "
@@ -234,35 +235,11 @@ def _files(path: Path) -> tuple[tuple[str, int], ...]:
 
 
 def rosbag2_sources(folder: Path) -> list[RecordingSource]:
-    """The sources of a rosbag2 folder: its MCAP files, or the folder itself (sqlite3)."""
-    meta_path = folder / ROSBAG2_METADATA
-    try:
-        meta = yaml.safe_load(read_settings_text(meta_path, "rosbag2 metadata"))
-        info = meta["rosbag2_bagfile_information"]
-        storage = str(info.get("storage_identifier", ""))
-        files = [str(f) for f in info.get("relative_file_paths") or []]
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputFileError(
-            meta_path, f"cannot read: {getattr(exc, 'strerror', None) or exc}"
-        ) from exc
-    except yaml.YAMLError as exc:
-        line, problem = yaml_problem(exc)
-        raise InputFileError(meta_path, f"not a rosbag2 metadata file: {problem}", line) from exc
-    except (KeyError, TypeError, AttributeError) as exc:
-        raise InputFileError(
-            meta_path, f"not a rosbag2 metadata file ({type(exc).__name__}: {exc})"
-        ) from exc
-    if storage == "mcap":
-        missing = [f for f in files if not (folder / f).is_file()]
-        if missing or not files:
-            raise InputFileError(
-                meta_path, f"names MCAP files that are not in the folder: {', '.join(missing)}"
-            )
-        return [McapSource(folder / f) for f in files]
-    if storage not in ("sqlite3", ""):
-        raise InputFileError(
-            meta_path, f"unknown rosbag2 storage '{storage}' (gridmap reads sqlite3 and mcap)"
-        )
+    """The sources of a rosbag2 folder: its MCAP files, or the folder itself (sqlite3), once
+    :func:`~gridmap_cli.readers.ros.bag.metadata.read_metadata` has checked them."""
+    meta = read_metadata(folder)
+    if meta.storage == "mcap":
+        return [McapSource(folder / f) for f in meta.files]
     return [BagSource(folder)]
 
 

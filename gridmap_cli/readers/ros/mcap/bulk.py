@@ -154,7 +154,12 @@ def decode_piece(
         raise
     except Exception as exc:  # the message-by-message read names the bad message
         raise Layout("the library cannot decode the first message") from exc
-    if not matches(type_name, cols, int(raw.pos[0]), msg):
+    try:
+        same = matches(type_name, cols, int(raw.pos[0]), msg)
+    except (AttributeError, TypeError, ValueError, IndexError) as exc:
+        # a schema that is not the type's: the message-by-message read names the message
+        raise Layout("the library's message lacks the type's fields") from exc
+    if not same:
         raise Layout("the library decodes the first message differently")
     return cols
 

@@ -21,15 +21,22 @@ class MessageAccumulator(_Poses, _Ranges):
         """Take one decoded message of ``topic`` from file ``source``."""
         self.message_path = source
         self.topic_types[topic] = type_name
+        index = self.added[(source, topic)] = self.added.get((source, topic), 0) + 1
         try:
             self._dispatch(topic, type_name, log_time, msg)
         except InputFileError:
             raise
-        except (AttributeError, KeyError, TypeError, ValueError) as exc:
+        except (AttributeError, KeyError, TypeError, ValueError, IndexError) as exc:
+            # a schema that does not match its type decodes to messages without its fields
+            what = (
+                f"its schema does not match {type_name} ({exc})"
+                if isinstance(exc, AttributeError)
+                else f"malformed {type_name} message ({type(exc).__name__}: {exc})"
+            )
             raise InputFileError(
                 self.message_path,
-                f"{topic}: malformed {type_name} message at log time {log_time} "
-                f"({type(exc).__name__}: {exc})",
+                f"message {index} of {topic} ({type_name}, log time {log_time / 1e9:.9f} s): "
+                f"{what}",
             ) from exc
 
     def _dispatch(self, topic: str, type_name: str, log_time: int, msg: Any) -> None:

@@ -8,7 +8,12 @@ import math
 from typing import Any
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.readers.ros.frames import TransformBuffer, TransformSeries, frame_name
+from gridmap_cli.readers.ros.frames import (
+    TransformBuffer,
+    TransformSeries,
+    frame_name,
+    rotation_problem,
+)
 from gridmap_cli.readers.ros.messages.fields import _transform
 from gridmap_cli.readers.ros.messages.state import _State
 
@@ -20,6 +25,14 @@ class _Mounts(_State):
         for t in msg.transforms:
             parent, child = frame_name(t.header.frame_id), frame_name(t.child_frame_id)
             transform = _transform(t.transform)
+            problem = rotation_problem(transform.rotation)
+            if problem is None and not all(math.isfinite(v) for v in transform.translation):
+                problem = f"translation {transform.translation} is not finite"
+            if problem is not None:
+                raise InputFileError(
+                    self.message_path,
+                    f"{self._where(topic, log_time)}: transform {parent} -> {child}: {problem}",
+                )
             if static:
                 self.tree.add(parent, child, transform)
                 continue

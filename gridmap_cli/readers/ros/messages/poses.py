@@ -11,7 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.readers.ros.frames import frame_name, yaw_of
+from gridmap_cli.readers.ros.frames import frame_name, rotation_problem, yaw_of
 from gridmap_cli.readers.ros.messages.fields import _quaternion
 from gridmap_cli.readers.ros.messages.mounts import _Mounts
 from gridmap_cli.readers.ros.messages.state import _Track
@@ -31,7 +31,13 @@ class _Poses(_Mounts):
             # Odometry and PoseWithCovarianceStamped wrap the pose with its covariance
             pose = msg.pose if type_name == "geometry_msgs/PoseStamped" else msg.pose.pose
             x, y = float(pose.position.x), float(pose.position.y)
-            theta = yaw_of(_quaternion(pose.orientation))
+            q = _quaternion(pose.orientation)
+            problem = rotation_problem(q)
+            if problem is not None:
+                raise InputFileError(
+                    self.message_path, f"{self._where(topic, log_time)}: orientation {problem}"
+                )
+            theta = yaw_of(q)
             child = str(getattr(msg, "child_frame_id", ""))
         if not all(math.isfinite(v) for v in (x, y, theta)):
             raise InputFileError(

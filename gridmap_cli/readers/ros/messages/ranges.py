@@ -12,6 +12,7 @@ import numpy as np
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import wrap_angle
+from gridmap_cli.limits import MAX_LASER_SAMPLES, too_many_beams
 from gridmap_cli.readers.ros.frames import frame_name
 from gridmap_cli.readers.ros.messages.fields import _classify, _f32, float32_decimal
 from gridmap_cli.readers.ros.messages.mounts import _Mounts
@@ -76,6 +77,9 @@ class _Ranges(_Mounts):
         geometry = _Scan(
             msg.angle_min, msg.angle_increment, len(ranges), msg.range_min, msg.range_max
         )
+        if geometry.count > MAX_LASER_SAMPLES:
+            where = f"{self._where(topic, log_time)}: laser '{frame}': "
+            raise too_many_beams(self.message_path, geometry.count, where=where)
         known = self.scans.setdefault(frame, geometry)
         if (known.angle_min, known.angle_increment, known.count) != (
             geometry.angle_min,

@@ -94,6 +94,7 @@ class _State:
     ) -> None:
         self.path = path  # the recording (files joined when several): for errors of the whole
         self.message_path = path  # the file of the message being added: for errors of one
+        self.added: dict[tuple[str, str], int] = {}  # messages added by (file, topic): names one
         self.refusals = refusals
         self.plan = plan
         self.robot = robot

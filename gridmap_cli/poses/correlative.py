@@ -1,0 +1,186 @@
+"""Correlative search: the best pose of a point set on a likelihood grid, by branch and bound.
+
+Where a loop closure's starting guess may be metres and degrees off, GICP (which follows the
+nearest correspondences) lands in the wrong place or nowhere. The correlative search (Olson 2009;
+Hess et al. 2016, Cartographer's loop closure) scores every pose of a window instead: the target
+points are rasterised on a grid whose cells hold ``exp(-d^2 / 2 sigma^2)`` of the distance ``d``
+to the nearest target point, and a pose's score is the mean of that over the source points moved
+by it (1: every point on a target point; 0: none near one).
+
+The window (``±window_m`` in x and y, ``±window_rad`` in heading) is searched exactly, but fast:
+for each heading the translations form a tree; a node covering ``2^L`` by ``2^L`` cells is
+bounded by the score on a grid whose cells hold the maximum of the ``2^L`` by ``2^L`` cells above
+and to the right of them, so a whole subtree whose bound is below the best score found is never
+visited (branch and bound). The answer is the best pose on the grid (to one cell and one heading
+step); GICP refines it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy import ndimage
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """The best pose of the source in the target's frame (m, m, rad) and its score in [0, 1]."""
+
+    x_m: float
+    y_m: float
+    theta_rad: float
+    score: float
+
+
+class LikelihoodGrid:
+    """The likelihood grid of target points (K, 2) and its max-pooled levels.
+
+    ``resolution_m``: cell size; ``sigma_m``: width of each point's likelihood; ``levels``:
+    number of pooled levels above the grid (the coarsest covers ``2^levels`` cells a side);
+    ``reach_m``: the largest search window the grid will serve (its zero border is that wide,
+    so a point off the grid, moved by any offset of the window, still reads zero).
+    """
+
+    def __init__(
+        self,
+        points: FloatArray,
+        resolution_m: float,
+        sigma_m: float,
+        levels: int,
+        reach_m: float,
+    ) -> None:
+        self.resolution_m = resolution_m
+        self.levels = levels
+        pad = 2 * (2**levels + 2 + math.ceil(reach_m / resolution_m))
+        self.pad = pad
+        low = points.min(axis=0) - pad * resolution_m
+        high = points.max(axis=0) + pad * resolution_m
+        shape = np.ceil((high - low) / resolution_m).astype(int) + 1
+        self.origin = low
+        cells = np.floor((points - low) / resolution_m).astype(int)
+        hit = np.zeros(tuple(shape), dtype=bool)
+        hit[cells[:, 0], cells[:, 1]] = True
+        dist = ndimage.distance_transform_edt(~hit) * resolution_m
+        base = np.exp(-0.5 * (dist / sigma_m) ** 2).astype(np.float32)
+        # rows and columns beyond the target's reach stay zero, so clipping an index to the
+        # grid's edge scores "no target point here" at every level
+        base[:pad, :] = base[-pad:, :] = 0.0
+        base[:, :pad] = base[:, -pad:] = 0.0
+        self.shape = base.shape
+        grids = [base]
+        for level in range(levels):
+            g, h = grids[-1], 2**level
+            up = g.copy()
+            up[:-h, :] = np.maximum(up[:-h, :], g[h:, :])
+            up2 = up.copy()
+            up2[:, :-h] = np.maximum(up2[:, :-h], up[:, h:])
+            grids.append(up2)
+        self.flat = [g.ravel() for g in grids]
+
+    def cells(self, points: FloatArray) -> npt.NDArray[np.intp]:
+        """Flat fine cell index (K,) of points (K, 2) in the target's frame; points off the
+        grid are put on its zero border."""
+        c = np.floor((points - self.origin) / self.resolution_m).astype(np.intp)
+        u = np.clip(c[:, 0], self.pad // 2, self.shape[0] - 1 - self.pad // 2)
+        v = np.clip(c[:, 1], self.pad // 2, self.shape[1] - 1 - self.pad // 2)
+        return np.asarray(u * self.shape[1] + v, dtype=np.intp)
+
+    def offsets(self, cells_uv: npt.NDArray[np.intp]) -> npt.NDArray[np.intp]:
+        """Flat index offsets (M,) of cell offsets (M, 2)."""
+        return np.asarray(cells_uv[:, 0] * self.shape[1] + cells_uv[:, 1], dtype=np.intp)
+
+    def score(
+        self, level: int, cells: npt.NDArray[np.intp], offsets: npt.NDArray[np.intp]
+    ) -> FloatArray:
+        """Mean over the points' cells (K,) moved by each of ``offsets`` (M,): shape (M,)."""
+        g = self.flat[level]
+        return np.asarray(g[cells[None, :] + offsets[:, None]].sum(axis=1) / len(cells))
+
+
+def search(
+    grid: LikelihoodGrid,
+    source: FloatArray,
+    guess: tuple[float, float, float],
+    window_m: float,
+    window_rad: float,
+    step_rad: float,
+    min_score: float,
+) -> SearchResult | None:
+    """The best pose of ``source`` (K, 2, its own frame) on ``grid`` within the window around
+    ``guess`` (source in the target's frame), or None when no pose scores ``min_score``."""
+    res = grid.resolution_m
+    reach = max(1, math.ceil(window_m / res))
+    top = grid.levels
+    size = 2**top
+    # the coarsest nodes tile [-reach, reach] in both axes
+    starts = np.arange(-reach, reach + 1, size)
+    ox, oy = np.meshgrid(starts, starts, indexing="ij")
+    tiles = np.column_stack([ox.ravel(), oy.ravel()]).astype(np.intp)
+    n_turns = max(0, math.floor(window_rad / step_rad))
+    best_score, best = min_score, None
+    roots: list[tuple[float, int, npt.NDArray[np.intp], float]] = []
+    cells_by_turn: list[npt.NDArray[np.intp]] = []
+    for t, k in enumerate(range(-n_turns, n_turns + 1)):
+        theta = guess[2] + k * step_rad
+        c, s = math.cos(theta), math.sin(theta)
+        moved = np.column_stack(
+            [
+                guess[0] + c * source[:, 0] - s * source[:, 1],
+                guess[1] + s * source[:, 0] + c * source[:, 1],
+            ]
+        )
+        cells = grid.cells(moved)
+        cells_by_turn.append(cells)
+        bounds = grid.score(top, cells, grid.offsets(tiles))
+        roots.extend((float(b), t, tiles[m], theta) for m, b in enumerate(bounds))
+    roots.sort(key=lambda r: -r[0])
+    for bound, t, offset, theta in roots:
+        if bound <= best_score:
+            break
+        found = _descend(grid, cells_by_turn[t], offset, top, best_score, reach)
+        if found is not None:
+            best_score = found[0]
+            best = (found[1], theta)
+    if best is None:
+        return None
+    (u, v), theta = best
+    return SearchResult(guess[0] + u * res, guess[1] + v * res, theta, best_score)
+
+
+def _descend(
+    grid: LikelihoodGrid,
+    cells: npt.NDArray[np.intp],
+    offset: npt.NDArray[np.intp],
+    level: int,
+    floor: float,
+    reach: int,
+) -> tuple[float, tuple[int, int]] | None:
+    """Depth-first branch and bound below one node: the best (score, offset) above ``floor``."""
+    best: tuple[float, tuple[int, int]] | None = None
+    stack: list[tuple[float, npt.NDArray[np.intp], int]] = [(math.inf, offset, level)]
+    while stack:
+        bound, node, lv = stack.pop()
+        if bound <= floor:
+            continue
+        h = 2 ** (lv - 1)
+        kids = node[None, :] + np.array([[0, 0], [h, 0], [0, h], [h, h]], dtype=np.intp)
+        inside = (np.abs(kids) <= reach).all(axis=1)
+        kids = kids[inside]
+        if len(kids) == 0:
+            continue
+        scores = grid.score(lv - 1, cells, grid.offsets(kids))
+        order = np.argsort(scores)  # ascending: the best is pushed last and popped first
+        for m in order:
+            if scores[m] <= floor:
+                continue
+            if lv - 1 == 0:
+                floor = float(scores[m])
+                best = (floor, (int(kids[m, 0]), int(kids[m, 1])))
+            else:
+                stack.append((float(scores[m]), kids[m], lv - 1))
+    return best
