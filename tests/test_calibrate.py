@@ -12,7 +12,12 @@ import pytest
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.poses.calibrate import CalibrationError, calibrate
-from gridmap_cli.poses.odometry_error import VERSION_2_KEYS, OdometryError, load_odometry_error
+from gridmap_cli.poses.odometry_error import (
+    VERSION_2_KEYS,
+    VERSION_3_KEYS,
+    OdometryError,
+    load_odometry_error,
+)
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import load_robot
@@ -110,9 +115,18 @@ def test_a_simulated_drift_1_log_finds_the_simulators_errors() -> None:
             assert found == true  # not calibrated: the default is passed through
         elif name in VERSION_2_KEYS:
             assert found == true == 0.0  # version-2 terms: neither simulated nor calibrated
+        elif name in VERSION_3_KEYS:
+            continue  # signed: below
         else:
             assert true / 2 < found < true * 2, (name, found, true)
     assert c.heading_drift_rad_per_m == pytest.approx(sim.heading_drift_rad_per_m, rel=0.15)
+    # version 3: the signs too, what --correct-odometry takes out
+    signed = OdometryErrorModel()
+    assert 0.5 * signed.scale_error < c.model.distance_scale_bias < 2 * signed.scale_error
+    assert 0.5 * signed.turn_scale_error < c.model.turn_scale_bias < 2 * signed.turn_scale_error
+    assert c.model.heading_drift_bias_rad_per_m == pytest.approx(
+        signed.heading_drift_rad_per_m, rel=0.15
+    )
 
 
 def test_log_without_truth_is_refused(tmp_path: Path) -> None:
