@@ -139,10 +139,9 @@ def test_log_without_truth_is_refused(tmp_path: Path) -> None:
     code, _, err = run("calibrate", str(tmp_path / "plain.csv"), "-o", str(out))
     assert code == 1
     assert err == (
-        f"Error: {tmp_path / 'plain.csv'}: the log has no ground truth (CSV true_x, true_y, "
-        "true_theta columns, ARIA robotGlobal: lines in every block, a CARMEN log's TRUEPOS lines "
-        "or corrected poses, or a ROS recording's reference: --pose-topic, a ground_truth topic, "
-        "TF map -> base or /amcl_pose); calibrate compares the odometry against it\n"
+        f"Error: {tmp_path / 'plain.csv'}: the log has neither a reference track (ground truth, "
+        "a SLAM track) nor a laser to make one (--reference scan-matched): nothing to calibrate "
+        "the odometry against\n"
     )
     assert names(tmp_path) == {"plain.csv"}
 
@@ -275,4 +274,43 @@ def test_a_real_slam_reference_reports_its_jitter_and_the_halves() -> None:
     assert doc["reference_jitter"]["estimated"] is True
     assert len(doc["halves"]) == 2
     code, table, _ = run("calibrate", str(log))
-    assert "reference jitter" in table and "each half of the log" in table
+    assert "reference jitter" in table and "each half of the span" in table
+    assert "left out" in table and doc["robust"]["left_out"]
+
+
+def test_jumps_of_the_reference_are_left_out_not_fitted() -> None:
+    # a SLAM reference snaps at loop closures: the simulated lap's truth jumps by 40 cm and
+    # 8 deg at three poses. A least-squares fit of the squared residuals takes each jump
+    # squared into the random walks; the robust fit leaves those windows out and says where
+    clean = read_log(SAMPLES / "corridor_loop.csv")
+    t = clean.truth
+    assert t is not None
+    jumps = (150, 300, 450)
+    shift = np.zeros(len(t))
+    for j in jumps:
+        shift[j:] += 1.0
+    snapped = PoseTrack(
+        t.stamp_ns, t.x_m + 0.4 * shift, t.y_m - 0.2 * shift, t.theta_rad + math.radians(8) * shift
+    )
+    c0 = calibrate(clean)
+    c = calibrate(dataclasses.replace(clean, truth=snapped))
+    m, m0 = c.model, c0.model
+    assert m.range_m_per_sqrt_m < 1.5 * m0.range_m_per_sqrt_m + 0.005
+    assert m.bearing_rad_per_sqrt_rad < 1.5 * m0.bearing_rad_per_sqrt_rad + 0.005
+    assert m.heading_rad_per_sqrt_m < 0.01
+    assert m.distance_scale_bias == pytest.approx(m0.distance_scale_bias, abs=0.005)
+    # every jump's 1 m window is among those left out
+    jump_s = [(int(t.stamp_ns[j]) - int(t.stamp_ns[0])) / 1e9 for j in jumps]
+    starts = [w.start_s for w in c.left_out if w.window_m == 1.0]
+    for s in jump_s:
+        assert any(0.0 <= s - w < 5.0 for w in starts), (s, starts)
+
+
+def test_the_cli_table_names_the_fit_it_reports() -> None:
+    # cli/calibrate.py keeps copies of these so that --help need not import scipy
+    from gridmap_cli.cli import calibrate as cli_calibrate
+    from gridmap_cli.poses import calibrate as poses_calibrate
+    from gridmap_cli.poses import robust_fit
+
+    assert cli_calibrate.JITTER_LADDER == poses_calibrate.JITTER_LADDER
+    assert cli_calibrate.OUTLIER_SIGMA == robust_fit.OUTLIER_SIGMA
