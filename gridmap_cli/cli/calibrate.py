@@ -171,13 +171,13 @@ def calibrate(
         click.echo(_calibration_table(STDIN_NAME if log == STDIO else str(log), result, output))
 
 
-def sensors_for_log(data: RangeLog, robot: RobotDescription) -> tuple[RangeSensor, ...]:
+def sensors_for_log(data: RangeLog, robot: RobotDescription | None) -> tuple[RangeSensor, ...]:
     from gridmap_cli.poses.sync import sensors_for_log as sensors
 
     return sensors(data, robot)
 
 
-def _robot(path: Path, data: RangeLog, robot: str | None) -> RobotDescription:
+def _robot(path: Path, data: RangeLog, robot: str | None) -> RobotDescription | None:
     from gridmap_cli.robot import load_robot, robot_from_log
 
     return load_robot(robot) if robot else robot_from_log(path, data.metadata)
