@@ -33,7 +33,7 @@ if TYPE_CHECKING:
 
 #: calibrate.JITTER_LADDER and robust_fit.OUTLIER_SIGMA, kept here so that --help stays fast
 #: (tests/test_calibrate.py checks they agree)
-JITTER_LADDER = (1.0, 2.0, 5.0, 10.0)
+JITTER_LADDER = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0)
 OUTLIER_SIGMA = 3.0
 
 #: What calibrate compares the track with (--reference).

@@ -38,11 +38,14 @@ import numpy.typing as npt
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.poses.odometry_error import (
+    BIAS_KEYS,
+    BIAS_SD_KEYS,
     DEFAULT_SONAR_RELATIVE_ERROR,
     MAX_BIAS,
     OdometryError,
     travelled,
 )
+from gridmap_cli.poses.pose_uncertainty import key_steps
 from gridmap_cli.poses.robust_fit import RobustFit, Rung, robust_fit
 from gridmap_cli.poses.sync import interpolate_pose
 from gridmap_cli.records import PoseTrack, RangeLog
@@ -59,7 +62,15 @@ MIN_WINDOWS = 3
 MIN_ROTATION_RAD = math.pi / 2
 #: The window lengths (multiples of the window and its turn budget) whose residuals separate the
 #: reference's jitter (the same at every length) from the odometry's random walk (growing).
-JITTER_LADDER = (1.0, 2.0, 5.0, 10.0)
+JITTER_LADDER = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0)
+#: The distance terms are fitted on the windows up to this many times the window: a longer
+#: window's displacement is shortened by the heading error along it more than by the distance
+#: error (the chord of a bent path).
+DISTANCE_LADDER_MAX = 5.0
+#: The heading's jitter and random walks are fitted on the windows of at least this many times
+#: the window: a reference's heading error lasts metres (a scan matcher's in a turn) and, seen
+#: over shorter windows, passes for a random walk of the odometry.
+HEADING_LADDER_MIN = 5.0
 
 
 class CalibrationError(GridmapError):
@@ -86,6 +97,14 @@ class Windows:
     window_rad: float
     start_s: FloatArray
     start_m: FloatArray
+    #: The turning the random walk grows with: the sum of the absolute net turns of the key
+    #: steps (``window_m`` or ``window_rad`` each, as build's pose uncertainty cuts them) in
+    #: the window, radians >= 0. A 10 m window that turns left and then right nets nothing,
+    #: and the build still adds both turns' noise.
+    key_turned_rad: FloatArray | None = None
+    #: The reference's turn rate at each window's end less that at its start (rad/s): what a
+    #: stamp offset of the odometry turns into heading error.
+    turn_rate_change: FloatArray | None = None
 
     def __len__(self) -> int:
         return int(self.driven_m.shape[0])
@@ -100,6 +119,12 @@ class Windows:
             start_s=self.start_s,
             start_m=self.start_m,
             window_m=self.window_m,
+            key_turned_rad=np.abs(self.turned_rad)
+            if self.key_turned_rad is None
+            else self.key_turned_rad,
+            turn_rate_change=np.zeros(len(self))
+            if self.turn_rate_change is None
+            else self.turn_rate_change,
         )
 
 
@@ -211,16 +236,48 @@ def truth_at_odometry(log: RangeLog) -> tuple[PoseTrack, PoseTrack]:
     )
 
 
+def key_turning(
+    truth: PoseTrack, signed_turn: FloatArray, key_m: float, key_rad: float
+) -> FloatArray:
+    """At each pose (N,), the sum so far of the absolute net turns of the key steps of
+    ``key_m`` or ``key_rad`` (:func:`~gridmap_cli.poses.pose_uncertainty.key_steps`), linear
+    in the pose index within a key step; ``signed_turn``: the running sum of the wrapped turns."""
+    if len(truth) == 0:
+        return np.zeros(0)
+    keys = key_steps(truth, key_m, key_rad)
+    at_keys = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(signed_turn[keys])))])
+    return np.interp(np.arange(len(truth)), keys, at_keys)
+
+
+def turn_rate(truth: PoseTrack, signed_turn: FloatArray) -> FloatArray:
+    """The reference's turn rate at each pose (N,), rad/s: central differences in time."""
+    n = len(truth)
+    if n < 2:
+        return np.zeros(n)
+    t = (truth.stamp_ns - truth.stamp_ns[0]).astype(np.float64) / 1e9
+    if np.any(np.diff(t) <= 0.0):
+        return np.zeros(n)
+    return np.asarray(np.gradient(signed_turn, t), dtype=np.float64)
+
+
 def compare_windows(
     odometry: PoseTrack,
     truth: PoseTrack,
     window_m: float = DEFAULT_WINDOW_M,
     window_rad: float = DEFAULT_WINDOW_RAD,
+    key_m: float | None = None,
+    key_rad: float | None = None,
+    begin_at: npt.NDArray[np.int64] | None = None,
 ) -> Windows:
     """Cut the tracks (same stamps, shape (N,)) into windows of travel and compare them.
 
-    Only complete windows are returned: the travel left over at the end is dropped.
+    Only complete windows are returned: the travel left over at the end is dropped. ``key_m``,
+    ``key_rad``: the key steps whose absolute turns ``key_turned_rad`` sums (default: the
+    window's own budgets). ``begin_at``: pose indices (sorted) where windows begin, each
+    running until its budget is used up, so that they may overlap (default: one after another).
     """
+    key_m = window_m if key_m is None else key_m
+    key_rad = window_rad if key_rad is None else key_rad
     if not (window_m > 0.0 and math.isfinite(window_m)):
         raise ValueError(f"window must be a positive number of metres, got {window_m}")
     if not (window_rad > 0.0 and math.isfinite(window_rad)):
@@ -233,6 +290,7 @@ def compare_windows(
     ends: list[int] = []
     i = 0
     n = dist.shape[0]
+    pending = None if begin_at is None else [int(b) for b in begin_at]
     while i < n - 1:
         # first pose at which either budget is used up, to within rounding: a 90-degree corner
         # must close a 90-degree window whether its increments sum to pi/2 or to 1 ulp less
@@ -244,9 +302,16 @@ def compare_windows(
             break
         starts.append(i)
         ends.append(j)
-        i = j
+        if pending is None:
+            i = j
+        elif pending:
+            i = pending.pop(0)
+        else:
+            break
     s = np.asarray(starts, dtype=np.int64)
     e = np.asarray(ends, dtype=np.int64)
+    key = key_turning(truth, signed_true, key_m, key_rad)
+    rate = turn_rate(truth, signed_true)
     # a length is the same in every frame: no need to move each window into its start frame
     true_disp = np.hypot(truth.x_m[e] - truth.x_m[s], truth.y_m[e] - truth.y_m[s])
     odo_disp = np.hypot(odometry.x_m[e] - odometry.x_m[s], odometry.y_m[e] - odometry.y_m[s])
@@ -262,6 +327,8 @@ def compare_windows(
         if len(truth)
         else np.zeros(0),
         start_m=dist[s],
+        key_turned_rad=key[e] - key[s],
+        turn_rate_change=rate[e] - rate[s],
     )
 
 
@@ -287,7 +354,20 @@ def fit(
     drift_ok = total_driven >= full_m
     rungs = [windows, *(w for w in ladder if w.window_m != windows.window_m)]
     jitter_ok = len(rungs) >= 2
-    robust = robust_fit([w.rung() for w in rungs], distance_ok, turn_ok, drift_ok, jitter_ok)
+    rungs.sort(key=lambda w: w.window_m)
+    if rungs[0] is not windows:  # the main window first: a ladder rung shorter than it follows
+        rungs.remove(windows)
+        rungs.insert(0, windows)
+    short = sum(
+        w.window_m <= DISTANCE_LADDER_MAX * windows.window_m + BUDGET_TOLERANCE for w in rungs
+    )
+    first_long = sum(
+        w.window_m < HEADING_LADDER_MIN * windows.window_m - BUDGET_TOLERANCE for w in rungs
+    )
+    robust = robust_fit(
+        [w.rung() for w in rungs], distance_ok, turn_ok, drift_ok, jitter_ok,
+        distance_rungs=short, heading_walk_from=first_long,
+    )  # fmt: skip
     # rounding noise of an error-free log (1e-17) is no error: write it as 0
     scale, turn_scale = _clean(robust.scale), _clean(robust.turn_scale)
     drift = _clean(robust.drift_rad_per_m)
@@ -392,7 +472,22 @@ def calibrate(
     h0, h1 = halves
     if h0 is not None and h1 is not None:
         whole = dataclasses.replace(whole, halves=(h0.model, h1.model))
+        whole = dataclasses.replace(whole, model=with_bias_spread(whole.model, h0.model, h1.model))
     return whole
+
+
+def with_bias_spread(
+    model: OdometryError, first: OdometryError, second: OdometryError
+) -> OdometryError:
+    """``model`` with how far its biases may be off on another stretch of travel: the two
+    halves' estimates differ by ``delta``; each stands for a stretch like the one it was
+    fitted on, so a stretch's bias lies about ``|delta| / sqrt(2)`` (one standard deviation)
+    from the whole's."""
+    spread = {
+        sd: abs(getattr(first, key) - getattr(second, key)) / math.sqrt(2.0)
+        for key, sd in zip(BIAS_KEYS, BIAS_SD_KEYS, strict=True)
+    }
+    return dataclasses.replace(model, **{k: _clean(v) for k, v in spread.items()})
 
 
 def calibrate_tracks(
@@ -409,9 +504,24 @@ def calibrate_tracks(
     windows = compare_windows(odometry, truth, window_m, window_rad)
     if len(windows) < MIN_WINDOWS:
         return None
-    ladder = [compare_windows(odometry, truth, window_m * k, window_rad * k) for k in JITTER_LADDER]
+    # the longer windows begin where each main window does: they overlap, so that the long
+    # ones, which alone see through an error of the reference that lasts metres, are many too
+    begins = _begin_indices(odometry, truth, windows)
+    ladder = [
+        compare_windows(odometry, truth, window_m * k, window_rad * k, window_m, window_rad, begins)
+        for k in JITTER_LADDER
+    ]
     ladder = [w for w in ladder if len(w) >= MIN_WINDOWS]
     return fit(windows, sonar_relative_error, ladder)
+
+
+def _begin_indices(
+    odometry: PoseTrack, truth: PoseTrack, windows: Windows
+) -> npt.NDArray[np.int64]:
+    """The pose indices (sorted, the first excluded) where ``windows`` begin."""
+    t = (truth.stamp_ns - truth.stamp_ns[0]).astype(np.float64) / 1e9
+    idx = np.searchsorted(t, windows.start_s - 1e-9, side="left")
+    return np.asarray(idx[1:], dtype=np.int64)
 
 
 def _part(track: PoseTrack, start: int, stop: int | None) -> PoseTrack:

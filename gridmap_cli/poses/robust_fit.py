@@ -7,9 +7,13 @@ metres), and the odometry's distance and heading errors over it (``e_d``, ``e_h`
 * systematic, signed: ``e_d = a D``, ``e_h = u t + c d`` (distance scale ``a``, turn scale ``u``,
   heading drift per metre ``c``);
 * random, the variance of what is left, per window:
-  ``var r_d = J_d + q_a d`` and ``var r_h = J_h + q_t |t| + q_h d``: the intercepts are the
-  reference's own jitter (twice: at the window's start and at its end, whatever its length), the
-  slopes the odometry's random walks (growing with what was driven or turned). All >= 0.
+  ``var r_d = J_d + q_a d`` and ``var r_h = J_h + q_t T + q_h d`` (``T`` the absolute net
+  turns of the window's key steps, summed, as build's pose uncertainty adds them up): the
+  intercepts are the reference's own jitter (twice: at the window's start and at its end,
+  whatever its length), the slopes the odometry's random walks (growing with what was driven or
+  turned). All >= 0. A stamp offset (the odometry's stamps ``lag`` seconds off the
+  reference's) is a systematic heading error too: ``lag`` times the change of the reference's
+  turn rate between the window's ends, fitted with the others.
 
 A reference jumps now and then (a SLAM track snapping at a loop closure, a stamp a little off
 during a fast turn): a least-squares fit of squared residuals takes such a window's error
@@ -42,6 +46,8 @@ TRUNCATION_VARIANCE = 1.0 - (
 ) / math.erf(OUTLIER_SIGMA / math.sqrt(2.0))
 #: Median of |z| for a standard normal z: turns a median absolute residual into a sigma.
 MEDIAN_ABS_NORMAL = 0.6744897501960817
+#: The largest share of the windows left out (of their distance or of their heading errors).
+MAX_LEFT_OUT = 0.1
 #: Rounds of leaving out and refitting; the set kept settles in two or three.
 MAX_ROUNDS = 10
 #: The smallest variance a window is weighted by (m**2 or rad**2): an error-free log has 0.
@@ -62,6 +68,11 @@ class Rung:
     start_s: FloatArray
     start_m: FloatArray
     window_m: float
+    #: What the turning random walk grows with (radians >= 0): the absolute net turns of the
+    #: window's key steps, summed.
+    key_turned_rad: FloatArray
+    #: The reference's turn rate at the window's end less that at its start (rad/s).
+    turn_rate_change: FloatArray
 
 
 @dataclass(frozen=True)
@@ -78,13 +89,20 @@ class RobustFit:
     heading_rad_per_sqrt_m: float
     jitter_m: float
     jitter_rad: float
+    #: How far the odometry's stamps run ahead of the reference's (seconds): a heading error
+    #: of lag_s times the change of the turn rate over a window.
+    lag_s: float
     kept_distance: tuple[BoolArray, ...]
     kept_heading: tuple[BoolArray, ...]
     rounds: int
+    #: The rungs the distance terms were fitted on: the first this many.
+    distance_rungs: int
 
     def left_out(self, rung: int) -> BoolArray:
-        """The windows of ``rung`` left out, for their distance or heading error (W,)."""
-        return ~(self.kept_distance[rung] & self.kept_heading[rung])
+        """The windows of ``rung`` left out, for their distance or heading error (W,); a rung
+        the distance terms do not use counts its heading errors alone."""
+        distance = self.kept_distance[rung] | (rung >= self.distance_rungs)
+        return ~(distance & self.kept_heading[rung])
 
 
 def robust_fit(
@@ -93,24 +111,36 @@ def robust_fit(
     turn_ok: bool,
     drift_ok: bool,
     jitter_ok: bool,
+    distance_rungs: int | None = None,
+    heading_walk_from: int = 0,
 ) -> RobustFit:
     """Fit the model of the module docstring to ``rungs`` (the first is the main window).
 
     ``*_ok``: which terms the log can show (the others are held at 0); ``jitter_ok``: fit the
-    intercepts (needs two lengths of window or more).
+    intercepts (needs two lengths of window or more). ``distance_rungs``: the distance terms
+    are fitted on the first this many rungs only (default all): over a long window the length
+    of the displacement depends on the heading error along it more than on the distance error.
+    ``heading_walk_from``: the heading's variance (jitter and random walks) is fitted on the
+    rungs from this one on: over a short window the reference's own heading error, which lasts
+    a few metres and does not add up, looks like a random walk of the odometry.
     """
     d = np.concatenate([r.driven_m for r in rungs])
     t = np.concatenate([r.turned_rad for r in rungs])
+    key_t = np.concatenate([r.key_turned_rad for r in rungs])
+    d_rate = np.concatenate([r.turn_rate_change for r in rungs])
     disp = np.concatenate([r.displacement_m for r in rungs])
     e_d = np.concatenate([r.distance_error_m for r in rungs])
     e_h = np.concatenate([r.heading_error_rad for r in rungs])
     rung = np.concatenate([np.full(len(r.driven_m), k) for k, r in enumerate(rungs)])
+    short = rung < (len(rungs) if distance_rungs is None else max(distance_rungs, 1))
+    long = rung >= min(heading_walk_from, len(rungs) - 1)
     ones = np.ones_like(d)
     sys_d, sys_d_names = _design([("a", disp, distance_ok)])
-    sys_h, sys_h_names = _design([("u", t, turn_ok), ("c", d, drift_ok)])
+    lag_ok = turn_ok and bool(np.any(d_rate))
+    sys_h, sys_h_names = _design([("u", t, turn_ok), ("c", d, drift_ok), ("lag", d_rate, lag_ok)])
     var_d_design, vd_names = _design([("1", ones, jitter_ok), ("d", d, distance_ok)])
     var_h_design, vh_names = _design(
-        [("1", ones, jitter_ok), ("t", np.abs(t), turn_ok), ("d", d, drift_ok)]
+        [("1", ones, jitter_ok), ("t", key_t, turn_ok), ("d", d, drift_ok)]
     )
     # round 0: unweighted systematic fit, robust per-rung scale
     a = _wls(sys_d, e_d, np.ones_like(d))
@@ -119,7 +149,7 @@ def robust_fit(
     var_d, var_h = _rung_scale(r_d, rung), _rung_scale(r_h, rung)
     # the distance and the heading errors are left out separately: a stamp a little off in a
     # fast turn spoils the heading error of a window, not its length
-    kd, kh = _inliers(r_d, var_d), _inliers(r_h, var_h)
+    kd, kh = _inliers(r_d, var_d, short), _inliers(r_h, var_h)
     vd_coef = np.zeros(var_d_design.shape[1])
     vh_coef = np.zeros(var_h_design.shape[1])
     rounds = 0
@@ -128,10 +158,11 @@ def robust_fit(
         b = _wls(sys_h[kh], e_h[kh], 1.0 / var_h[kh])
         r_d, r_h = e_d - sys_d @ a, e_h - sys_h @ b
         vd_coef = _variance_fit(var_d_design[kd], r_d[kd] ** 2, var_d[kd])
-        vh_coef = _variance_fit(var_h_design[kh], r_h[kh] ** 2, var_h[kh])
+        kv = kh & long
+        vh_coef = _variance_fit(var_h_design[kv], r_h[kv] ** 2, var_h[kv])
         var_d = np.maximum(var_d_design @ vd_coef, MIN_VARIANCE)
         var_h = np.maximum(var_h_design @ vh_coef, MIN_VARIANCE)
-        new_d, new_h = _inliers(r_d, var_d), _inliers(r_h, var_h)
+        new_d, new_h = _inliers(r_d, var_d, short), _inliers(r_h, var_h)
         if np.array_equal(new_d, kd) and np.array_equal(new_h, kh):
             break
         kd, kh = new_d, new_h
@@ -144,6 +175,7 @@ def robust_fit(
         scale=float(sa.get("a", 0.0)),
         turn_scale=float(sb.get("u", 0.0)),
         drift_rad_per_m=float(sb.get("c", 0.0)),
+        lag_s=float(sb.get("lag", 0.0)),
         along_m_per_sqrt_m=_sd(vd.get("d", 0.0)),
         heading_rad_per_sqrt_rad=_sd(vh.get("t", 0.0)),
         heading_rad_per_sqrt_m=_sd(vh.get("d", 0.0)),
@@ -152,6 +184,7 @@ def robust_fit(
         kept_distance=tuple(np.split(kd, split)),
         kept_heading=tuple(np.split(kh, split)),
         rounds=rounds,
+        distance_rungs=len(rungs) if distance_rungs is None else max(distance_rungs, 1),
     )
 
 
@@ -199,7 +232,17 @@ def _rung_scale(r: FloatArray, rung: npt.NDArray[np.int64]) -> FloatArray:
     return out
 
 
-def _inliers(r: FloatArray, var: FloatArray) -> BoolArray:
+def _inliers(r: FloatArray, var: FloatArray, use: BoolArray | None = None) -> BoolArray:
     """Windows within :data:`OUTLIER_SIGMA` of their standard deviation (an error-free log's
-    residuals, rounding noise, are all kept)."""
-    return np.asarray((r * r <= OUTLIER_SIGMA**2 * var) | (np.abs(r) < 1e-9), dtype=np.bool_)
+    residuals, rounding noise, are all kept); at most :data:`MAX_LEFT_OUT` of them are left
+    out, the farthest, so that a variance model that fits badly for a round cannot shed the
+    windows that would correct it. ``use``: the windows to consider (the others are not kept)."""
+    use = np.ones(r.size, dtype=bool) if use is None else use
+    z2 = r * r / var
+    keep = ((z2 <= OUTLIER_SIGMA**2) | (np.abs(r) < 1e-9)) & use
+    cap = int(MAX_LEFT_OUT * np.count_nonzero(use))
+    if np.count_nonzero(use & ~keep) > cap:
+        order = np.argsort(-np.where(use & ~keep, z2, -np.inf), kind="stable")
+        keep = use.copy()
+        keep[order[:cap]] = False
+    return np.asarray(keep, dtype=np.bool_)
