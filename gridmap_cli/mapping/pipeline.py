@@ -200,8 +200,8 @@ def build_map(
 def corrected_for_build(log: RangeLog, options: BuildOptions) -> tuple[RangeLog, BuildOptions]:
     """``options.correct_odometry``: the log with the odometry's known biases taken out of its
     track (:func:`~gridmap_cli.poses.odometry_error.correct_track`), and options whose
-    odometry error is what is left: the random walks and how far the biases may be off
-    (:meth:`~gridmap_cli.poses.odometry_error.OdometryError.corrected`), not the biases. Raises
+    odometry error is the random part alone: a corrected bias is not blurred again
+    (:meth:`~gridmap_cli.poses.odometry_error.OdometryError.random_part`). Raises
     :class:`GridmapError` for a model without signed biases whose systematic magnitudes are not
     0 (a file older than version 3: the sign to correct by is unknown)."""
     model = options.odometry_error
@@ -216,7 +216,7 @@ def corrected_for_build(log: RangeLog, options: BuildOptions) -> tuple[RangeLog,
     poses = correct_track(log.poses, model)
     fixed = log if poses is log.poses else dataclasses.replace(log, poses=poses)
     return fixed, dataclasses.replace(
-        options, odometry_error=model.corrected(), correct_odometry=False
+        options, odometry_error=model.random_part(), correct_odometry=False
     )
 
 

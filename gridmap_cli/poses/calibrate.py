@@ -38,8 +38,6 @@ import numpy.typing as npt
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.poses.odometry_error import (
-    BIAS_KEYS,
-    BIAS_SD_KEYS,
     DEFAULT_SONAR_RELATIVE_ERROR,
     MAX_BIAS,
     OdometryError,
@@ -472,22 +470,7 @@ def calibrate(
     h0, h1 = halves
     if h0 is not None and h1 is not None:
         whole = dataclasses.replace(whole, halves=(h0.model, h1.model))
-        whole = dataclasses.replace(whole, model=with_bias_spread(whole.model, h0.model, h1.model))
     return whole
-
-
-def with_bias_spread(
-    model: OdometryError, first: OdometryError, second: OdometryError
-) -> OdometryError:
-    """``model`` with how far its biases may be off on another stretch of travel: the two
-    halves' estimates differ by ``delta``; each stands for a stretch like the one it was
-    fitted on, so a stretch's bias lies about ``|delta| / sqrt(2)`` (one standard deviation)
-    from the whole's."""
-    spread = {
-        sd: abs(getattr(first, key) - getattr(second, key)) / math.sqrt(2.0)
-        for key, sd in zip(BIAS_KEYS, BIAS_SD_KEYS, strict=True)
-    }
-    return dataclasses.replace(model, **{k: _clean(v) for k, v in spread.items()})
 
 
 def calibrate_tracks(

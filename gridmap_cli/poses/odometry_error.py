@@ -41,15 +41,9 @@ FORMAT_VERSION = 1
 LATEST_VERSION = 3
 VERSION_2_KEYS = ("lateral_m_per_sqrt_m", "heading_rad_per_sqrt_m")
 #: The signed systematic errors ``build --correct-odometry`` takes out of the track (the only
-#: keys that may be negative) ...
+#: keys that may be negative).
 BIAS_KEYS = ("distance_scale_bias", "turn_scale_bias", "heading_drift_bias_rad_per_m")
-#: ... and how well they are known: what stays of them once corrected, as standard deviations.
-BIAS_SD_KEYS = (
-    "distance_scale_bias_sd",
-    "turn_scale_bias_sd",
-    "heading_drift_bias_sd_rad_per_m",
-)
-VERSION_3_KEYS = BIAS_KEYS + BIAS_SD_KEYS
+VERSION_3_KEYS = BIAS_KEYS
 
 #: The Polaroid 6500 ranging module's stated accuracy, +-1 % of the range (seed paper, sec. 4).
 DEFAULT_SONAR_RELATIVE_ERROR = 0.01
@@ -83,10 +77,6 @@ class OdometryError:
         odometry reports (1 + distance_scale_bias) m per true metre, (1 + turn_scale_bias) rad
         per true radian, and turns heading_drift_bias_rad_per_m (counter-clockwise positive)
         more than the truth per metre driven. ``build --correct-odometry`` takes them out.
-    distance_scale_bias_sd, turn_scale_bias_sd, heading_drift_bias_sd_rad_per_m
-        Version 3: how far each bias may be off (standard deviations; calibrate takes the
-        disagreement of the two halves it fitted). Once the biases are corrected, these are the
-        systematic spread an error-aware map keeps (:meth:`OdometryError.corrected`).
     sonar_relative_error
         k of eq. 11, the sonar's own relative range error (0.01: 1 %, the Polaroid 6500).
     """
@@ -102,9 +92,6 @@ class OdometryError:
     distance_scale_bias: float = 0.0
     turn_scale_bias: float = 0.0
     heading_drift_bias_rad_per_m: float = 0.0
-    distance_scale_bias_sd: float = 0.0
-    turn_scale_bias_sd: float = 0.0
-    heading_drift_bias_sd_rad_per_m: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -125,15 +112,16 @@ class OdometryError:
         """Whether any signed systematic error (version 3) is known."""
         return any(getattr(self, k) for k in BIAS_KEYS)
 
-    def corrected(self) -> OdometryError:
-        """The model of the track once its biases are corrected: the random walks, k, and as
-        the systematic spread what is not known of the biases (their ``_sd`` keys)."""
+    def random_part(self) -> OdometryError:
+        """The model of the track once its biases are corrected: the random walks and k alone.
+        (Keeping the halves' disagreement on the biases as a systematic spread measured worse
+        on the CARMEN logs: docs/odometry-error.md.)"""
         return replace(
             self,
-            range_m_per_m=self.distance_scale_bias_sd,
-            bearing_rad_per_rad=self.turn_scale_bias_sd,
-            heading_drift_rad_per_m=self.heading_drift_bias_sd_rad_per_m,
-            **{k: 0.0 for k in VERSION_3_KEYS},
+            range_m_per_m=0.0,
+            bearing_rad_per_rad=0.0,
+            heading_drift_rad_per_m=0.0,
+            **{k: 0.0 for k in BIAS_KEYS},
         )
 
     def f(self, distance_m: npt.ArrayLike) -> FloatArray:
