@@ -117,10 +117,10 @@ def robust_fit(
     """Fit the model of the module docstring to ``rungs`` (the first is the main window).
 
     ``*_ok``: which terms the log can show (the others are held at 0); ``jitter_ok``: fit the
-    intercepts (needs two lengths of window or more). ``distance_rungs``: the systematic terms
-    and the distance's variance are fitted on the first this many rungs only (default all):
-    over a long window the length of the displacement depends on the heading error along it
-    more than on the distance error, and every jump of the reference near it spoils it.
+    intercepts (needs two lengths of window or more). ``distance_rungs``: the distance terms
+    are fitted on the first this many rungs only (default all): over a long window the length
+    of the displacement depends on the heading error along it more than on the distance error.
+    The heading's systematic terms use every rung: the long windows show them best.
     ``heading_walk_from``: the heading's variance (jitter and random walks) is fitted on the
     rungs from this one on: over a short window the reference's own heading error, which lasts
     a few metres and does not add up, looks like a random walk of the odometry.
@@ -145,7 +145,7 @@ def robust_fit(
     )
     # round 0: unweighted systematic fit, robust per-rung scale
     a = _wls(sys_d, e_d, np.ones_like(d))
-    b = _wls(sys_h[short], e_h[short], np.ones(np.count_nonzero(short)))
+    b = _wls(sys_h, e_h, np.ones_like(d))
     r_d, r_h = e_d - sys_d @ a, e_h - sys_h @ b
     var_d, var_h = _rung_scale(r_d, rung), _rung_scale(r_h, rung)
     # the distance and the heading errors are left out separately: a stamp a little off in a
@@ -156,8 +156,7 @@ def robust_fit(
     rounds = 0
     for rounds in range(1, MAX_ROUNDS + 1):  # noqa: B007 (the rounds made are reported)
         a = _wls(sys_d[kd], e_d[kd], 1.0 / var_d[kd])
-        ks = kh & short  # a long window holds every jump of the reference near it
-        b = _wls(sys_h[ks], e_h[ks], 1.0 / var_h[ks])
+        b = _wls(sys_h[kh], e_h[kh], 1.0 / var_h[kh])
         r_d, r_h = e_d - sys_d @ a, e_h - sys_h @ b
         vd_coef = _variance_fit(var_d_design[kd], r_d[kd] ** 2, var_d[kd])
         kv = kh & long
