@@ -188,7 +188,12 @@ def build(
     sonar = sonar_params(no_echo_free)
     ray = ray_params(no_echo_free, max_range)
     error_aware, odometry_error = error_aware_settings(
-        mode, odometry_file, coefficients, trust_length, max_spread_deg, pose == "slam",
+        mode,
+        odometry_file,
+        coefficients,
+        trust_length,
+        max_spread_deg,
+        pose == "slam",
         correct_odometry=correct_odometry,
     )
     if correct_odometry and (pose != "odometry" or fuse):
