@@ -11,12 +11,21 @@ import numpy as np
 import pytest
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.mapping.mapfile import load_map
 from gridmap_cli.poses.calibrate import CalibrationError, calibrate
-from gridmap_cli.poses.odometry_error import VERSION_2_KEYS, OdometryError, load_odometry_error
+from gridmap_cli.poses.odometry_error import (
+    VERSION_2_KEYS,
+    VERSION_3_KEYS,
+    OdometryError,
+    load_odometry_error,
+)
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import load_robot
 from gridmap_cli.sim.odometry import OdometryErrorModel
+from gridmap_cli.sim.path import load_path
+from gridmap_cli.sim.simulate import simulate
+from gridmap_cli.sim.world import World
 from gridmap_cli.writers.aria_log import save_aria_log
 from gridmap_cli.writers.csv_log import save_csv_log
 from tests.helpers import log_with_truth, names, run
@@ -110,9 +119,18 @@ def test_a_simulated_drift_1_log_finds_the_simulators_errors() -> None:
             assert found == true  # not calibrated: the default is passed through
         elif name in VERSION_2_KEYS:
             assert found == true == 0.0  # version-2 terms: neither simulated nor calibrated
+        elif name in VERSION_3_KEYS:
+            continue  # signed: below
         else:
             assert true / 2 < found < true * 2, (name, found, true)
     assert c.heading_drift_rad_per_m == pytest.approx(sim.heading_drift_rad_per_m, rel=0.15)
+    # version 3: the signs too, what --correct-odometry takes out
+    signed = OdometryErrorModel()
+    assert 0.5 * signed.scale_error < c.model.distance_scale_bias < 2 * signed.scale_error
+    assert 0.5 * signed.turn_scale_error < c.model.turn_scale_bias < 2 * signed.turn_scale_error
+    assert c.model.heading_drift_bias_rad_per_m == pytest.approx(
+        signed.heading_drift_rad_per_m, rel=0.15
+    )
 
 
 def test_log_without_truth_is_refused(tmp_path: Path) -> None:
@@ -125,10 +143,9 @@ def test_log_without_truth_is_refused(tmp_path: Path) -> None:
     code, _, err = run("calibrate", str(tmp_path / "plain.csv"), "-o", str(out))
     assert code == 1
     assert err == (
-        f"Error: {tmp_path / 'plain.csv'}: the log has no ground truth (CSV true_x, true_y, "
-        "true_theta columns, ARIA robotGlobal: lines in every block, a CARMEN log's TRUEPOS lines "
-        "or corrected poses, or a ROS recording's reference: --pose-topic, a ground_truth topic, "
-        "TF map -> base or /amcl_pose); calibrate compares the odometry against it\n"
+        f"Error: {tmp_path / 'plain.csv'}: the log has neither a reference track (ground truth, "
+        "a SLAM track) nor a laser to make one (--reference scan-matched): nothing to calibrate "
+        "the odometry against\n"
     )
     assert names(tmp_path) == {"plain.csv"}
 
@@ -261,4 +278,52 @@ def test_a_real_slam_reference_reports_its_jitter_and_the_halves() -> None:
     assert doc["reference_jitter"]["estimated"] is True
     assert len(doc["halves"]) == 2
     code, table, _ = run("calibrate", str(log))
-    assert "reference jitter" in table and "each half of the log" in table
+    assert "reference jitter" in table and "each half of the span" in table
+    assert "left out" in table and doc["robust"]["left_out"]
+
+
+def test_jumps_of_the_reference_are_left_out_not_fitted() -> None:
+    # a SLAM reference snaps at loop closures: ten minutes of the simulated loop (four laps,
+    # 220 m) whose truth jumps by 40 cm and 8 deg twice. A least-squares fit of the squared
+    # residuals takes each jump squared into the random walks; the robust fit leaves the
+    # windows that hold one out and says where
+    loaded = load_map(SAMPLES / "worlds" / "corridor_loop.yaml")
+    clean = simulate(
+        World(loaded.occupied_mask(), loaded.spec),
+        load_path(SAMPLES / "paths" / "corridor_loop.yaml"),
+        load_robot("p3at"),
+        seed=3,
+        duration_s=600.0,
+    )
+    t = clean.truth
+    assert t is not None
+    jumps = (2000, 4000)
+    shift = np.zeros(len(t))
+    for j in jumps:
+        shift[j:] += 1.0
+    snapped = PoseTrack(
+        t.stamp_ns, t.x_m + 0.4 * shift, t.y_m - 0.2 * shift, t.theta_rad + math.radians(8) * shift
+    )
+    c0 = calibrate(clean)
+    c = calibrate(dataclasses.replace(clean, truth=snapped))
+    m, m0 = c.model, c0.model
+    assert m.range_m_per_sqrt_m < 1.5 * m0.range_m_per_sqrt_m + 0.005
+    assert m.bearing_rad_per_sqrt_rad < 1.5 * m0.bearing_rad_per_sqrt_rad + 0.005
+    assert m.heading_rad_per_sqrt_m < 0.01
+    assert m.distance_scale_bias == pytest.approx(m0.distance_scale_bias, abs=0.003)
+    assert m.heading_drift_bias_rad_per_m == pytest.approx(m0.heading_drift_bias_rad_per_m, rel=0.2)
+    # every jump's 1 m window is among those left out
+    jump_s = [(int(t.stamp_ns[j]) - int(t.stamp_ns[0])) / 1e9 for j in jumps]
+    starts = [w.start_s for w in c.left_out if w.window_m == 1.0]
+    for s in jump_s:
+        assert any(0.0 <= s - w < 5.0 for w in starts), (s, starts)
+
+
+def test_the_cli_table_names_the_fit_it_reports() -> None:
+    # cli/calibrate.py keeps copies of these so that --help need not import scipy
+    from gridmap_cli.cli import calibrate as cli_calibrate
+    from gridmap_cli.poses import calibrate as poses_calibrate
+    from gridmap_cli.poses import robust_fit
+
+    assert cli_calibrate.JITTER_LADDER == poses_calibrate.JITTER_LADDER
+    assert cli_calibrate.OUTLIER_SIGMA == robust_fit.OUTLIER_SIGMA

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.poses.odometry_error import (
     OdometryError,
+    correct_track,
     load_odometry_error,
     odometry_error_yaml,
     save_odometry_error,
@@ -153,6 +154,46 @@ def test_version_2_adds_keys_and_is_written_only_when_they_are_used(tmp_path: Pa
     assert "lateral" not in plain
 
 
+def test_version_3_holds_signed_biases_and_is_written_only_when_they_are_used(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "odo.yaml"
+    path.write_text("gridmap-odometry-error: 3\ndistance_scale_bias: -0.02\n")
+    model = load_odometry_error(path)
+    assert model == OdometryError(distance_scale_bias=-0.02) and model.has_bias
+    text = odometry_error_yaml(model)
+    assert text.splitlines()[0] == "gridmap-odometry-error: 3"
+    path.write_text(text)
+    assert load_odometry_error(path) == model
+    assert not OdometryError(lateral_m_per_sqrt_m=0.01).has_bias
+    random = OdometryError(range_m_per_m=0.1, range_m_per_sqrt_m=0.2, turn_scale_bias=0.1)
+    assert random.random_part() == OdometryError(range_m_per_sqrt_m=0.2)
+
+
+def test_correct_track_undoes_known_scale_turn_and_drift() -> None:
+    # a true arc-and-turn path; odometry made from it with exact systematic errors
+    n = 2000
+    true_step, true_turn = 0.05, np.where(np.arange(n) % 100 < 80, 0.0, math.radians(4.5))
+    bias = OdometryError(
+        distance_scale_bias=0.03, turn_scale_bias=-0.04, heading_drift_bias_rad_per_m=0.01
+    )
+
+    def integrate(step: float, turn: np.ndarray) -> PoseTrack:
+        th = np.concatenate([[0.3], 0.3 + np.cumsum(turn)])
+        x = np.concatenate([[1.0], 1.0 + np.cumsum(step * np.cos(th[:-1]))])
+        y = np.concatenate([[2.0], 2.0 + np.cumsum(step * np.sin(th[:-1]))])
+        return PoseTrack(np.arange(n + 1, dtype=np.int64) * 10**8, x, y, th)
+
+    truth = integrate(true_step, true_turn)
+    odometry = integrate(true_step * 1.03, true_turn * 0.96 + 0.01 * true_step * 1.0)
+    fixed = correct_track(odometry, bias)
+    error = np.hypot(fixed.x_m - truth.x_m, fixed.y_m - truth.y_m)
+    before = np.hypot(odometry.x_m - truth.x_m, odometry.y_m - truth.y_m)
+    assert before.max() > 0.5 and error.max() < 0.01 * before.max()
+    assert fixed.x_m[0] == odometry.x_m[0] and fixed.theta_rad[0] == odometry.theta_rad[0]
+    assert correct_track(odometry, OdometryError(range_m_per_m=0.5)) is odometry
+
+
 def test_missing_keys_take_their_defaults(tmp_path: Path) -> None:
     path = tmp_path / "odo.yaml"
     path.write_text("gridmap-odometry-error: 1\nrange_m_per_m: 0.02\nbearing_rad_per_rad: 3e-2\n")
@@ -163,7 +204,15 @@ def test_missing_keys_take_their_defaults(tmp_path: Path) -> None:
     ("text", "message"),
     [
         ("range_m_per_m: 0.02\n", "odo.yaml: missing 'gridmap-odometry-error: 1'"),
-        ("gridmap-odometry-error: 3\n", "odo.yaml:1: unsupported gridmap-odometry-error version 3"),
+        ("gridmap-odometry-error: 4\n", "odo.yaml:1: unsupported gridmap-odometry-error version 4"),
+        (
+            "gridmap-odometry-error: 2\nturn_scale_bias: 0.01\n",
+            "odo.yaml:2: unknown key 'turn_scale_bias' in version 2",
+        ),
+        (
+            "gridmap-odometry-error: 3\ndistance_scale_bias: -0.7\n",
+            "odo.yaml:2: distance_scale_bias must be a finite number between -0.5 and 0.5",
+        ),
         (
             "gridmap-odometry-error: 1\nrange_per_m: 0.02\n",
             "odo.yaml:2: unknown key 'range_per_m' in version 1 (known: range_m_per_m,",
@@ -244,16 +293,19 @@ def test_the_simulators_errors_as_coefficients() -> None:
         "sonar_relative_error": 0.01,
         "lateral_m_per_sqrt_m": 0.0,
         "heading_rad_per_sqrt_m": 0.0,
+        "distance_scale_bias": 0.0,
+        "turn_scale_bias": 0.0,
+        "heading_drift_bias_rad_per_m": 0.0,
     }
     for f in dataclasses.fields(OdometryErrorModel):
         one = dataclasses.replace(OdometryErrorModel().scaled(0.0), **{f.name: 0.5})
         coefficients = one.as_odometry_error().as_dict()
-        assert sorted(coefficients.values()) == [0.0] * 6 + [0.01, 0.5], f.name
+        assert sorted(coefficients.values()) == [0.0] * 9 + [0.01, 0.5], f.name
 
 
 def test_travelled_at_with_the_sums_made_once_gives_the_same_bits() -> None:
     rng = np.random.default_rng(3)
-    n = 400
+    n = 2000
     stamps = np.cumsum(rng.integers(1, 10**8, n)).astype(np.int64)
     track = PoseTrack(stamps, rng.normal(size=n), rng.normal(size=n), rng.uniform(-3, 3, n))
     sums = travelled(track)

@@ -127,6 +127,13 @@ LASER_POSES = ("scan-matched", "slam")
               "the compiled kernels are built), or with --fuse and the local executor, the "
               "logs.")  # fmt: skip
 @error_samples_option
+@click.option(
+    "--correct-odometry",
+    is_flag=True,
+    help="Take the odometry's systematic errors (the signed biases of --odometry-error FILE, "
+    "version 3) out of its track before mapping, in either mode; the error-aware spread then "
+    "has the random part alone.",
+)
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -161,6 +168,7 @@ def build(
     jobs: int,
     error_samples: int | None,
     max_range: float | None,
+    correct_odometry: bool,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -181,8 +189,19 @@ def build(
     sonar = sonar_params(no_echo_free)
     ray = ray_params(no_echo_free, max_range)
     error_aware, odometry_error = error_aware_settings(
-        mode, odometry_file, coefficients, trust_length, max_spread_deg, pose == "slam"
+        mode,
+        odometry_file,
+        coefficients,
+        trust_length,
+        max_spread_deg,
+        pose == "slam",
+        correct_odometry=correct_odometry,
     )
+    if correct_odometry and (pose != "odometry" or fuse):
+        raise UsageError(
+            "--correct-odometry corrects the robot's own odometry: it takes --pose odometry "
+            "and one log, no --fuse"
+        )
     samples = error_samples_setting(mode, error_samples)
     selection = Selection.parse(sensor_patterns, start, end)
     to_stdout = output == STDIO
@@ -274,6 +293,7 @@ def build(
         error_aware=error_aware,
         odometry_error=odometry_error,
         error_samples=samples,
+        correct_odometry=correct_odometry,
         jobs=jobs,
         pose_belief=belief,
     )

@@ -1,4 +1,5 @@
-"""``gridmap calibrate``: the odometry error model, from a log with a reference track."""
+"""``gridmap calibrate``: the odometry error model, from a log's reference track or, for a laser
+log without one, from gridmap's own corrected poses (``--reference scan-matched`` or ``slam``)."""
 
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ from gridmap_cli.cli.common import (
     selection_options,
 )
 from gridmap_cli.cli.progress import StageBars, reading
-from gridmap_cli.errors import UsageError
+from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.readers import STDIN_NAME, format_names
 from gridmap_cli.records import RangeLog
@@ -29,6 +30,15 @@ from gridmap_cli.writers import check_output
 if TYPE_CHECKING:
     # scipy.ndimage (0.3 s) comes with it: imported when the command runs
     from gridmap_cli.poses.calibrate import Calibration
+    from gridmap_cli.robot import RangeSensor, RobotDescription
+
+#: calibrate.JITTER_LADDER and robust_fit.OUTLIER_SIGMA, kept here so that --help stays fast
+#: (tests/test_calibrate.py checks they agree)
+JITTER_LADDER = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0)
+OUTLIER_SIGMA = 3.0
+
+#: What calibrate compares the track with (--reference).
+REFERENCES = ("truth", "scan-matched", "slam")
 
 
 @click.command()
@@ -72,9 +82,18 @@ if TYPE_CHECKING:
     "by the laser (its residual drift, for error-aware maps built with --pose scan-matched).",
 )
 @click.option(
+    "--reference",
+    type=click.Choice(REFERENCES),
+    default="truth",
+    show_default=True,
+    help="What the track is compared with: the log's own reference (ground truth, a SLAM "
+    "track), or, for a laser log without one, the odometry corrected by scan matching "
+    "(scan-matched) or by the pose graph with loop closures (slam).",
+)
+@click.option(
     "--robot",
-    help="--pose scan-matched: robot preset, YAML or .p file with the laser's mounting; "
-    "default: the log's own.",
+    help="--pose scan-matched, --reference scan-matched or slam: robot preset, YAML or .p file "
+    "with the laser's mounting; default: the log's own.",
 )
 @selection_options(sensors=False)
 @click.option("--force", is_flag=True, help="Overwrite an existing output.")
@@ -89,6 +108,7 @@ def calibrate(
     window_deg: float,
     sonar_error: float,
     pose: str,
+    reference: str,
     robot: str | None,
     start: str | None,
     end: str | None,
@@ -96,10 +116,12 @@ def calibrate(
     as_json: bool,
     quiet: bool,
 ) -> None:
-    """Estimate the odometry-error coefficients of LOG against its ground truth.
+    """Estimate the odometry-error coefficients of LOG against a reference track.
 
-    LOG must carry ground truth (CSV true_x/true_y/true_theta, ARIA robotGlobal). Odometry and
-    truth are compared over consecutive windows of travel; see docs/odometry-error.md.
+    The reference is LOG's own (CSV true_x/true_y/true_theta, ARIA robotGlobal, CARMEN's
+    corrected poses, a ROS reference topic), or with --reference scan-matched or slam the
+    laser's correction of the odometry. Odometry and reference are compared over windows of
+    travel of several lengths; see docs/odometry-error.md.
     """
     from gridmap_cli.poses.calibrate import calibrate as calibrate_log
     from gridmap_cli.poses.odometry_error import save_odometry_error
@@ -110,6 +132,11 @@ def calibrate(
         raise UsageError(f"--window-turn must be a positive number of degrees, got {window_deg}")
     if not (sonar_error >= 0.0 and math.isfinite(sonar_error)):
         raise UsageError(f"--sonar-error must be a finite number >= 0, got {sonar_error}")
+    if pose != "odometry" and reference != "truth":
+        raise UsageError(
+            f"--pose {pose} --reference {reference}: the scan-matched track would be compared "
+            "with itself; calibrate the odometry (--pose odometry) against it"
+        )
     selection = Selection.parse((), start, end)
     check_input(log)
     if output is not None:
@@ -117,9 +144,14 @@ def calibrate(
         check_output_folder(output)
     with reading(log.name, quiet):
         data = read_input([log], log_format)
-    data = apply_selection(data, selection, None, need_readings=pose != "odometry").log
+    laser = pose != "odometry" or reference != "truth"
+    data = apply_selection(data, selection, None, need_readings=laser).log
+    if reference == "truth" and data.truth is None:
+        _no_reference(log, data, robot)
     if pose == "scan-matched":
         data = _scan_matched(log, data, robot, quiet)
+    elif reference != "truth":
+        data = _own_reference(log, data, robot, reference)
     result = calibrate_log(data, window_m, math.radians(window_deg), sonar_error)
     if output is not None:
         save_odometry_error(
@@ -128,6 +160,7 @@ def calibrate(
             comments=[
                 f"gridmap {__version__} calibrate {log.name}"
                 + (" --pose scan-matched" if pose != "odometry" else "")
+                + (f" --reference {reference}" if reference != "truth" else "")
                 + f": {result.windows} windows of "
                 f"{window_m:g} m or {window_deg:g} deg, {result.driven_m:.1f} m driven, "
                 f"{math.degrees(result.turned_rad):.0f} deg turned",
@@ -138,6 +171,60 @@ def calibrate(
         click.echo(json_text(doc))
     elif not quiet:
         click.echo(_calibration_table(STDIN_NAME if log == STDIO else str(log), result, output))
+
+
+def sensors_for_log(data: RangeLog, robot: RobotDescription | None) -> tuple[RangeSensor, ...]:
+    from gridmap_cli.poses.sync import sensors_for_log as sensors
+
+    return sensors(data, robot)
+
+
+def _robot(path: Path, data: RangeLog, robot: str | None) -> RobotDescription | None:
+    from gridmap_cli.robot import load_robot, robot_from_log
+
+    return load_robot(robot) if robot else robot_from_log(path, data.metadata)
+
+
+def _no_reference(path: Path, data: RangeLog, robot: str | None) -> None:
+    """Raise the error of a log without a reference track: what else to do, if it has a laser."""
+    from gridmap_cli.errors import GridmapError
+
+    try:
+        kinds = {s.kind for s in sensors_for_log(data, _robot(path, data, robot))}
+    except GridmapError:  # sensors the log does not describe: no laser it could match
+        kinds = set()
+    if "laser" in kinds:
+        data.require_truth(
+            "calibrate compares the odometry against it; --reference scan-matched or slam "
+            "calibrates against the laser's correction of the odometry instead"
+        )
+    raise InputFileError(
+        data.source,
+        "the log has neither a reference track (ground truth, a SLAM track) nor a laser to "
+        "make one (--reference scan-matched): nothing to calibrate the odometry against",
+    )
+
+
+def _own_reference(path: Path, data: RangeLog, robot: str | None, reference: str) -> RangeLog:
+    """The log with its reference replaced by gridmap's own correction of its odometry."""
+    from gridmap_cli.poses.scan_match import NoLaserError, scan_matched_log
+
+    description = _robot(path, data, robot)
+    try:
+        if reference == "scan-matched":
+            corrected, _ = scan_matched_log(data, description)
+        else:
+            from gridmap_cli.poses.slam import slam_corrected_log  # gtsam: only here
+
+            corrected, _ = slam_corrected_log(data, description)
+    except NoLaserError as exc:
+        kinds = sorted({s.kind for s in sensors_for_log(data, description)}) or ["none"]
+        raise NoLaserError(
+            f"{data.source}: --reference {reference} corrects the odometry with laser scans, "
+            f"and the log has none (its range sensors: {', '.join(kinds)}); calibrate needs a "
+            "reference track or a laser"
+        ) from exc
+    return dataclasses.replace(data, truth=corrected.poses)
 
 
 def _scan_matched(path: Path, data: RangeLog, robot: str | None, quiet: bool) -> RangeLog:
@@ -162,17 +249,17 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
         (
             "distance scale error",
             maybe(c.distance_estimated, f"{100 * c.scale_error:+.2f} % of distance"),
-            f"range_m_per_m: {m.range_m_per_m:.4g}",
+            "distance_scale_bias",
         ),
         (
             "distance random walk",
             maybe(c.distance_estimated, f"{100 * m.range_m_per_sqrt_m:.2f} cm after 1 m"),
-            f"range_m_per_sqrt_m: {m.range_m_per_sqrt_m:.4g}",
+            "range_m_per_sqrt_m",
         ),
         (
             "turn scale error",
             maybe(c.turn_estimated, f"{100 * c.turn_scale_error:+.2f} % of rotation"),
-            f"bearing_rad_per_rad: {m.bearing_rad_per_rad:.4g}",
+            "turn_scale_bias",
         ),
         (
             "turn random walk",
@@ -180,12 +267,20 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
                 c.turn_estimated,
                 f"{math.degrees(m.bearing_rad_per_sqrt_rad):.2f} deg after 1 rad",
             ),
-            f"bearing_rad_per_sqrt_rad: {m.bearing_rad_per_sqrt_rad:.4g}",
+            "bearing_rad_per_sqrt_rad",
         ),
         (
             "heading drift",
             maybe(c.drift_estimated, f"{math.degrees(c.heading_drift_rad_per_m):+.3f} deg/m"),
-            f"heading_drift_rad_per_m: {m.heading_drift_rad_per_m:.4g}",
+            "heading_drift_bias_rad_per_m",
+        ),
+        (
+            "heading random walk",
+            maybe(
+                c.drift_estimated,
+                f"{math.degrees(m.heading_rad_per_sqrt_m):.2f} deg after 1 m",
+            ),
+            "heading_rad_per_sqrt_m",
         ),
     ]
     lines = [
@@ -193,23 +288,26 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
         f"{c.turning_windows} of {math.degrees(c.window_rad):g} deg turning), "
         f"{c.driven_m:.1f} m driven, {math.degrees(c.turned_rad):.0f} deg turned",
         "",
-        f"{'':22s} {'odometry vs truth':24s} file",
+        f"{'':22s} {'odometry vs reference':24s} file",
     ]
-    lines += [f"{a:22s} {b:24s} {f}" for a, b, f in rows]
+    lines += [f"{a:22s} {b:24s} {key}: {_number(key, getattr(m, key))}" for a, b, key in rows]
+    lines += [
+        "systematic: the biases (build --correct-odometry takes them out; the file also holds",
+        "their magnitudes, the spread of a bias left in); random: what error-aware maps spread",
+    ]
     if c.halves is not None:
-        keys = [f.split(":")[0] for _, _, f in rows]
         lines += [
             "",
-            "the same fit on each half of the log (by distance driven): how far to trust it",
+            "the same fit on each half of the span (by distance driven): do they transfer?",
+            f"{'':30s} {'first half':>11s} {'second half':>11s} {'whole':>11s}",
         ]
-        for key in keys:
+        for _, _, key in rows:
             first, second = (getattr(h, key) for h in c.halves)
-            lines.append(
-                f"{key:26s} {first:<10.4g} {second:<10.4g} (whole log {getattr(m, key):.4g})"
-            )
+            values = (_number(key, v) for v in (first, second, getattr(m, key)))
+            lines.append(f"{key:30s} " + " ".join(f"{v:>11s}" for v in values))
+    lines += ["", *_robust_lines(c)]
     if c.jitter_estimated:
         lines += [
-            "",
             f"reference jitter (per pose, 1 sigma; not in the file): position "
             f"{100 * c.jitter_m:.1f} cm, heading {math.degrees(c.jitter_rad):.2f} deg. "
             "The reference is not truth:",
@@ -218,9 +316,44 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
         ]
     lines += [
         "",
-        f"residual per window (rms, systematic terms removed): distance "
+        f"residual per {c.window_m:g} m window (rms, systematic terms removed): distance "
         f"{100 * c.distance_residual_m:.2f} cm, heading "
         f"{math.degrees(c.heading_residual_rad):.3f} deg",
         f"wrote {output}" if output is not None else "(give -o FILE to write these)",
     ]
     return "\n".join(lines)
+
+
+def _number(key: str, value: float) -> str:
+    """A coefficient as the table shows it: the biases signed."""
+    return (
+        f"{value:+.4g}" if key.endswith(("_bias", "_bias_rad_per_m")) and value else f"{value:.4g}"
+    )
+
+
+def _robust_lines(c: Calibration) -> list[str]:
+    """The windows the robust fit left out: how many of each length, and the worst few."""
+    lengths = sorted({w.window_m for w in c.left_out})
+    out = len(c.left_out)
+    head = (
+        f"robust fit: {c.fitted_windows} windows of {c.window_m:g} to "
+        f"{c.window_m * max(JITTER_LADDER):g} m, {out} left out "
+        f"({100 * out / max(c.fitted_windows, 1):.1f} %, beyond {OUTLIER_SIGMA:g} sigma of the "
+        "rest: reference jumps, stamps off in fast turns)"
+    )
+    lines = [head]
+    if out:
+        counts = ", ".join(
+            f"{sum(w.window_m == k for w in c.left_out)} of {k:g} m" for k in lengths
+        )
+        worst = sorted(c.left_out, key=lambda w: -abs(w.heading_error_rad))[:3]
+        lines.append(
+            f"left out: {counts}; the worst at "
+            + ", ".join(
+                f"{w.start_s:.1f} s ({math.degrees(w.heading_error_rad):+.1f} deg, "
+                f"{100 * w.distance_error_m:+.0f} cm)"
+                for w in worst
+            )
+            + " (all in --json: robust.left_out)"
+        )
+    return lines

@@ -254,24 +254,38 @@ def error_aware_settings(
     trust_length: float,
     max_spread_deg: float = math.degrees(ErrorAwareParams.max_heading_spread_rad),
     graph_uncertainty: bool = False,
+    correct_odometry: bool = False,
 ) -> tuple[ErrorAwareParams, OdometryError | None]:
     """The error-aware model's settings from :data:`ERROR_AWARE_OPTIONS` (usage errors before
     any reading). ``graph_uncertainty``: the pose uncertainty comes from a pose graph
-    (``--pose slam``), so the odometry error is optional (only its sonar range error is used)."""
+    (``--pose slam``), so the odometry error is optional (only its sonar range error is used).
+    ``correct_odometry`` (build's --correct-odometry): the odometry error is read in standard
+    mode too, and must hold the signs of its systematic errors."""
     ctx = click.get_current_context()
     trust_given = any(
         ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT
         for name in ("trust_length", "max_spread_deg")
     )
     given = odometry_file is not None or bool(coefficients)
-    if mode != "error-aware":
+    if correct_odometry:
+        if odometry_file is None:
+            raise UsageError(
+                "--correct-odometry needs the odometry's biases: --odometry-error FILE "
+                "(gridmap calibrate writes one)"
+            )
+        if mode != "error-aware" and (coefficients or trust_given):
+            raise UsageError(
+                "--odometry-coefficient, --trust-length and --max-heading-spread apply to "
+                "--mode error-aware"
+            )
+    elif mode != "error-aware":
         if given or trust_given:
             raise UsageError(
                 "--odometry-error, --odometry-coefficient, --trust-length and "
                 "--max-heading-spread apply to --mode error-aware"
             )
         return ErrorAwareParams(), None
-    if not given and not graph_uncertainty:
+    if mode == "error-aware" and not given and not graph_uncertainty:
         raise UsageError(
             "--mode error-aware needs the odometry error: --odometry-error FILE (gridmap "
             "calibrate writes one) or --odometry-coefficient NAME=VALUE"
@@ -301,6 +315,13 @@ def error_aware_settings(
         check_input(odometry_file, folder_ok=False)
     model = load_odometry_error(odometry_file) if odometry_file is not None else OdometryError()
     try:
-        return params, dataclasses.replace(model, **overrides)
+        model = dataclasses.replace(model, **overrides)
     except ValueError as exc:
         raise UsageError(f"--odometry-coefficient: {exc}") from exc
+    unsigned = (model.range_m_per_m, model.bearing_rad_per_rad, model.heading_drift_rad_per_m)
+    if correct_odometry and not model.has_bias and any(unsigned):
+        raise UsageError(
+            f"--correct-odometry: {odometry_file} holds systematic errors without their signs "
+            "(a file older than version 3): run gridmap calibrate again"
+        )
+    return params, model

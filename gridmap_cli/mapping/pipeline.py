@@ -41,7 +41,7 @@ from gridmap_cli.mapping.shards import accumulate_log_odds
 from gridmap_cli.mapping.shards import (
     batch_bounds as batch_bounds,  # callers cut batches as build does
 )
-from gridmap_cli.poses.odometry_error import OdometryError, travelled
+from gridmap_cli.poses.odometry_error import OdometryError, correct_track, travelled
 from gridmap_cli.poses.pose_belief import PoseBelief
 from gridmap_cli.poses.pose_uncertainty import (
     PoseUncertainty,
@@ -86,6 +86,10 @@ class BuildOptions:
     error_samples: int = 16
     #: Seed of the sampled tracks: the same seed, the same map.
     error_seed: int = 0
+    #: Take the signed systematic errors of ``odometry_error`` (version 3) out of the track
+    #: before mapping, in either mode; the error-aware spread then has the random part alone
+    #: (:func:`corrected_for_build`).
+    correct_odometry: bool = False
     #: Processes mapping the readings; the map does not depend on it
     #: (:mod:`gridmap_cli.mapping.shards`).
     jobs: int = 1
@@ -180,6 +184,8 @@ def build_map(
     ``between_passes`` once the bounds pass is done, before any mapping (the CLI returns the
     freed heap then). Raises what :func:`plan_build` raises, before any mapping.
     """
+    if options.correct_odometry:
+        log, options = corrected_for_build(log, options)
     if options.mode == "error-aware" and options.error_samples > 0:
         return expected_map(log, robot, options, progress, between_passes)
     plan = plan_build(log, robot, options)
@@ -191,6 +197,29 @@ def build_map(
     updates = accumulate(plan, grid, options, progress)
     omap, _ = grid.finish(options.clamp_p)
     return BuildResult(map=omap, sync=stats, cell_updates=updates)
+
+
+def corrected_for_build(log: RangeLog, options: BuildOptions) -> tuple[RangeLog, BuildOptions]:
+    """``options.correct_odometry``: the log with the odometry's known biases taken out of its
+    track (:func:`~gridmap_cli.poses.odometry_error.correct_track`), and options whose
+    odometry error is the random part alone: a corrected bias is not blurred again
+    (:meth:`~gridmap_cli.poses.odometry_error.OdometryError.random_part`). Raises
+    :class:`GridmapError` for a model without signed biases whose systematic magnitudes are not
+    0 (a file older than version 3: the sign to correct by is unknown)."""
+    model = options.odometry_error
+    if model is None:
+        raise GridmapError("correcting the odometry needs the odometry error model")
+    unsigned = (model.range_m_per_m, model.bearing_rad_per_rad, model.heading_drift_rad_per_m)
+    if not model.has_bias and any(unsigned):
+        raise GridmapError(
+            "the odometry error holds systematic errors without their signs (a file older than "
+            "version 3): calibrate again to correct the odometry by them"
+        )
+    poses = correct_track(log.poses, model)
+    fixed = log if poses is log.poses else dataclasses.replace(log, poses=poses)
+    return fixed, dataclasses.replace(
+        options, odometry_error=model.random_part(), correct_odometry=False
+    )
 
 
 def expected_map(

@@ -18,7 +18,7 @@ square root of what was driven. ``docs/odometry-error.md`` describes the YAML fi
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -36,12 +36,19 @@ FloatArray = npt.NDArray[np.float64]
 #: Key and value that open an odometry-error file.
 FORMAT_KEY = "gridmap-odometry-error"
 FORMAT_VERSION = 1
-#: The newest version read and written: version 2 adds :data:`VERSION_2_KEYS`.
-LATEST_VERSION = 2
+#: The newest version read and written: version 2 adds :data:`VERSION_2_KEYS`, version 3
+#: :data:`VERSION_3_KEYS`.
+LATEST_VERSION = 3
 VERSION_2_KEYS = ("lateral_m_per_sqrt_m", "heading_rad_per_sqrt_m")
+#: The signed systematic errors ``build --correct-odometry`` takes out of the track (the only
+#: keys that may be negative).
+BIAS_KEYS = ("distance_scale_bias", "turn_scale_bias", "heading_drift_bias_rad_per_m")
+VERSION_3_KEYS = BIAS_KEYS
 
 #: The Polaroid 6500 ranging module's stated accuracy, +-1 % of the range (seed paper, sec. 4).
 DEFAULT_SONAR_RELATIVE_ERROR = 0.01
+#: A scale bias of -1 would mean the odometry reports no motion at all: biases stay inside +-0.5.
+MAX_BIAS = 0.5
 
 
 @dataclass(frozen=True)
@@ -65,6 +72,11 @@ class OdometryError:
         Version 2: random-walk lateral position error (m/sqrt(m)), across the direction driven.
     heading_rad_per_sqrt_m
         Version 2: random-walk heading error with the distance driven (rad/sqrt(m)).
+    distance_scale_bias, turn_scale_bias, heading_drift_bias_rad_per_m
+        Version 3, signed: the systematic errors themselves, as calibrate measured them. The
+        odometry reports (1 + distance_scale_bias) m per true metre, (1 + turn_scale_bias) rad
+        per true radian, and turns heading_drift_bias_rad_per_m (counter-clockwise positive)
+        more than the truth per metre driven. ``build --correct-odometry`` takes them out.
     sonar_relative_error
         k of eq. 11, the sonar's own relative range error (0.01: 1 %, the Polaroid 6500).
     """
@@ -77,14 +89,40 @@ class OdometryError:
     sonar_relative_error: float = DEFAULT_SONAR_RELATIVE_ERROR
     lateral_m_per_sqrt_m: float = 0.0
     heading_rad_per_sqrt_m: float = 0.0
+    distance_scale_bias: float = 0.0
+    turn_scale_bias: float = 0.0
+    heading_drift_bias_rad_per_m: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise ValueError(f"{f.name} must be a number, got {value!r}")
-            if not (math.isfinite(value) and value >= 0.0):
+            if f.name in BIAS_KEYS:
+                if not (math.isfinite(value) and abs(value) < MAX_BIAS):
+                    raise ValueError(
+                        f"{f.name} must be a finite number between -{MAX_BIAS:g} and "
+                        f"{MAX_BIAS:g}, got {float(value)}"
+                    )
+            elif not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"{f.name} must be a finite number >= 0, got {float(value)}")
+
+    @property
+    def has_bias(self) -> bool:
+        """Whether any signed systematic error (version 3) is known."""
+        return any(getattr(self, k) for k in BIAS_KEYS)
+
+    def random_part(self) -> OdometryError:
+        """The model of the track once its biases are corrected: the random walks and k alone.
+        (Keeping the halves' disagreement on the biases as a systematic spread measured worse
+        on the CARMEN logs: docs/odometry-error.md.)"""
+        return replace(
+            self,
+            range_m_per_m=0.0,
+            bearing_rad_per_rad=0.0,
+            heading_drift_rad_per_m=0.0,
+            **{k: 0.0 for k in BIAS_KEYS},
+        )
 
     def f(self, distance_m: npt.ArrayLike) -> FloatArray:
         """Range spread (metres) after ``distance_m`` metres driven; any shape, same shape out."""
@@ -167,7 +205,12 @@ def travelled_at(
 
 
 _KEYS = tuple(f.name for f in fields(OdometryError))
-_KEYS_V1 = tuple(k for k in _KEYS if k not in VERSION_2_KEYS)
+#: The keys each version knows.
+_KNOWN = {
+    1: tuple(k for k in _KEYS if k not in VERSION_2_KEYS + VERSION_3_KEYS),
+    2: tuple(k for k in _KEYS if k not in VERSION_3_KEYS),
+    3: _KEYS,
+}
 
 
 def load_odometry_error(path: Path) -> OdometryError:
@@ -187,14 +230,14 @@ def load_odometry_error(path: Path) -> OdometryError:
     version = doc.get(FORMAT_KEY)
     if FORMAT_KEY not in doc:
         raise InputFileError(path, f"missing '{FORMAT_KEY}: {FORMAT_VERSION}' (format version)")
-    if isinstance(version, bool) or version not in (FORMAT_VERSION, LATEST_VERSION):
+    if isinstance(version, bool) or version not in _KNOWN:
         raise InputFileError(
             path,
             f"unsupported {FORMAT_KEY} version {version!r} "
-            f"(this gridmap reads {FORMAT_VERSION} and {LATEST_VERSION})",
+            f"(this gridmap reads {', '.join(str(v) for v in _KNOWN)})",
             line=lines.get(FORMAT_KEY),
         )
-    known = _KEYS if version == LATEST_VERSION else _KEYS_V1
+    known = _KNOWN[version]
     values: dict[str, Any] = {}
     for key, value in doc.items():
         if key == FORMAT_KEY:
@@ -210,7 +253,15 @@ def load_odometry_error(path: Path) -> OdometryError:
             raise InputFileError(
                 path, f"{key} must be a number, got {value!r}", line=lines.get(key)
             )
-        if not (math.isfinite(parsed) and parsed >= 0.0):
+        if key in BIAS_KEYS:
+            if not (math.isfinite(parsed) and abs(parsed) < MAX_BIAS):
+                raise InputFileError(
+                    path,
+                    f"{key} must be a finite number between -{MAX_BIAS:g} and {MAX_BIAS:g}, "
+                    f"got {value!r}",
+                    line=lines.get(key),
+                )
+        elif not (math.isfinite(parsed) and parsed >= 0.0):
             raise InputFileError(
                 path, f"{key} must be a finite number >= 0, got {value!r}", line=lines.get(key)
             )
@@ -225,11 +276,17 @@ def odometry_error_yaml(model: OdometryError, comments: list[str] | None = None)
     """
     head = [f"# {c}" if c else "#" for c in comments or []]
     values = model.as_dict()
-    # version 1 while the version-2 terms are 0: older gridmaps read the file as before
-    v2 = any(values[k] for k in VERSION_2_KEYS)
-    body = [f"{FORMAT_KEY}: {LATEST_VERSION if v2 else FORMAT_VERSION}"]
+    # the lowest version that holds the terms used: older gridmaps read the file as before
+    version = (
+        3
+        if any(values[k] for k in VERSION_3_KEYS)
+        else 2
+        if any(values[k] for k in VERSION_2_KEYS)
+        else 1
+    )
+    body = [f"{FORMAT_KEY}: {version}"]
     for key, value in values.items():
-        if v2 or key not in VERSION_2_KEYS:
+        if key in _KNOWN[version]:
             body.append(f"{key}: {format_float(value)}")
     return "\n".join([*head, *body]) + "\n"
 
@@ -241,3 +298,34 @@ def save_odometry_error(
     text = odometry_error_yaml(model, comments)
     with atomic_output(Path(path)) as tmp:
         tmp.write_text(text, encoding="utf-8")
+
+
+def correct_track(track: PoseTrack, model: OdometryError) -> PoseTrack:
+    """``track`` with the model's signed systematic errors (version 3) taken out.
+
+    Each step between consecutive poses, in the robot frame of the pose it starts from, is
+    turned back into what the robot truly did: its translation divided by
+    (1 + distance_scale_bias), its wrapped turn less heading_drift_bias_rad_per_m times the
+    corrected step length, divided by (1 + turn_scale_bias); the steps are then composed again
+    from the first pose, which is kept. Same stamps, shape (N,); a model without biases gives
+    ``track`` itself.
+    """
+    if not model.has_bias or len(track) < 2:
+        return track
+    th = track.theta_rad
+    c, s = np.cos(th[:-1]), np.sin(th[:-1])
+    ex, ey = np.diff(track.x_m), np.diff(track.y_m)
+    dx = (c * ex + s * ey) / (1.0 + model.distance_scale_bias)
+    dy = (-s * ex + c * ey) / (1.0 + model.distance_scale_bias)
+    dth = wrap_angle(np.diff(th))
+    dth = (dth - model.heading_drift_bias_rad_per_m * np.hypot(dx, dy)) / (
+        1.0 + model.turn_scale_bias
+    )
+    heading = th[0] + np.concatenate([[0.0], np.cumsum(dth)])
+    # the translation leaves along the corrected heading of the pose it starts from
+    cc, sc = np.cos(heading[:-1]), np.sin(heading[:-1])
+    x = track.x_m[0] + np.concatenate([[0.0], np.cumsum(cc * dx - sc * dy)])
+    y = track.y_m[0] + np.concatenate([[0.0], np.cumsum(sc * dx + cc * dy)])
+    theta = wrap_angle(heading)
+    theta[0] = th[0]  # the first pose is kept to the bit
+    return PoseTrack(track.stamp_ns, x, y, theta)

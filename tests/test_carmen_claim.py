@@ -1,0 +1,60 @@
+"""bench/carmen_experiment.py: the claim lines say met or missed from the ratios they show."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from types import ModuleType, SimpleNamespace
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "carmen_experiment.py"
+
+
+@pytest.fixture
+def carmen() -> Iterator[ModuleType]:
+    spec = importlib.util.spec_from_file_location("carmen_experiment", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["carmen_experiment"] = module
+    spec.loader.exec_module(module)
+    yield module
+    sys.modules.pop("carmen_experiment", None)
+
+
+def runs(carmen: ModuleType, nll: dict[tuple[str, str, str], float], drift: dict[str, float]):
+    return [
+        carmen.RealRun(log, part, mode, SimpleNamespace(nll=v), Path(), (0.0, 0.0, 0.0), drift[log])
+        for (log, part, mode), v in nll.items()
+    ]
+
+
+def scores(ea: dict[tuple[str, str], float]) -> dict[tuple[str, str, str], float]:
+    """Every drift-blind mode at NLL 1 except standard-corrected at 0.5, error-aware as given."""
+    out = {}
+    for (log, part), v in ea.items():
+        out |= {(log, part, "standard"): 1.0, (log, part, "standard-corrected"): 0.5}
+        out |= {(log, part, "error-aware-perfect"): 1.0, (log, part, "error-aware"): v}
+    return out
+
+
+def test_the_claim_is_met_when_every_bound_holds(carmen: ModuleType) -> None:
+    ea = {("a", "first half"): 0.40, ("a", "second half"): 0.42,
+          ("b", "first half"): 0.50, ("b", "second half"): 0.45}  # fmt: skip
+    lines = carmen.claim_lines(runs(carmen, scores(ea), {"a": 30.0, "b": 5.0}))
+    text = "\n".join(lines)
+    assert "| a | first half | 30.0 | 0.400 | standard-corrected | 0.500 | 0.800 |" in text
+    assert "worst 1.000, met" in text
+    assert "most drifting log (a, its odometry 30 m off): worst half 0.840, met" in text
+    assert "mean <= 0.93: 0.885, met" in text
+
+
+def test_one_bad_half_misses_two_bounds(carmen: ModuleType) -> None:
+    ea = {("a", "first half"): 0.40, ("a", "second half"): 0.60,
+          ("b", "first half"): 0.40, ("b", "second half"): 0.40}  # fmt: skip
+    text = "\n".join(carmen.claim_lines(runs(carmen, scores(ea), {"a": 30.0, "b": 5.0})))
+    assert "worst 1.200, missed" in text
+    assert "worst half 1.200, missed" in text
+    assert "mean <= 0.93: 0.900, met" in text
