@@ -72,6 +72,29 @@ def test_an_error_along_the_path_only_still_blurs_as_the_oracle(
     assert walls[0] < 0.5 * standard
 
 
+def test_a_map_too_large_for_the_fast_map_is_the_oracle_in_row_bands(
+    log: RangeLog, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # past FAST_MAP_MAX_CELLS the tracks are mapped one by one (memory bounded by the map): the
+    # oracle's map (its grid sums in fixed point, the oracle's in floats: 1e-9 apart), and
+    # the same bits whether a sample is mapped in one band or in several
+    from gridmap_cli.mapping import pipeline
+
+    odometry = OdometryErrorModel().as_odometry_error()
+    monkeypatch.setattr(pipeline, "FAST_MAP_MAX_CELLS", 0)
+    whole = fast(log, odometry, 4)
+    monkeypatch.setattr(pipeline, "SAMPLE_GRID_FREE_CELLS", 1000)
+    banded = fast(log, odometry, 4)
+    assert len(pipeline.sample_bands(banded.spec, 4)) > 1
+    assert np.array_equal(banded.prob, whole.prob, equal_nan=True)
+    truth = oracle(log, odometry, 4).prob
+    assert np.array_equal(np.isnan(banded.prob), np.isnan(truth))
+    assert np.nanmax(np.abs(banded.prob - truth)) < 1e-6
+    # and not the fast map: that one casts on coarser cells
+    monkeypatch.setattr(pipeline, "FAST_MAP_MAX_CELLS", 1 << 40)
+    assert np.nanmax(np.abs(fast(log, odometry, 4).prob - truth)) > 1e-3
+
+
 def test_levels_cover_the_map_and_upsample_onto_it() -> None:
     spec = GridSpec(-1.0, 2.0, 0.05, 37, 21)
     for level in range(4):
