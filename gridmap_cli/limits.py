@@ -20,6 +20,9 @@ MAX_LINE_CHARS = 1 << 20
 MAX_SETTINGS_BYTES = 4 << 20
 #: Beams of one scanning laser in a robot description (real lasers: up to a few thousand).
 MAX_LASER_SAMPLES = 100_000
+#: Empty (or blank) lines in one text log: a real one has a handful. Each costs a line's work
+#: and a list slot, so a gzip of a few GiB of newlines would cost minutes and gigabytes.
+MAX_BLANK_LINES = 1_000_000
 
 
 class LimitError(InputFileError):
@@ -50,6 +53,24 @@ def too_long(path: str, line: int) -> LimitError:
     )
 
 
+def too_many_blank(path: str, line: int) -> LimitError:
+    return LimitError(
+        path,
+        f"more than {MAX_BLANK_LINES:,} empty lines, gridmap's limit for a text log "
+        "(MAX_BLANK_LINES); not a log, or a damaged one",
+        line,
+    )
+
+
+def blank_lines(runs: list[str], chars: int) -> int:
+    """Blank lines among ``runs`` (a piece of ``chars`` characters split at line breaks),
+    counted only where the piece's lines average under 4 characters: a log's lines are longer,
+    so its pieces cost nothing here."""
+    if 4 * len(runs) <= chars:
+        return 0
+    return sum(1 for r in runs if not r.strip())
+
+
 def read_bounded_text(handle: TextIO, path: str) -> str:
     """All of ``handle``'s text, refusing a line longer than :data:`MAX_LINE_CHARS` (counted
     between ``\\n`` or ``\\r`` breaks; numbered by ``\\n``) as soon as it is seen, after
@@ -58,11 +79,15 @@ def read_bounded_text(handle: TextIO, path: str) -> str:
     pieces: list[str] = []
     run = 0  # characters of the line the last piece ended in
     newlines = 0
+    blank = 0
     while True:
         piece = handle.read(_PIECE_CHARS)
         if not piece:
             return "".join(pieces)
         runs = piece.replace("\r", "\n").split("\n")
+        blank += blank_lines(runs, len(piece))
+        if blank > MAX_BLANK_LINES:
+            raise too_many_blank(path, newlines + piece.count("\n") + 1)
         if run + len(runs[0]) > MAX_LINE_CHARS:
             raise too_long(path, newlines + 1)
         if len(runs) > 1:
@@ -87,6 +112,7 @@ def numbered_lines(handle: TextIO, path: str, start: int = 1) -> Iterator[tuple[
     """``enumerate(handle, start)``, refusing a line longer than :data:`MAX_LINE_CHARS` after
     reading at most that many characters of it."""
     number = start - 1
+    blank = 0
     while True:
         line = handle.readline(MAX_LINE_CHARS + 1)
         if not line:
@@ -94,6 +120,10 @@ def numbered_lines(handle: TextIO, path: str, start: int = 1) -> Iterator[tuple[
         number += 1
         if len(line) > MAX_LINE_CHARS:
             raise too_long(path, number)
+        if len(line) < 8 and not line.strip():
+            blank += 1
+            if blank > MAX_BLANK_LINES:
+                raise too_many_blank(path, number)
         yield number, line
 
 

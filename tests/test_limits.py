@@ -177,3 +177,51 @@ def test_bounded_text_stops_reading_an_endless_line() -> None:
     with pytest.raises(LimitError):
         read_bounded_text(handle, "endless.csv")
     assert handle.read_chars <= MAX_LINE_CHARS + (1 << 22)
+
+
+def _blank_bomb(path: Path, head: str, line: bytes, gz: bool) -> None:
+    """``head`` then 64 MiB of ``line`` (an empty or blank line), gzip-compressed if ``gz``."""
+    import gzip
+
+    body = head.encode() + line * ((64 << 20) // len(line))
+    if gz:
+        path.write_bytes(gzip.compress(body, compresslevel=1))
+    else:
+        path.write_bytes(body)
+
+
+@pytest.mark.parametrize(
+    ("name", "head", "line", "command"),
+    [
+        ("bomb.csv.gz", "", b"\n", "build"),
+        ("bomb.csv.gz", "time,x,y,theta,s0\n", b"\n", "build"),
+        ("bomb.csv.gz", "time,x,y,theta,s0\n", b"   \n", "inspect"),
+        ("bomb.csv.gz", "time,x,y,theta,s0\r\n", b"\r\n", "build"),
+        ("bomb.csv", "time,x,y,theta,s0\n", b"\n", "build"),
+        ("bomb.log.gz", "# CARMEN\n", b"\n", "inspect"),
+        ("bomb.2d", "LaserOdometryLog\nversion: 4\n", b" \n", "build"),
+    ],
+)  # fmt: skip
+def test_a_log_of_empty_lines_is_refused_unheld(
+    tmp_path: Path, name: str, head: str, line: bytes, command: str
+) -> None:
+    # a few GiB of newlines gzip to a few MiB; each line held cost a list slot and a pass of
+    # the row reader: 1 GiB of them took 6 GB and minutes before the bound
+    from gridmap_cli.limits import MAX_BLANK_LINES
+
+    log = tmp_path / "logs" / name
+    log.parent.mkdir()
+    _blank_bomb(log, head, line, name.endswith(".gz"))
+    args = ["-o", str(tmp_path / "m.png")] if command == "build" else []
+    err, peak = refused(tmp_path, command, str(log), *args)
+    assert err.startswith(f"Error: {log}:")
+    assert f"more than {MAX_BLANK_LINES:,} empty lines" in err and "MAX_BLANK_LINES" in err
+    assert peak < 3 * REFUSAL_PEAK_BYTES
+
+
+def test_a_real_log_with_a_few_blank_lines_still_reads(tmp_path: Path) -> None:
+    log = tmp_path / "gaps.csv"
+    text = CSV.read_text().split("\n")
+    log.write_text("\n".join([*text[:50], "", "  ", "", *text[50:]]))
+    code, _, err = run("build", str(log), "-o", str(tmp_path / "m.png"), "-q")
+    assert code == 0, err

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.limits import MAX_LINE_CHARS, too_long
+from gridmap_cli.limits import MAX_BLANK_LINES, MAX_LINE_CHARS, too_long, too_many_blank
 
 MAGIC = b"\x1f\x8b"
 SUFFIX = ".gz"
@@ -55,7 +55,7 @@ def _inflate(chunks: Iterable[bytes], name: str, limit: int | None = None) -> by
     """
     inflater = zlib.decompressobj(wbits=31)
     out: list[bytes] = []
-    size = run = 0
+    size = run = blank = 0
     lines = 1
     started = False
     for chunk in chunks:
@@ -71,7 +71,10 @@ def _inflate(chunks: Iterable[bytes], name: str, limit: int | None = None) -> by
                     inflater = zlib.decompressobj(wbits=31)
             elif not data and len(piece) == _PIECE_BYTES:
                 piece += _drain(inflater)
-            run = _check(piece, run, name, lines)
+            run, empty = _check(piece, run, name, lines)
+            blank += empty
+            if blank > MAX_BLANK_LINES:
+                raise too_many_blank(name, lines + piece.count(b"\n"))
             lines += piece.count(b"\n")
             out.append(piece)
             size += len(piece)
@@ -95,17 +98,24 @@ def _drain(inflater: zlib._Decompress) -> bytes:
     return b"".join(more)
 
 
-def _check(piece: bytes, run: int, name: str, lines: int) -> int:
+def _check(piece: bytes, run: int, name: str, lines: int) -> tuple[int, int]:
     """The run without a line break (``\n`` or a lone ``\r``) at the end of ``piece``, given
-    ``run`` before it; raises :class:`LimitError` at the first run over the bound."""
+    ``run`` before it, and the piece's blank lines where its lines average under 4 bytes (a
+    log's never do: :func:`~gridmap_cli.limits.blank_lines`); raises :class:`LimitError` at the
+    first run over the bound."""
     parts = piece.replace(b"\r", b"\n").split(b"\n")
-    offset = 0
-    for j, part in enumerate(parts):
-        run = run + len(part) if j == 0 else len(part)
-        if run > MAX_RUN_BYTES:
-            raise too_long(name, lines + piece.count(b"\n", 0, offset))
-        offset += len(part) + 1
-    return run
+    lengths = list(map(len, parts))
+    lengths[0] += run
+    if max(lengths) > MAX_RUN_BYTES:
+        offset = 0
+        for j, part in enumerate(parts):
+            if lengths[j] > MAX_RUN_BYTES:
+                raise too_long(name, lines + piece.count(b"\n", 0, offset))
+            offset += len(part) + 1
+    blank = 0
+    if 4 * len(parts) > len(piece):
+        blank = sum(1 for part in parts if not part.strip())
+    return lengths[-1], blank
 
 
 def _file_chunks(handle: BinaryIO) -> Iterator[bytes]:

@@ -35,7 +35,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.limits import MAX_LINE_CHARS
+from gridmap_cli.limits import MAX_BLANK_LINES, MAX_LINE_CHARS, blank_lines
 from gridmap_cli.readers.text.csv_log import (
     _ODD_BREAKS,
     POSE_COLUMNS,
@@ -104,6 +104,7 @@ def _pieces(handle: TextIO) -> Iterator[list[str]]:
     about :data:`PIECE_CHARS` at a time; raises :class:`_NotPlain` where the bulk reader would
     leave the text to the row reader (odd line breaks, a carriage return alone)."""
     tail = ""
+    blank = 0
     while True:
         piece = handle.read(PIECE_CHARS)
         text = tail + piece
@@ -117,7 +118,11 @@ def _pieces(handle: TextIO) -> Iterator[list[str]]:
         if any(c in body for c in _ODD_BREAKS) or body.count("\r") != body.count("\r\n"):
             raise _NotPlain
         if body:
-            yield body.split("\n")
+            lines = body.split("\n")
+            blank += blank_lines(lines, len(body))
+            if blank > MAX_BLANK_LINES:
+                raise _NotPlain  # the held reader refuses it, with the line, after a piece
+            yield lines
         if not piece:
             return
 
