@@ -77,7 +77,7 @@ def test_calibrate_scan_matched_finds_less_drift_than_odometry(tmp_path: Path) -
     csv = tmp_path / "run.csv"
     save_csv_log(log, csv)
     figures = {}
-    for pose in ("odometry", "scan-matched"):
+    for pose in ("odometry", "scan-matched", "slam"):
         out = tmp_path / f"{pose}.yaml"
         code, stdout, stderr = run(
             "calibrate", str(csv), "--pose", pose, "-o", str(out), "--json", "--window", "0.5"
@@ -89,3 +89,21 @@ def test_calibrate_scan_matched_finds_less_drift_than_odometry(tmp_path: Path) -
     odo, sm = figures["odometry"]["coefficients"], figures["scan-matched"]["coefficients"]
     assert sm["heading_drift_rad_per_m"] < 0.5 * odo["heading_drift_rad_per_m"]
     assert sm["range_m_per_m"] < odo["range_m_per_m"]
+    # the pose graph's track (loop closures on top of the matching) drifts less than odometry
+    assert "--pose slam" in (tmp_path / "slam.yaml").read_text()
+    slam = figures["slam"]["coefficients"]
+    assert slam["heading_drift_rad_per_m"] < 0.5 * odo["heading_drift_rad_per_m"]
+    assert slam["range_m_per_m"] < odo["range_m_per_m"]
+
+
+@pytest.mark.parametrize("pose", ["scan-matched", "slam"])
+def test_calibrate_a_corrected_track_against_a_correction_of_itself_is_refused(
+    tmp_path: Path, pose: str
+) -> None:
+    csv = tmp_path / "run.csv"
+    csv.write_text("time,x,y,theta,sonar0\n0,0,0,0,1\n")
+    out = tmp_path / "odometry.yaml"
+    code, _, err = run("calibrate", str(csv), "--pose", pose, "--reference", "slam", "-o", str(out))
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"--pose {pose} --reference slam: the corrected track would be compared" in err
+    assert not out.exists()

@@ -75,11 +75,13 @@ REFERENCES = ("truth", "scan-matched", "slam")
 )
 @click.option(
     "--pose",
-    type=click.Choice(("odometry", "scan-matched")),
+    type=click.Choice(("odometry", "scan-matched", "slam")),
     default="odometry",
     show_default=True,
     help="The track to calibrate against the reference: the odometry, or the odometry corrected "
-    "by the laser (its residual drift, for error-aware maps built with --pose scan-matched).",
+    "by the laser (its residual drift, for error-aware maps built with --pose scan-matched), or "
+    "the pose graph's track with loop closures (its residual drift: how far a --pose slam map "
+    "can be trusted).",
 )
 @click.option(
     "--reference",
@@ -134,8 +136,8 @@ def calibrate(
         raise UsageError(f"--sonar-error must be a finite number >= 0, got {sonar_error}")
     if pose != "odometry" and reference != "truth":
         raise UsageError(
-            f"--pose {pose} --reference {reference}: the scan-matched track would be compared "
-            "with itself; calibrate the odometry (--pose odometry) against it"
+            f"--pose {pose} --reference {reference}: the corrected track would be compared "
+            "with a correction of itself; calibrate the odometry (--pose odometry) against it"
         )
     selection = Selection.parse((), start, end)
     check_input(log)
@@ -148,8 +150,8 @@ def calibrate(
     data = apply_selection(data, selection, None, need_readings=laser).log
     if reference == "truth" and data.truth is None:
         _no_reference(log, data, robot)
-    if pose == "scan-matched":
-        data = _scan_matched(log, data, robot, quiet)
+    if pose != "odometry":
+        data = _corrected(log, data, robot, quiet, pose)
     elif reference != "truth":
         data = _own_reference(log, data, robot, reference)
     result = calibrate_log(data, window_m, math.radians(window_deg), sonar_error)
@@ -159,7 +161,7 @@ def calibrate(
             output,
             comments=[
                 f"gridmap {__version__} calibrate {log.name}"
-                + (" --pose scan-matched" if pose != "odometry" else "")
+                + (f" --pose {pose}" if pose != "odometry" else "")
                 + (f" --reference {reference}" if reference != "truth" else "")
                 + f": {result.windows} windows of "
                 f"{window_m:g} m or {window_deg:g} deg, {result.driven_m:.1f} m driven, "
@@ -227,15 +229,21 @@ def _own_reference(path: Path, data: RangeLog, robot: str | None, reference: str
     return dataclasses.replace(data, truth=corrected.poses)
 
 
-def _scan_matched(path: Path, data: RangeLog, robot: str | None, quiet: bool) -> RangeLog:
-    """The log with its odometry replaced by the scan-matched track (one pose per scan), the
-    track whose residual drift against the reference is then calibrated."""
+def _corrected(path: Path, data: RangeLog, robot: str | None, quiet: bool, pose: str) -> RangeLog:
+    """The log with its odometry replaced by the scan-matched track (one pose per scan) or the
+    pose graph's (``pose`` "slam"), the track whose residual drift against the reference is
+    then calibrated."""
     from gridmap_cli.poses.scan_match import match_log
     from gridmap_cli.robot import load_robot, robot_from_log
 
     description = load_robot(robot) if robot else robot_from_log(path, data.metadata)
     with StageBars(quiet) as bars:
-        track = match_log(data, description, progress=bars).track
+        if pose == "scan-matched":
+            track = match_log(data, description, progress=bars).track
+        else:
+            from gridmap_cli.poses.slam import slam_corrected_log  # gtsam: only here
+
+            track = slam_corrected_log(data, description, progress=bars)[0].poses
     return dataclasses.replace(data, poses=track)
 
 
