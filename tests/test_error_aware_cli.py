@@ -248,3 +248,20 @@ def test_readings_beyond_the_heading_spread_limit_are_left_out(tmp_path: Path) -
     code, _, err = run("build", str(sample), "-o", str(tmp_path / "s.png"),
                            "--max-heading-spread", "10")  # fmt: skip
     assert code == 2 and "apply to --mode error-aware" in err
+
+
+def test_an_error_aware_map_of_the_reference_track_warns_that_it_blurs_for_nothing(
+    tmp_path: Path,
+) -> None:
+    sample = Path(__file__).resolve().parents[1] / "samples" / "corridor_loop.csv"
+    args = ["build", str(sample), "--pose", "global", "--mode", "error-aware",
+            "--error-samples", "2", "--map-mode", "scale"]  # fmt: skip
+    code, _, err = run(*args, "-o", str(tmp_path / "a.png"),
+                       "--odometry-coefficient", "range_m_per_m=0.05")  # fmt: skip
+    assert code == 0, err
+    assert "Warning: --pose global --mode error-aware: the odometry's error is spread" in err
+    # a perfect-odometry spread (the reference maps of make experiment) says nothing
+    code, _, err = run(*args, "-o", str(tmp_path / "b.png"),
+                       "--odometry-coefficient", "range_m_per_m=0")  # fmt: skip
+    assert code == 0, err
+    assert "Warning" not in err

@@ -46,7 +46,7 @@ from gridmap_cli.cli.map_options import (
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import MixedLogsError, NotRecordingFolderError, UsageError
 from gridmap_cli.heap import TRIM_EVERY_BATCHES, TrimEvery, keep_scratch_memory, release_free_memory
-from gridmap_cli.mapping.pipeline import BuildOptions, build_map
+from gridmap_cli.mapping.pipeline import BuildOptions, build_map, reference_spread_note
 from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.poses.sync import select_poses
 from gridmap_cli.readers.options import ReadOptions
@@ -280,6 +280,9 @@ def build(
             warn((f"--pose slam: {slam.warning}",), quiet)
     else:
         data = select_poses(data, pose)
+    note = reference_spread_note(pose, BuildOptions(mode=mode, odometry_error=odometry_error))
+    if note is not None:
+        warn((note,), quiet)
     if preview is None:  # the other tracks are drawn only; let them go (56 bytes a row)
         whole = data = dataclasses.replace(data, truth=None)
     selected = apply_selection(data, selection, robot_desc)

@@ -89,7 +89,7 @@ def up_to_date(job: Job, key: str) -> dict[str, Any] | None:
 
 def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
     """Build ``job``'s map, its YAML and sidecar (``seconds`` gets read, map and write times)."""
-    from gridmap_cli.mapping.pipeline import build_map
+    from gridmap_cli.mapping.pipeline import build_map, reference_spread_note
     from gridmap_cli.mapping.selection import Selection, apply_selection
     from gridmap_cli.poses.sync import select_poses
     from gridmap_cli.readers import read_logs
@@ -127,6 +127,9 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
             build = dataclasses.replace(build, pose_belief=belief)
     else:
         data = select_poses(data, options.pose)
+        note = reference_spread_note(options.pose, build)
+        if note is not None:
+            warnings.append(note)
     selected = apply_selection(dataclasses.replace(data, truth=None), selection, robot)
     warnings.extend(selected.notes)
     seconds["read"] = time.perf_counter() - mark
