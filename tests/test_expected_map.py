@@ -78,14 +78,14 @@ def test_a_map_too_large_for_the_fast_map_is_the_oracle_in_row_bands(
     # past FAST_MAP_MAX_CELLS the tracks are mapped one by one (memory bounded by the map): the
     # oracle's map (its grid sums in fixed point, the oracle's in floats: 1e-9 apart), and
     # the same bits whether a sample is mapped in one band or in several
-    from gridmap_cli.mapping import pipeline
+    from gridmap_cli.mapping import bands, pipeline
 
     odometry = OdometryErrorModel().as_odometry_error()
     monkeypatch.setattr(pipeline, "FAST_MAP_MAX_CELLS", 0)
     whole = fast(log, odometry, 4)
-    monkeypatch.setattr(pipeline, "SAMPLE_GRID_FREE_CELLS", 1000)
+    monkeypatch.setattr(bands, "SAMPLE_GRID_FREE_CELLS", 1000)
     banded = fast(log, odometry, 4)
-    assert len(pipeline.sample_bands(banded.spec, 4)) > 1
+    assert len(bands.sample_bands(banded.spec, 4)) > 1
     assert np.array_equal(banded.prob, whole.prob, equal_nan=True)
     truth = oracle(log, odometry, 4).prob
     assert np.array_equal(np.isnan(banded.prob), np.isnan(truth))

@@ -16,10 +16,10 @@ import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError, MapSizeError, NoDataError
 from gridmap_cli.mapping import expected
+from gridmap_cli.mapping.bands import add_sample, mean_in_place, sample_bands
 from gridmap_cli.mapping.grid import (
     DEFAULT_CLAMP_P,
     DEFAULT_MAX_CELLS,
-    STRIP_CELLS,
     GridSpec,
     LogOddsAccumulator,
     OccupancyMap,
@@ -368,55 +368,11 @@ def _mean_map(
             accumulate(part, grid, standard, report)
             band, band_updates = grid.finish(standard.clamp_p)
             updates += band_updates
-            _add_sample(total[rows[0] * spec.width : rows[1] * spec.width], band.prob.ravel())
+            add_sample(total[rows[0] * spec.width : rows[1] * spec.width], band.prob.ravel())
             del grid, band
-    _mean_in_place(total, count)
+    mean_in_place(total, count)
     mean = OccupancyMap(spec, total.reshape(spec.shape))
     return BuildResult(map=mean, sync=plan.sync, cell_updates=updates)
-
-
-#: Bytes a cell the sampled expected map may take on top of its running sum (8 bytes a cell):
-#: the per-sample grid (12 bytes a cell) is cut into row bands to stay within it, so that the
-#: whole build stays within 12 bytes a cell plus a fixed allowance (README, "Speed").
-SAMPLE_GRID_BYTES_PER_CELL = 4
-#: Cells of the per-sample grid always allowed in one band (96 MiB at 12 bytes a cell): maps
-#: up to about 8 million cells are mapped in one band, each sample's readings in one pass.
-SAMPLE_GRID_FREE_CELLS = 8 << 20
-
-
-def sample_bands(spec: GridSpec, samples: int) -> list[tuple[int, int]]:
-    """The row bands ``[row0, row1)`` the sampled expected map maps each sample in: one band
-    unless the map is large (:data:`SAMPLE_GRID_BYTES_PER_CELL`). Each band reads the log's
-    readings again for every sample, so a band costs a pass over the log per sample; the map is
-    the same for any bands (integer sums, each cell in one band)."""
-    cells = spec.height * spec.width
-    allowed = SAMPLE_GRID_FREE_CELLS + cells * SAMPLE_GRID_BYTES_PER_CELL // 12
-    if samples <= 1 or cells <= allowed:
-        return [(0, spec.height)]
-    n = -(-cells // allowed)
-    step = -(-spec.height // n)
-    return [(r, min(spec.height, r + step)) for r in range(0, spec.height, step)]
-
-
-def _add_sample(total: npt.NDArray[np.float64], prob: npt.NDArray[np.float64]) -> None:
-    """Add one sample's probabilities (NaN where it saw nothing: counts as the prior 0.5) to
-    the running sum, strip by strip; a cell stays negated until some sample has seen it. The
-    sum's magnitude is the plain sum over the samples in order, as ``total += where(seen, p,
-    0.5)`` makes it (to the bit)."""
-    step = STRIP_CELLS
-    for k in range(0, total.shape[0], step):
-        t, p = total[k : k + step], prob[k : k + step]
-        known = ~np.isnan(p)
-        s = np.abs(t) + np.where(known, p, 0.5)
-        total[k : k + step] = np.where((t > 0.0) | known, s, -s)
-
-
-def _mean_in_place(total: npt.NDArray[np.float64], count: int) -> None:
-    """The running sum as the mean over ``count`` samples; NaN where no sample saw the cell."""
-    step = STRIP_CELLS
-    for k in range(0, total.shape[0], step):
-        t = total[k : k + step]
-        total[k : k + step] = np.where(t > 0.0, t / count, np.nan)
 
 
 class _Steady:
