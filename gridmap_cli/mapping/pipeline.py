@@ -192,12 +192,29 @@ def build_map(
     plan = plan_build(log, robot, options)
     if between_passes is not None:
         between_passes()
-    spec, stats = plan.spec, plan.sync
     # both modes sum log-odds: the error-aware mode is the standard one with faded evidence
-    grid = LogOddsAccumulator(spec, stats.used)
+    return _one_grid(plan, options, progress)
+
+
+def _one_grid(
+    plan: BuildPlan, options: BuildOptions, progress: Callable[[int], object] | None
+) -> BuildResult:
+    """Every reading of ``plan`` summed into one grid, finished as the map."""
+    grid = LogOddsAccumulator(plan.spec, plan.sync.used)
     updates = accumulate(plan, grid, options, progress)
     omap, _ = grid.finish(options.clamp_p)
-    return BuildResult(map=omap, sync=stats, cell_updates=updates)
+    return BuildResult(map=omap, sync=plan.sync, cell_updates=updates)
+
+
+def _steady_plan(plan: BuildPlan, uncertainty: PoseUncertainty, limit_rad: float) -> BuildPlan:
+    """``plan`` whose models leave out the readings whose heading standard deviation (from
+    ``uncertainty``) exceeds ``limit_rad``; ``plan`` itself when there is no limit."""
+    if not limit_rad < math.inf:
+        return plan
+    models: list[tuple[SensorModel, str]] = [
+        (_Steady(model, uncertainty, limit_rad), kind) for model, kind in plan.models
+    ]
+    return dataclasses.replace(plan, models=models)
 
 
 def reference_spread_note(pose: str, options: BuildOptions) -> str | None:
@@ -273,10 +290,7 @@ def expected_map(
         between_passes()
     noise = StepNoise.of(options.odometry_error)
     if noise.is_zero:  # the standard build, to the bit
-        grid = LogOddsAccumulator(plan.spec, plan.sync.used)
-        updates = accumulate(plan, grid, standard, progress)
-        omap, _ = grid.finish(standard.clamp_p)
-        return BuildResult(map=omap, sync=plan.sync, cell_updates=updates)
+        return _one_grid(plan, standard, progress)
     heading = propagate(log.poses, noise)
     limit = options.error_aware.max_heading_spread_rad
     cutoff = None
@@ -287,11 +301,7 @@ def expected_map(
     if plan.spec.height * plan.spec.width > FAST_MAP_MAX_CELLS:
         # the fast map keeps a few map-sized arrays per level and sample: past this size it
         # would break the memory bound, so the tracks are mapped one by one, in row bands
-        if limit < math.inf:
-            steady: list[tuple[SensorModel, str]] = [
-                (_Steady(model, heading, limit), kind) for model, kind in plan.models
-            ]
-            plan = dataclasses.replace(plan, models=steady)
+        plan = _steady_plan(plan, heading, limit)
         tracks = sample_tracks(log.poses, noise, options.error_samples, options.error_seed)
         return _mean_map(log, plan, standard, tracks, progress)
     offsets = sample_offsets(
@@ -325,13 +335,7 @@ def _belief_map(
     plan = plan_build(log, robot, standard)
     if between_passes is not None:
         between_passes()
-    limit = options.error_aware.max_heading_spread_rad
-    if limit < math.inf:
-        steady = belief.uncertainty
-        models: list[tuple[SensorModel, str]] = [
-            (_Steady(model, steady, limit), kind) for model, kind in plan.models
-        ]
-        plan = dataclasses.replace(plan, models=models)
+    plan = _steady_plan(plan, belief.uncertainty, options.error_aware.max_heading_spread_rad)
     count = min(options.error_samples, belief.draws.shape[0])
     tracks = belief.tracks(log.poses, count) if count else [log.poses]
     return _mean_map(log, plan, standard, tracks, progress)
