@@ -98,6 +98,27 @@ def test_batch_with_map_options_writes_builds_bytes(
     assert plain.read_bytes() != built.read_bytes()
 
 
+def test_batch_correct_odometry_is_builds(tmp_path: Path) -> None:
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    shutil.copy(SAMPLES / "hall.csv", logs / "hall.csv")
+    odometry = tmp_path / "odometry.yaml"  # its signed biases, as calibrate fits them
+    assert run("calibrate", str(logs / "hall.csv"), "-o", str(odometry), "-q")[0] == 0
+    options = ("--odometry-error", str(odometry), "--correct-odometry")
+    code, _, err = run("batch", str(logs), "-o", str(tmp_path / "maps"), "-q", *options)
+    assert code == 0, err
+    built = tmp_path / "hall.png"
+    assert run("build", str(logs / "hall.csv"), "-o", str(built), "-q", *options)[0] == 0
+    assert (tmp_path / "maps" / "hall.png").read_bytes() == built.read_bytes()
+    plain = tmp_path / "plain.png"
+    assert run("build", str(logs / "hall.csv"), "-o", str(plain), "-q")[0] == 0
+    assert plain.read_bytes() != built.read_bytes()
+    # the robot's own odometry only, in batch as in build
+    code, _, err = run("batch", str(logs), "-o", str(tmp_path / "g"), "--pose", "global", *options)
+    assert code == 2 and "--correct-odometry corrects the robot's own odometry" in err
+    assert not (tmp_path / "g").exists()
+
+
 def test_batch_scan_matched_and_slam_are_builds_maps(tmp_path: Path) -> None:
     log = simulate_run(room_world(), [[2, 1.5], [10, 1.5], [10, 6.5], [2, 6.5], [2, 1.5]],
                        drift=3.0)  # fmt: skip
@@ -159,6 +180,7 @@ def test_every_option_that_changes_a_map_changes_its_key() -> None:
             ),
         ),
         dataclasses.replace(base, build=dataclasses.replace(build, error_samples=0)),
+        dataclasses.replace(base, build=dataclasses.replace(build, correct_odometry=True)),
         dataclasses.replace(base, build=dataclasses.replace(build, ray=RayParams(max_range_m=8.0))),
         dataclasses.replace(base, robot="p3dx"),
         dataclasses.replace(base, log_format="csv"),

@@ -13,18 +13,12 @@ from tqdm import tqdm
 
 from gridmap_cli.cli.common import Interrupted, handle_errors
 from gridmap_cli.cli.map_options import (
-    check_resolution,
-    check_thresholds,
-    error_aware_settings,
+    build_settings,
     error_samples_option,
-    error_samples_setting,
     image_format_option,
     map_options,
-    ray_params,
-    sonar_params,
 )
 from gridmap_cli.errors import GridmapError, UsageError
-from gridmap_cli.mapping.pipeline import BuildOptions
 from gridmap_cli.mapping.selection import Selection
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot, preset_names
@@ -112,6 +106,7 @@ def batch(
     trust_length: float,
     max_spread_deg: float,
     error_samples: int | None,
+    correct_odometry: bool,
     jobs: int,
     executor: str,
     scheduler: str | None,
@@ -132,7 +127,8 @@ def batch(
     options = _batch_options(image_format or "png", robot, log_format, resolution, mode,
                              map_mode, occupied, free, no_echo_free, max_range, pose, topics,
                              sensor_patterns, start, end, odometry_file, coefficients,
-                             trust_length, max_spread_deg, error_samples)  # fmt: skip
+                             trust_length, max_spread_deg, error_samples,
+                             correct_odometry)  # fmt: skip
     if executor == "dask":
         if scheduler is None:
             raise UsageError("--executor dask needs --scheduler ADDRESS (tcp://host:8786)")
@@ -201,24 +197,18 @@ def _batch_options(
     trust_length: float,
     max_spread_deg: float,
     error_samples: int | None,
+    correct_odometry: bool,
 ) -> BatchOptions:
     """Build's usage checks of the map options, and the options as every job takes them."""
-    check_thresholds(occupied, free)
-    check_resolution(resolution)
+    build = build_settings(resolution, mode, occupied, free, no_echo_free, max_range, pose,
+                           odometry_file, coefficients, trust_length, max_spread_deg,
+                           error_samples, correct_odometry)  # fmt: skip
     check_map_outputs(Path(f"map.{image_format}"), map_mode, True)  # scale needs a PNG
-    sonar = sonar_params(no_echo_free)
-    error_aware, odometry_error = error_aware_settings(
-        mode, odometry_file, coefficients, trust_length, max_spread_deg, pose == "slam"
-    )
-    samples = error_samples_setting(mode, error_samples)
     Selection.parse(sensor_patterns, start, end)  # bad patterns and times before any work
     if robot is not None:
         load_robot(robot)  # a bad robot is a usage error before any log is read
         if robot not in preset_names():
             robot = str(Path(robot).resolve())
-    build = BuildOptions(resolution_m=resolution, mode=mode, sonar=sonar,
-                         ray=ray_params(no_echo_free, max_range), error_aware=error_aware,
-                         odometry_error=odometry_error, error_samples=samples)  # fmt: skip
     return BatchOptions(build=build, robot=robot, log_format=log_format, pose=pose,
                         topics=topics, sensors=sensor_patterns, start=start, end=end,
                         map_mode=map_mode, occupied=occupied, free=free,

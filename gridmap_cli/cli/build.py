@@ -33,15 +33,10 @@ from gridmap_cli.cli.common import (
     warn,
 )
 from gridmap_cli.cli.map_options import (
-    check_resolution,
-    check_thresholds,
-    error_aware_settings,
+    build_settings,
     error_samples_option,
-    error_samples_setting,
     image_format_option,
     map_options,
-    ray_params,
-    sonar_params,
 )
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import MixedLogsError, NotRecordingFolderError, UsageError
@@ -127,13 +122,6 @@ LASER_POSES = ("scan-matched", "slam")
               "the compiled kernels are built), or with --fuse and the local executor, the "
               "logs.")  # fmt: skip
 @error_samples_option
-@click.option(
-    "--correct-odometry",
-    is_flag=True,
-    help="Take the odometry's systematic errors (the signed biases of --odometry-error FILE, "
-    "version 3) out of its track before mapping, in either mode; the error-aware spread then "
-    "has the random part alone.",
-)
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
@@ -184,25 +172,14 @@ def build(
     """
     started = time.perf_counter()
     output = map_output(output, basename, image_format)
-    check_thresholds(occupied, free)
-    check_resolution(resolution)
-    sonar = sonar_params(no_echo_free)
-    ray = ray_params(no_echo_free, max_range)
-    error_aware, odometry_error = error_aware_settings(
-        mode,
-        odometry_file,
-        coefficients,
-        trust_length,
-        max_spread_deg,
-        pose == "slam",
-        correct_odometry=correct_odometry,
-    )
-    if correct_odometry and (pose != "odometry" or fuse):
+    settings = build_settings(resolution, mode, occupied, free, no_echo_free, max_range, pose,
+                              odometry_file, coefficients, trust_length, max_spread_deg,
+                              error_samples, correct_odometry)  # fmt: skip
+    if correct_odometry and fuse:
         raise UsageError(
             "--correct-odometry corrects the robot's own odometry: it takes --pose odometry "
             "and one log, no --fuse"
         )
-    samples = error_samples_setting(mode, error_samples)
     selection = Selection.parse(sensor_patterns, start, end)
     to_stdout = output == STDIO
     if to_stdout:
@@ -238,7 +215,8 @@ def build(
                     read_options=dataclasses.replace(read_options, robot=None), pose=pose,
                     initial_pose=first, selection=selection,
                     robot_spec=_robot_spec(robot), options=BuildOptions(resolution_m=resolution,
-                                                                         sonar=sonar, ray=ray))
+                                                                         sonar=settings.sonar,
+                                                                         ray=settings.ray))
             for log, first in zip(logs, placed, strict=True)
         ]  # fmt: skip
         if scheduler is not None:
@@ -275,12 +253,12 @@ def build(
         if mode == "error-aware":  # the graph's marginals and draws, not the odometry's
             from gridmap_cli.poses.pose_belief import slam_belief
 
-            belief = slam_belief(slam, samples, BuildOptions.error_seed)
+            belief = slam_belief(slam, settings.error_samples, settings.error_seed)
         if slam.warning:
             warn((f"--pose slam: {slam.warning}",), quiet)
     else:
         data = select_poses(data, pose)
-    note = reference_spread_note(pose, BuildOptions(mode=mode, odometry_error=odometry_error))
+    note = reference_spread_note(pose, settings)
     if note is not None:
         warn((note,), quiet)
     if preview is None:  # the other tracks are drawn only; let them go (56 bytes a row)
@@ -288,18 +266,7 @@ def build(
     selected = apply_selection(data, selection, robot_desc)
     warn(selected.notes, quiet)
     data = selected.log
-    options = BuildOptions(
-        resolution_m=resolution,
-        mode=mode,
-        sonar=sonar,
-        ray=ray,
-        error_aware=error_aware,
-        odometry_error=odometry_error,
-        error_samples=samples,
-        correct_odometry=correct_odometry,
-        jobs=jobs,
-        pose_belief=belief,
-    )
+    options = dataclasses.replace(settings, jobs=jobs, pose_belief=belief)
     with progress_bar(data.reading_count, quiet, "mapping") as bar:
         trim = TrimEvery(TRIM_EVERY_BATCHES)
 

@@ -177,9 +177,18 @@ def error_samples_setting(mode: str, error_samples: int | None) -> int:
     return BuildOptions.error_samples if error_samples is None else error_samples
 
 
+correct_odometry_option = click.option(
+    "--correct-odometry",
+    is_flag=True,
+    help="Take the odometry's systematic errors (the signed biases of --odometry-error FILE, "
+    "version 3) out of its track before mapping, in either mode; the error-aware spread then "
+    "has the random part alone.",
+)
+
+
 #: Every map option, in help order: the command receives robot, log_format, resolution, mode,
 #: map_mode, occupied, free, no_echo_free, max_range, pose, topics (a ReadOptions), sensor_patterns,
-#: start, end, odometry_file, coefficients, trust_length and max_spread_deg.
+#: start, end, odometry_file, coefficients, trust_length, max_spread_deg and correct_odometry.
 MAP_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     robot_option,
     format_option,
@@ -194,6 +203,7 @@ MAP_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     topic_options,
     selection_options(),
     *ERROR_AWARE_OPTIONS,
+    correct_odometry_option,
 )
 
 
@@ -325,3 +335,43 @@ def error_aware_settings(
             "(a file older than version 3): run gridmap calibrate again"
         )
     return params, model
+
+
+def build_settings(
+    resolution: float,
+    mode: str,
+    occupied: float,
+    free: float,
+    no_echo_free: float | None,
+    max_range: float | None,
+    pose: str,
+    odometry_file: Path | None,
+    coefficients: tuple[str, ...],
+    trust_length: float,
+    max_spread_deg: float,
+    error_samples: int | None,
+    correct_odometry: bool,
+) -> BuildOptions:
+    """The map options as the mapping pipeline takes them, every usage check made (build and
+    batch alike, before any reading)."""
+    check_thresholds(occupied, free)
+    check_resolution(resolution)
+    error_aware, odometry_error = error_aware_settings(
+        mode, odometry_file, coefficients, trust_length, max_spread_deg, pose == "slam",
+        correct_odometry=correct_odometry,
+    )  # fmt: skip
+    if correct_odometry and pose != "odometry":
+        raise UsageError(
+            "--correct-odometry corrects the robot's own odometry: it takes --pose odometry "
+            "and one log, no --fuse"
+        )
+    return BuildOptions(
+        resolution_m=resolution,
+        mode=mode,
+        sonar=sonar_params(no_echo_free),
+        ray=ray_params(no_echo_free, max_range),
+        error_aware=error_aware,
+        odometry_error=odometry_error,
+        error_samples=error_samples_setting(mode, error_samples),
+        correct_odometry=correct_odometry,
+    )
