@@ -70,7 +70,8 @@ MODES: dict[str, list[str]] = {
     "standard-corrected": ["--odometry-error", "{cal}", "--correct-odometry"],
     "error-aware-perfect": ["--mode", "error-aware", "--odometry-error", "{perfect}"],
     "error-aware": ["--mode", "error-aware", "--odometry-error", "{cal}", "--correct-odometry"],
-    "error-aware-uncorrected": ["--mode", "error-aware", "--odometry-error", "{cal}"],
+    "error-aware-uncorrected": ["--mode", "error-aware", "--odometry-error", "{cal}",
+                                "--no-correct-odometry"],
     "error-aware-other-log": [
         "--mode", "error-aware", "--odometry-error", "{cross}", "--correct-odometry"
     ],

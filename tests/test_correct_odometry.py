@@ -76,9 +76,46 @@ def test_build_corrects_in_either_mode(tmp_path: Path) -> None:
     fixed = built(tmp_path, "fixed", str(path), "--odometry-error", str(odo), "--correct-odometry")
     assert plain[0] != fixed[0]
     ea = ("--mode", "error-aware", "--odometry-error", str(odo), "--error-samples", "2")
-    blurred = built(tmp_path, "ea", str(path), *ea)
+    blurred = built(tmp_path, "ea", str(path), *ea, "--no-correct-odometry")
     corrected = built(tmp_path, "ea-fixed", str(path), *ea, "--correct-odometry")
     assert blurred[0] != corrected[0]
+
+
+def test_error_aware_corrects_known_biases_by_default_and_says_so(tmp_path: Path) -> None:
+    log = biased_log(seed=1)
+    path = tmp_path / "run.csv"
+    save_csv_log(log, path)
+    odo = tmp_path / "odo.yaml"
+    save_odometry_error(calibrate(log).model, odo)
+    ea = ("--mode", "error-aware", "--odometry-error", str(odo), "--error-samples", "2")
+    default = built(tmp_path, "default", str(path), *ea)
+    corrected = built(tmp_path, "corrected", str(path), *ea, "--correct-odometry")
+    blurred = built(tmp_path, "blurred", str(path), *ea, "--no-correct-odometry")
+    assert default == corrected
+    assert default[0] != blurred[0]
+    out = tmp_path / "said"
+    out.mkdir()
+    code, stdout, err = run("build", str(path), "-o", str(out / "m.png"), *ea, "--json")
+    assert code == 0
+    assert "the odometry's calibrated biases corrected" in err
+    assert '"odometry_corrected": true' in stdout
+    code, stdout, err = run("build", str(path), "-o", str(out / "n.png"), *ea, "--json",
+                            "--no-correct-odometry")  # fmt: skip
+    assert code == 0
+    assert "biases corrected" not in err and "odometry_corrected" not in stdout
+
+
+def test_the_default_corrects_nothing_it_cannot(tmp_path: Path) -> None:
+    """Standard mode, a reference track and a file without signed biases: no correction by
+    default, and no error for the flag not given."""
+    v1 = tmp_path / "v1.yaml"
+    v1.write_text("gridmap-odometry-error: 1\nrange_m_per_m: 0.02\n")
+    log = str(SAMPLES / "corridor_loop.csv")
+    ea = ("--mode", "error-aware", "--error-samples", "2")
+    old = built(tmp_path, "v1", log, *ea, "--odometry-error", str(v1))
+    assert old == built(tmp_path, "v1-no", log, *ea, "--odometry-error", str(v1),
+                        "--no-correct-odometry")  # fmt: skip
+    assert built(tmp_path, "std", log) == built(tmp_path, "std-no", log, "--no-correct-odometry")
 
 
 @pytest.mark.parametrize("mode", [(), ("--mode", "error-aware")])

@@ -106,7 +106,7 @@ def batch(
     trust_length: float,
     max_spread_deg: float,
     error_samples: int | None,
-    correct_odometry: bool,
+    correct_odometry: bool | None,
     jobs: int,
     executor: str,
     scheduler: str | None,
@@ -197,7 +197,7 @@ def _batch_options(
     trust_length: float,
     max_spread_deg: float,
     error_samples: int | None,
-    correct_odometry: bool,
+    correct_odometry: bool | None,
 ) -> BatchOptions:
     """Build's usage checks of the map options, and the options as every job takes them."""
     build = build_settings(resolution, mode, occupied, free, no_echo_free, max_range, pose,

@@ -156,7 +156,7 @@ def build(
     jobs: int,
     error_samples: int | None,
     max_range: float | None,
-    correct_odometry: bool,
+    correct_odometry: bool | None,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -174,12 +174,7 @@ def build(
     output = map_output(output, basename, image_format)
     settings = build_settings(resolution, mode, occupied, free, no_echo_free, max_range, pose,
                               odometry_file, coefficients, trust_length, max_spread_deg,
-                              error_samples, correct_odometry)  # fmt: skip
-    if correct_odometry and fuse:
-        raise UsageError(
-            "--correct-odometry corrects the robot's own odometry: it takes --pose odometry "
-            "and one log, no --fuse"
-        )
+                              error_samples, correct_odometry, fuse)  # fmt: skip
     selection = Selection.parse(sensor_patterns, start, end)
     to_stdout = output == STDIO
     if to_stdout:
@@ -306,6 +301,8 @@ def build(
         summary["scan_match"] = match.summary()
     if slam_summary is not None:
         summary["slam"] = slam_summary
+    if settings.correct_odometry:
+        summary["odometry_corrected"] = True
     report(summary, summary_line(summary), as_json, quiet)
 
 

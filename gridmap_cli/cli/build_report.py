@@ -110,6 +110,7 @@ def summary_line(s: dict[str, Any]) -> str:
         f"in {s['seconds']:.1f} s -> {s['image']}"
         + (f", {s['yaml']}" if s["yaml"] else "")
         + matched
+        + ("; the odometry's calibrated biases corrected" if s.get("odometry_corrected") else "")
     )
 
 

@@ -178,11 +178,13 @@ def error_samples_setting(mode: str, error_samples: int | None) -> int:
 
 
 correct_odometry_option = click.option(
-    "--correct-odometry",
-    is_flag=True,
+    "--correct-odometry/--no-correct-odometry",
+    default=None,
     help="Take the odometry's systematic errors (the signed biases of --odometry-error FILE, "
-    "version 3) out of its track before mapping, in either mode; the error-aware spread then "
-    "has the random part alone.",
+    "version 3) out of its track before mapping; the error-aware spread then has the random "
+    "part alone. Default: on in error-aware mode when the file holds biases (a known bias is "
+    "corrected, not blurred), off in standard mode; --no-correct-odometry spreads the biases "
+    "as errors instead.",
 )
 
 
@@ -350,21 +352,27 @@ def build_settings(
     trust_length: float,
     max_spread_deg: float,
     error_samples: int | None,
-    correct_odometry: bool,
+    correct_odometry: bool | None,
+    fused: bool = False,
 ) -> BuildOptions:
     """The map options as the mapping pipeline takes them, every usage check made (build and
-    batch alike, before any reading)."""
+    batch alike, before any reading). ``correct_odometry`` None (neither --correct-odometry nor
+    --no-correct-odometry) corrects the biases of the odometry error when the map is
+    error-aware, of the robot's own odometry (``pose`` odometry, not ``fused``), and the file
+    holds signed biases: :func:`auto_correction`."""
     check_thresholds(occupied, free)
     check_resolution(resolution)
     error_aware, odometry_error = error_aware_settings(
         mode, odometry_file, coefficients, trust_length, max_spread_deg, pose == "slam",
-        correct_odometry=correct_odometry,
+        correct_odometry=bool(correct_odometry),
     )  # fmt: skip
-    if correct_odometry and pose != "odometry":
+    if correct_odometry and (pose != "odometry" or fused):
         raise UsageError(
             "--correct-odometry corrects the robot's own odometry: it takes --pose odometry "
             "and one log, no --fuse"
         )
+    if correct_odometry is None:
+        correct_odometry = auto_correction(mode, pose, fused, odometry_error)
     return BuildOptions(
         resolution_m=resolution,
         mode=mode,
@@ -375,3 +383,15 @@ def build_settings(
         error_samples=error_samples_setting(mode, error_samples),
         correct_odometry=correct_odometry,
     )
+
+
+def auto_correction(mode: str, pose: str, fused: bool, model: OdometryError | None) -> bool:
+    """Whether a build given neither --correct-odometry nor --no-correct-odometry corrects the
+    odometry's biases: in error-aware mode, of the robot's own odometry of one log, with an
+    odometry error that knows the biases' signs (version 3). Spreading a known bias as a
+    random error blurs what the track can simply be rid of (issue 19: on the Intel lab the
+    uncorrected error-aware map scored 1.17x the corrected standard map, the corrected one
+    0.81x)."""
+    if mode != "error-aware" or pose != "odometry" or fused or model is None:
+        return False
+    return model.has_bias
