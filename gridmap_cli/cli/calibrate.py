@@ -322,6 +322,7 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
             "it was taken out of the random walks above (what stays the same at every window "
             "length is the reference's).",
         ]
+    lines += _check_lines(c)
     lines += [
         "",
         f"residual per {c.window_m:g} m window (rms, systematic terms removed): distance "
@@ -330,6 +331,22 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
         f"wrote {output}" if output is not None else "(give -o FILE to write these)",
     ]
     return "\n".join(lines)
+
+
+def _check_lines(c: Calibration) -> list[str]:
+    """The check of the random walks on the positions, at a map's lengths."""
+    if not math.isfinite(c.consistency):
+        return []
+    from gridmap_cli.poses.calibrate import WALK_KEYS
+
+    cut = [n for n, w in zip(WALK_KEYS, c.walk_checked, strict=True) if w]
+    return [
+        f"check on the positions ({c.consistency_pairs} starts and horizons of 20 windows or "
+        f"more): the odometry's error is {c.consistency:.2f} x what the random walks predict",
+        f"cut by {c.random_walk_scale:.2f}, too weak in the windows to stand: {', '.join(cut)}"
+        if cut
+        else "random walks kept as the windows fitted them",
+    ]
 
 
 def _number(key: str, value: float) -> str:

@@ -36,13 +36,16 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError
+from gridmap_cli.poses.consistency import consistency
 from gridmap_cli.poses.odometry_error import (
     DEFAULT_SONAR_RELATIVE_ERROR,
     MAX_BIAS,
     OdometryError,
+    correct_track,
     travelled,
 )
-from gridmap_cli.poses.robust_fit import RobustFit, robust_fit
+from gridmap_cli.poses.pose_uncertainty import StepNoise
+from gridmap_cli.poses.robust_fit import RobustFit, robust_fit, walk_standard_errors
 from gridmap_cli.poses.windows import (
     BUDGET_TOLERANCE,
     DEFAULT_WINDOW_M,
@@ -125,6 +128,16 @@ class Calibration:
     #: Windows of every length fitted, and those left out (:class:`LeftOut`).
     fitted_windows: int = 0
     left_out: tuple[LeftOut, ...] = ()
+    #: The check on the positions (:mod:`.consistency`): actual over predicted position error
+    #: at long horizons, the pairs it rests on, and the factor the random walks were scaled by.
+    consistency: float = math.nan
+    consistency_pairs: int = 0
+    random_walk_scale: float = 1.0
+    #: Standard errors of the random walks' variances (along, turn, heading per metre), the
+    #: block jackknife's (:func:`~gridmap_cli.poses.robust_fit.walk_standard_errors`).
+    walk_variance_se: tuple[float, float, float] = (math.inf, math.inf, math.inf)
+    #: Which random walks the check on the positions scaled (along, turn, heading per metre).
+    walk_checked: tuple[bool, bool, bool] = (False, False, False)
 
     @property
     def turning_windows(self) -> int:
@@ -166,6 +179,12 @@ class Calibration:
                 "fitted_windows": self.fitted_windows,
                 "left_out": [w.as_dict() for w in self.left_out],
             },
+            "position_check": {
+                "factor": self.consistency if math.isfinite(self.consistency) else None,
+                "pairs": self.consistency_pairs,
+                "scale": self.random_walk_scale,
+                "cut": dict(zip(WALK_KEYS, self.walk_checked, strict=True)),
+            },
         }
 
 
@@ -201,10 +220,10 @@ def fit(
     first_long = sum(
         w.window_m < HEADING_LADDER_MIN * windows.window_m - BUDGET_TOLERANCE for w in rungs
     )
-    robust = robust_fit(
-        [w.rung() for w in rungs], distance_ok, turn_ok, drift_ok, jitter_ok,
-        distance_rungs=short, heading_walk_from=first_long,
-    )  # fmt: skip
+    fit_args = ([w.rung() for w in rungs], distance_ok, turn_ok, drift_ok, jitter_ok, short,
+                first_long)  # fmt: skip
+    robust = robust_fit(*fit_args)
+    walk_se = walk_standard_errors(*fit_args)
     # rounding noise of an error-free log (1e-17) is no error: write it as 0
     scale, turn_scale = _clean(robust.scale), _clean(robust.turn_scale)
     drift = _clean(robust.drift_rad_per_m)
@@ -244,6 +263,7 @@ def fit(
         jitter_estimated=jitter_ok,
         fitted_windows=sum(len(w) for w in rungs),
         left_out=_left_out(rungs, robust),
+        walk_variance_se=walk_se,
     )
 
 
@@ -334,7 +354,53 @@ def calibrate_tracks(
         for k in JITTER_LADDER
     ]
     ladder = [w for w in ladder if len(w) >= MIN_WINDOWS]
-    return fit(windows, sonar_relative_error, ladder)
+    return checked(fit(windows, sonar_relative_error, ladder), odometry, truth)
+
+
+#: The random walks' keys, in the order of :attr:`Calibration.walk_checked`.
+WALK_KEYS = ("range_m_per_sqrt_m", "bearing_rad_per_sqrt_rad", "heading_rad_per_sqrt_m")
+#: A random walk whose variance is less than this many of its standard errors is not shown by
+#: the windows (the log is too short to tell it from noise): the check on the positions may cut
+#: it down.
+WALK_SIGNIFICANT = 2.0
+
+
+def checked(cal: Calibration, odometry: PoseTrack, truth: PoseTrack) -> Calibration:
+    """``cal`` with the check on the positions (:mod:`.consistency`) made, and the random walks
+    the windows could not show (less than :data:`WALK_SIGNIFICANT` standard errors) cut down by
+    its factor where it is below 1: such a walk predicts more error at a map's lengths than the
+    calibration's own track shows. A walk the windows show stands, and none is raised: an error
+    the positions show beyond the walks is what the robust fit left out (a wheel slip, a
+    reference jump), and spread over a whole map it would blur every other part of it."""
+    noise = StepNoise.of(cal.model.random_part())
+    factor, pairs = consistency(
+        correct_track(odometry, cal.model), truth, noise, cal.jitter_m, cal.jitter_rad,
+        cal.window_m, cal.window_rad,
+    )  # fmt: skip
+    out = dataclasses.replace(cal, consistency=factor, consistency_pairs=pairs)
+    if not (math.isfinite(factor) and factor < 1.0):
+        return out
+    m = cal.model
+    walks = (m.range_m_per_sqrt_m, m.bearing_rad_per_sqrt_rad, m.heading_rad_per_sqrt_m)
+    se = cal.walk_variance_se
+    weak = (
+        _weak(walks[0], se[0]),
+        _weak(walks[1], se[1]),
+        _weak(walks[2], se[2]),
+    )
+    if not any(weak):
+        return out
+    along, turn, per_m = (q * factor if w else q for q, w in zip(walks, weak, strict=True))
+    model = dataclasses.replace(
+        m, range_m_per_sqrt_m=along, bearing_rad_per_sqrt_rad=turn, heading_rad_per_sqrt_m=per_m
+    )
+    return dataclasses.replace(out, model=model, random_walk_scale=factor, walk_checked=weak)
+
+
+def _weak(walk: float, variance_se: float) -> bool:
+    """Whether a random walk's variance is within :data:`WALK_SIGNIFICANT` standard errors of
+    0 (a walk of 0 is nothing to cut)."""
+    return bool(walk > 0.0 and walk * walk < WALK_SIGNIFICANT * variance_se)
 
 
 def _part(track: PoseTrack, start: int, stop: int | None) -> PoseTrack:

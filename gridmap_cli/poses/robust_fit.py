@@ -28,6 +28,7 @@ up by :data:`TRUNCATION_VARIANCE`, what cutting a normal at that many sigma take
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -247,3 +248,56 @@ def _inliers(r: FloatArray, var: FloatArray, use: BoolArray | None = None) -> Bo
         keep = use.copy()
         keep[order[:cap]] = False
     return np.asarray(keep, dtype=np.bool_)
+
+
+#: Blocks of travel the jackknife leaves out one at a time (:func:`walk_standard_errors`).
+JACKKNIFE_BLOCKS = 8
+
+
+def walk_standard_errors(
+    rungs: list[Rung],
+    distance_ok: bool,
+    turn_ok: bool,
+    drift_ok: bool,
+    jitter_ok: bool,
+    distance_rungs: int | None = None,
+    heading_walk_from: int = 0,
+) -> tuple[float, float, float]:
+    """Standard errors of the random walks' variances (``along_m_per_sqrt_m**2``,
+    ``heading_rad_per_sqrt_rad**2``, ``heading_rad_per_sqrt_m**2``) by a delete-a-block
+    jackknife: the travel cut into :data:`JACKKNIFE_BLOCKS` blocks, :func:`robust_fit` (same
+    arguments) made again without the windows that touch each block in turn. The overlapping
+    windows of one length are far from independent (fifty 50 m windows in 100 m of travel are
+    two), which a block jackknife sees and the fit's own weights do not. Infinite without
+    travel."""
+    end = max((float(np.max(r.start_m + r.driven_m)) for r in rungs if r.start_m.size), default=0)
+    if not end > 0.0:
+        return (math.inf, math.inf, math.inf)
+    values = []
+    for b in range(JACKKNIFE_BLOCKS):
+        lo, hi = b * end / JACKKNIFE_BLOCKS, (b + 1) * end / JACKKNIFE_BLOCKS
+        kept = [_subset(r, (r.start_m + r.driven_m <= lo) | (r.start_m >= hi)) for r in rungs]
+        fit = robust_fit(
+            kept, distance_ok, turn_ok, drift_ok, jitter_ok, distance_rungs, heading_walk_from
+        )
+        values.append(_walk_variances(fit))
+    v = np.array(values)
+    n = JACKKNIFE_BLOCKS
+    se = np.sqrt((n - 1) / n * np.sum((v - v.mean(axis=0)) ** 2, axis=0))
+    return (float(se[0]), float(se[1]), float(se[2]))
+
+
+def _walk_variances(fit: RobustFit) -> tuple[float, float, float]:
+    return (
+        fit.along_m_per_sqrt_m**2,
+        fit.heading_rad_per_sqrt_rad**2,
+        fit.heading_rad_per_sqrt_m**2,
+    )
+
+
+def _subset(rung: Rung, keep: BoolArray) -> Rung:
+    """The windows of ``rung`` where ``keep`` holds."""
+    arrays = {
+        name: value[keep] for name, value in vars(rung).items() if isinstance(value, np.ndarray)
+    }
+    return dataclasses.replace(rung, **arrays)  # type: ignore[arg-type]

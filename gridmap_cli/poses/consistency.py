@@ -1,0 +1,128 @@
+"""Does a calibration predict its own half's error at the lengths a map uses?
+
+The random walks come from windows of 1 to 50 times the calibration window, compared through
+what no frame changes. A map made from the odometry spreads each reading by the pose error
+grown from its first pose, over the whole log: hundreds of metres. A heading error of the
+reference that wanders (a SLAM track's heading, not its positions) passes for a random walk of
+the odometry in the window fit, and extrapolated over a map's lengths it predicts metres of
+position error that the odometry's positions never show.
+
+So the fit is checked on the positions: from every key pose of the calibration track, the
+corrected odometry is placed at the reference pose and its position error after ``H`` metres
+is compared with the covariance the random walks predict (:func:`segment_covariance`, exactly
+what :func:`~gridmap_cli.poses.pose_uncertainty.propagate` carries with the systematic terms
+at 0, plus the reference's jitter at both ends). The normalised squared error (NEES) of a
+consistent model has the median of a chi-square with 2 degrees of freedom, ``2 ln 2``; the
+square root of the median NEES over the long horizons over that is the factor by which the
+random walks mispredict.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from gridmap_cli.geometry import wrap_angle
+from gridmap_cli.poses.odometry_error import travelled
+from gridmap_cli.poses.pose_uncertainty import StepNoise, key_increments, key_steps
+from gridmap_cli.records import PoseTrack
+
+F64 = npt.NDArray[np.float64]
+
+#: Median of a chi-square with 2 degrees of freedom.
+CHI2_2_MEDIAN = 2.0 * math.log(2.0)
+#: The horizons checked, in calibration windows: long ones, where the random walks (not the
+#: reference's jitter) make the error.
+HORIZONS = (20.0, 50.0, 100.0, 200.0, 500.0)
+#: A horizon counts when this many starts reach it.
+MIN_STARTS = 8
+DEBUG = False
+
+
+def _prefix(values: F64) -> F64:
+    """Running sums along the first axis with a leading zero (shape (K,) + rest)."""
+    zero = np.zeros((1, *values.shape[1:]))
+    return np.concatenate([zero, np.cumsum(values, axis=0)])
+
+
+def consistency(
+    odometry: PoseTrack,
+    truth: PoseTrack,
+    noise: StepNoise,
+    jitter_m: float,
+    jitter_rad: float,
+    step_m: float,
+    step_rad: float,
+) -> tuple[float, int]:
+    """The factor (actual / predicted standard deviation of the position error, the median
+    over the long horizons) and how many (start, horizon) pairs it rests on; (nan, 0) when no
+    horizon is reached from :data:`MIN_STARTS` starts. ``odometry`` is corrected already; both
+    tracks at the same stamps (N,)."""
+    keys = key_steps(odometry, step_m, step_rad)
+    if keys.shape[0] < 3 or noise.is_zero:
+        return math.nan, 0
+    dx, dy, dth = key_increments(odometry, keys)
+    ds = np.hypot(dx, dy)
+    th = odometry.theta_rad[keys]
+    px, py = odometry.x_m[keys], odometry.y_m[keys]
+    c, s = np.cos(th[:-1]), np.sin(th[:-1])
+    qa = noise.along_m_per_sqrt_m**2 * ds
+    ql = noise.lateral_m_per_sqrt_m**2 * ds
+    # position noise of step i, added at key i + 1, and heading noise, which moves every
+    # later key pose about key i + 1
+    pos = np.stack([c * c * qa + s * s * ql, c * s * (qa - ql), s * s * qa + c * c * ql], axis=1)
+    w = noise.heading_rad_per_sqrt_rad**2 * np.abs(dth) + noise.heading_rad_per_sqrt_m**2 * ds
+    x1, y1 = px[1:], py[1:]
+    p_pos = _prefix(pos)
+    p_w = _prefix(w)
+    p_wx, p_wy = _prefix(w * x1), _prefix(w * y1)
+    p_wxx, p_wxy, p_wyy = _prefix(w * x1 * x1), _prefix(w * x1 * y1), _prefix(w * y1 * y1)
+    dist, _ = travelled(truth)
+    kd = dist[keys]
+    # the reference's motion from each key pose, turned into the odometry's frame there
+    rot = wrap_angle(th - truth.theta_rad[keys])
+    tx, ty = truth.x_m[keys], truth.y_m[keys]
+    ratios: list[float] = []
+    pairs = 0
+    for h in HORIZONS:
+        horizon = h * step_m
+        end = np.searchsorted(kd, kd + horizon, side="left")
+        start = np.flatnonzero(end < keys.shape[0])
+        if start.shape[0] < MIN_STARTS:
+            continue
+        e = end[start]
+        cr, sr = np.cos(rot[start]), np.sin(rot[start])
+        rx, ry = tx[e] - tx[start], ty[e] - ty[start]
+        ex = (px[e] - px[start]) - (cr * rx - sr * ry)
+        ey = (py[e] - py[start]) - (sr * rx + cr * ry)
+        xe, ye = px[e], py[e]
+        a = p_w[e] - p_w[start]
+        bx, by = p_wx[e] - p_wx[start], p_wy[e] - p_wy[start]
+        cxx, cxy = p_wxx[e] - p_wxx[start], p_wxy[e] - p_wxy[start]
+        cyy = p_wyy[e] - p_wyy[start]
+        # sum of w (p_e - p) (p_e - p)^T, then turned by 90 degrees (a heading error moves a
+        # point across its lever): [[yy, -xy], [-xy, xx]]
+        mxx = a * xe * xe - 2 * xe * bx + cxx
+        mxy = a * xe * ye - xe * by - ye * bx + cxy
+        myy = a * ye * ye - 2 * ye * by + cyy
+        lx, ly = xe - px[start], ye - py[start]
+        jr = jitter_rad**2
+        jm = 2.0 * jitter_m**2
+        pp = p_pos[e] - p_pos[start]
+        sxx = pp[:, 0] + myy + jr * ly * ly + jm
+        sxy = pp[:, 1] - mxy - jr * lx * ly
+        syy = pp[:, 2] + mxx + jr * lx * lx + jm
+        det = sxx * syy - sxy * sxy
+        ok = det > 0.0
+        nees = (syy * ex * ex - 2 * sxy * ex * ey + sxx * ey * ey)[ok] / det[ok]
+        if nees.shape[0] < MIN_STARTS:
+            continue
+        ratios.append(math.sqrt(float(np.median(nees)) / CHI2_2_MEDIAN))
+        if DEBUG:
+            print(f"  H {horizon:.0f} n {nees.shape[0]} ratio {ratios[-1]:.2f}")
+        pairs += int(nees.shape[0])
+    if not ratios:
+        return math.nan, 0
+    return float(np.median(ratios)), pairs
