@@ -6,14 +6,16 @@ import dataclasses
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from gridmap_cli.poses.calibrate import calibrate_tracks, checked
-from gridmap_cli.poses.consistency import consistency
+from gridmap_cli.poses.consistency import SegmentCovariance, consistency
 from gridmap_cli.poses.odometry_error import correct_track
-from gridmap_cli.poses.pose_uncertainty import StepNoise
+from gridmap_cli.poses.pose_uncertainty import StepNoise, key_steps, propagate
 from gridmap_cli.poses.windows import truth_at_odometry
 from gridmap_cli.readers import read_log
+from gridmap_cli.records import PoseTrack
 
 SAMPLE = Path(__file__).resolve().parents[1] / "samples" / "corridor_loop.csv"
 
@@ -85,3 +87,28 @@ def test_never_raised(tracks) -> None:  # type: ignore[no-untyped-def]
                   odometry, truth)  # fmt: skip
     assert out.consistency > 1.0
     assert out.model == quiet and out.random_walk_scale == 1.0
+
+
+def test_closed_form_is_propagate(tracks) -> None:  # type: ignore[no-untyped-def]
+    """The running sums give the covariance the pose uncertainty carries step by step, from the
+    first key pose and from one further on."""
+    odometry, _ = tracks
+    noise = StepNoise(
+        along_m_per_sqrt_m=0.02,
+        lateral_m_per_sqrt_m=0.01,
+        heading_rad_per_sqrt_rad=0.015,
+        heading_rad_per_sqrt_m=0.004,
+    )
+    keys = key_steps(odometry)
+    grown = SegmentCovariance(odometry, keys, noise)
+    last = keys.shape[0] - 1
+    for first in (0, last // 3):
+        k = int(keys[first])
+        part = PoseTrack(
+            odometry.stamp_ns[k:], odometry.x_m[k:], odometry.y_m[k:], odometry.theta_rad[k:]
+        )
+        expected = propagate(part, noise).cov[-1]
+        sxx, sxy, syy = grown.between(np.array([first]), np.array([last]))
+        assert float(sxx[0]) == pytest.approx(expected[0, 0], rel=1e-9)
+        assert float(sxy[0]) == pytest.approx(expected[0, 1], rel=1e-9, abs=1e-12)
+        assert float(syy[0]) == pytest.approx(expected[1, 1], rel=1e-9)
