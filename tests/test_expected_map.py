@@ -27,9 +27,15 @@ def log() -> RangeLog:
     return read_log(SAMPLES / "corridor_loop.csv")
 
 
-def oracle(log: RangeLog, odometry: OdometryError, k: int, seed: int = 0) -> OccupancyMap:
+def oracle(
+    log: RangeLog, odometry: OdometryError, k: int, seed: int = 0, spec: GridSpec | None = None
+) -> OccupancyMap:
+    """``spec``: the grid to map on (the fast map's, grown where the samples' readings land);
+    default the standard build's."""
     options = BuildOptions(odometry_error=odometry)
     plan = plan_build(log, load_robot("p3at"), options)
+    if spec is not None:
+        plan = dataclasses.replace(plan, spec=spec)
     tracks = sample_tracks(log.poses, StepNoise.of(odometry), k, seed)
     return expected.exact(plan, tracks, options.clamp_p, options.batch_size)
 
@@ -47,8 +53,9 @@ def test_the_fast_map_is_its_oracle_on_the_same_tracks(
     # the oracle than the oracle of other draws is (measured: 0.018 against 0.056)
     monkeypatch.setattr(expected, "ANTITHETIC", False)
     odometry = OdometryErrorModel().as_odometry_error()  # the simulator's drift 1
-    a, b, other = fast(log, odometry, 6).prob, oracle(log, odometry, 6).prob, oracle(
-        log, odometry, 6, seed=1).prob  # fmt: skip
+    first = fast(log, odometry, 6)
+    a, b, other = first.prob, oracle(log, odometry, 6, spec=first.spec).prob, oracle(
+        log, odometry, 6, seed=1, spec=first.spec).prob  # fmt: skip
     # coarse cells decide at their centres whether a sample saw a cell: the borders of what
     # is known move by a few cells
     assert np.count_nonzero(~np.isnan(a) & ~np.isnan(b)) >= 0.98 * np.count_nonzero(~np.isnan(b))
@@ -92,7 +99,9 @@ def test_a_map_too_large_for_the_fast_map_is_the_oracle_in_row_bands(
     assert np.nanmax(np.abs(banded.prob - truth)) < 1e-6
     # and not the fast map: that one casts on coarser cells
     monkeypatch.setattr(pipeline, "FAST_MAP_MAX_CELLS", 1 << 40)
-    assert np.nanmax(np.abs(fast(log, odometry, 4).prob - truth)) > 1e-3
+    again = fast(log, odometry, 4)
+    truth = oracle(log, odometry, 4, spec=again.spec).prob
+    assert np.nanmax(np.abs(again.prob - truth)) > 1e-3
 
 
 def test_levels_cover_the_map_and_upsample_onto_it() -> None:
@@ -107,3 +116,44 @@ def test_levels_cover_the_map_and_upsample_onto_it() -> None:
         # map cell (row, col) takes its coarse cell's value
         assert up[spec.height - 1, spec.width - 1] == values[(spec.height - 1) >> level,
                                                              (spec.width - 1) >> level]  # fmt: skip
+
+
+def test_the_grid_holds_where_the_samples_readings_land(
+    log: RangeLog, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # the standard build's grid ends 0.2 m past the nominal readings; sampled tracks carry
+    # them farther, and a grid that cut them drew a straight edge through the known cells.
+    # The grid grows instead: no cell on its edge is known
+    from gridmap_cli.mapping import pipeline
+
+    odometry = OdometryErrorModel().as_odometry_error()
+
+    def known_on_edge(prob: np.ndarray) -> int:
+        known = ~np.isnan(prob)
+        return int(known[0].sum() + known[-1].sum() + known[:, 0].sum() + known[:, -1].sum())
+
+    grown = fast(log, odometry, 8)
+    standard = build_map(log, load_robot("p3at"), BuildOptions()).map
+    assert grown.spec.width * grown.spec.height > standard.spec.width * standard.spec.height
+    assert known_on_edge(grown.prob) == 0
+    # on the standard build's grid the samples' readings are cut at its edge
+    monkeypatch.setattr(pipeline, "_sampled_grid", lambda plan, *_: plan)
+    assert known_on_edge(fast(log, odometry, 8).prob) > 0
+
+
+def test_the_known_edge_is_drawn_at_the_maps_cells_not_in_blocks() -> None:
+    # coarse cells (4x the map's) seen on and below a diagonal: copied onto the map's cells
+    # they draw a staircase whose edge jumps 4 cells every 4 rows; spread linearly it is a
+    # line that moves by a cell or two a row
+    spec = GridSpec(0.0, 0.0, 0.05, 32, 32)
+    coarse = expected.level_spec(spec, 2)
+    rows, cols = np.indices(coarse.shape)
+    count = np.where(rows >= cols, 8, 0).astype(np.int64)
+    seen = expected.known_cells(spec, {2: count})
+    edge = np.array([np.flatnonzero(~row)[0] if (~row).any() else spec.width for row in seen])
+    blocks = np.array([np.flatnonzero(r == 0)[0] if (r == 0).any() else spec.width
+                       for r in expected.upsample(count, spec, 2)])  # fmt: skip
+    assert np.abs(np.diff(blocks[4:28])).max() == 4
+    assert np.abs(np.diff(edge[4:28])).max() <= 2
+    # and it follows the diagonal: within two cells of the blocks' edge everywhere
+    assert np.abs(edge - blocks).max() <= 2

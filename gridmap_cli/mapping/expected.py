@@ -188,6 +188,63 @@ def collect(
     return list(casts.values())
 
 
+def sample_bounds(casts: list[_Casts], offsets: SampledOffsets) -> tuple[float, ...] | None:
+    """The box (xmin, ymin, xmax, ymax) that holds where every sample's moved readings land
+    (None without moved readings): the readings' box per key pose (sensor positions, sonar
+    sectors' disks, echoes' ends, as the models' bounds), moved by each sample's motion of
+    that key pose (a rigid motion: the moved box's corners hold the moved readings). A grid
+    that covers it cuts no sample's readings (issue 19: a straight cut edge where the samples
+    left the standard build's grid)."""
+    keys = offsets.rot_rad.shape[1]
+    lo = np.full((2, keys), np.inf)
+    hi = np.full((2, keys), -np.inf)
+    any_moved = False
+    for entry in casts:
+        if entry.level < 0:
+            continue  # cast once, nominally: inside the standard build's bounds
+        for owner, cones in zip(entry.owner if entry.sectors else [], entry.sectors, strict=True):
+            r = cones.outer_m
+            for axis, v in ((0, cones.x_m), (1, cones.y_m)):
+                _extrema(lo[axis], hi[axis], owner, v - r, v + r)
+            any_moved = True
+        for owner, seg in zip(entry.owner if entry.rays else [], entry.rays, strict=True):
+            end = seg.echo.astype(bool)
+            for axis, a, b in ((0, seg.x0_m, seg.x1_m), (1, seg.y0_m, seg.y1_m)):
+                _extrema(lo[axis], hi[axis], owner, a, a)
+                _extrema(lo[axis], hi[axis], owner[end], b[end], b[end])
+            any_moved = True
+    used = np.isfinite(lo[0])
+    if not any_moved or not used.any():
+        return None
+    lo, hi = lo[:, used], hi[:, used]
+    c, s = np.cos(offsets.rot_rad[:, used]), np.sin(offsets.rot_rad[:, used])
+    tx, ty = offsets.tx_m[:, used], offsets.ty_m[:, used]
+    xs, ys = [], []
+    for cx in (lo[0], hi[0]):
+        for cy in (lo[1], hi[1]):
+            x, y = _moved(cx, cy, c, s, tx, ty)
+            xs.append(x)
+            ys.append(y)
+    x_all, y_all = np.stack(xs), np.stack(ys)
+    return float(x_all.min()), float(y_all.min()), float(x_all.max()), float(y_all.max())
+
+
+def _extrema(lo: F64, hi: F64, owner: I64, low: F64, high: F64) -> None:
+    """``lo[k]`` lowered to the least of ``low`` over the readings key pose k owns, ``hi[k]``
+    raised to the greatest of ``high``. The readings come in time order, so each key pose's
+    are one run: reduced per run (``ufunc.at`` as the fallback)."""
+    if owner.shape[0] == 0:
+        return
+    if np.all(owner[1:] >= owner[:-1]):
+        starts = np.flatnonzero(np.concatenate([[True], owner[1:] != owner[:-1]]))
+        keys = owner[starts]
+        lo[keys] = np.minimum(lo[keys], np.minimum.reduceat(low, starts))
+        hi[keys] = np.maximum(hi[keys], np.maximum.reduceat(high, starts))
+    else:
+        np.minimum.at(lo, owner, low)
+        np.maximum.at(hi, owner, high)
+
+
 def _moved(x: F64, y: F64, c: F64, s: F64, tx: F64, ty: F64) -> tuple[F64, F64]:
     return c * x - s * y + tx, s * x + c * y + ty
 
@@ -424,11 +481,27 @@ def average(
         np.clip(summed, lo, hi, out=summed)
         summed *= 0.5
         total += np.tanh(summed, out=summed)
-    seen = np.zeros((spec.height, spec.width), dtype=bool)
-    for level, grid in grids.items():
-        seen |= upsample(grid.observations(), spec, max(level, 0)) > 0
+    seen = known_cells(spec, {lv: grid.observations() for lv, grid in grids.items()})
     mean = np.where(seen, 0.5 + 0.5 * (total / offsets.count), np.nan)
     return OccupancyMap(spec, mean), updates
+
+
+def known_cells(
+    spec: GridSpec, observed: dict[int, npt.NDArray[np.int64]]
+) -> npt.NDArray[np.bool_]:
+    """The map's cells some sample's reading touched, from each level's observation counts
+    (summed over the samples; level -1, cast once, is on the map's cells). A coarse level's
+    cells that were seen are spread onto the map's cells as its log-odds are (linearly,
+    :func:`_finer`), and a map cell counts as seen where that reaches a half: the edge of what
+    is known is drawn at the map's resolution, where copying the coarse cells drew it in blocks
+    of up to 16 cells (issue 19, the Intel lab), and it stays within a coarse cell of them."""
+    seen = np.zeros((spec.height, spec.width), dtype=bool)
+    for level, counts in observed.items():
+        share = (counts > 0).astype(np.float64)
+        for finer in range(level - 1, -1, -1):
+            share = _finer(share, level_spec(spec, finer))
+        seen |= share >= 0.5
+    return seen
 
 
 def _finer(values: F64, fine: GridSpec) -> F64:

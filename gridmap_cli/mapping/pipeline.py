@@ -45,6 +45,7 @@ from gridmap_cli.poses.odometry_error import OdometryError, correct_track, trave
 from gridmap_cli.poses.pose_belief import PoseBelief
 from gridmap_cli.poses.pose_uncertainty import (
     PoseUncertainty,
+    SampledOffsets,
     StepNoise,
     propagate,
     sample_offsets,
@@ -308,8 +309,37 @@ def expected_map(
         log.poses, noise, options.error_samples, options.error_seed, expected.ANTITHETIC
     )
     casts = expected.collect(plan, heading, offsets, cutoff, progress)
+    plan = _sampled_grid(plan, casts, offsets, standard)
     omap, updates = expected.average(plan, casts, offsets, standard.clamp_p)
     return BuildResult(map=omap, sync=plan.sync, cell_updates=updates)
+
+
+def _sampled_grid(
+    plan: BuildPlan, casts: list[expected._Casts], offsets: SampledOffsets, options: BuildOptions
+) -> BuildPlan:
+    """The plan on a grid grown to hold where the samples' readings land
+    (:func:`expected.sample_bounds`), so that its edge cuts no cell the map knows; the
+    standard build's grid when they land inside it, or when the grown grid would pass
+    :data:`FAST_MAP_MAX_CELLS` (the cut then shows where the samples left the grid)."""
+    box = expected.sample_bounds(casts, offsets)
+    if box is None:
+        return plan
+    spec = plan.spec
+    x1 = spec.origin_x_m + spec.width * spec.resolution_m
+    y1 = spec.origin_y_m + spec.height * spec.resolution_m
+    m = options.margin_m
+    if (box[0] - m >= spec.origin_x_m and box[1] - m >= spec.origin_y_m
+            and box[2] + m <= x1 and box[3] + m <= y1):  # fmt: skip
+        return plan
+    try:
+        grown = GridSpec.covering(
+            min(box[0] - m, spec.origin_x_m), min(box[1] - m, spec.origin_y_m),
+            max(box[2] + m, x1), max(box[3] + m, y1), spec.resolution_m, 0.0,
+            max(FAST_MAP_MAX_CELLS, spec.width * spec.height),
+        )  # fmt: skip
+    except MapSizeError:
+        return plan
+    return dataclasses.replace(plan, spec=grown)
 
 
 #: Cells of the largest map the fast expected map (:mod:`gridmap_cli.mapping.expected`) builds.
