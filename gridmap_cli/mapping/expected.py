@@ -455,10 +455,12 @@ def average(
         by_level.setdefault(entry.level, []).append(entry)
     grids = {lv: LogOddsAccumulator(level_spec(spec, max(lv, 0))) for lv in by_level}
     shared: F64 | float = 0.0
+    observed: dict[int, npt.NDArray[np.bool_]] = {}
     if -1 in by_level:
         for entry in by_level.pop(-1):
             updates += cast(grids[-1], entry, None, res)
         shared = grids[-1].log_odds()
+        observed[-1] = grids.pop(-1).observations() > 0  # its 12 bytes a cell let go
     total = np.zeros((spec.height, spec.width))
     order = sorted(by_level, reverse=True)
     for s in range(offsets.count):
@@ -474,30 +476,44 @@ def average(
             values.fill(0.0)
             for entry in by_level[level]:
                 updates += cast(grid, entry, motion, res)
-            summed = grid.log_odds() if summed is None else summed + grid.log_odds()
+            if summed is None:
+                summed = grid.log_odds()
+            else:
+                summed += grid.log_odds()
         if summed is None:
             summed = np.zeros_like(total)
-        summed = summed + shared
+        summed += shared
         np.clip(summed, lo, hi, out=summed)
         summed *= 0.5
         total += np.tanh(summed, out=summed)
-    seen = known_cells(spec, {lv: grid.observations() for lv, grid in grids.items()})
-    mean = np.where(seen, 0.5 + 0.5 * (total / offsets.count), np.nan)
-    return OccupancyMap(spec, mean), updates
+    del shared
+    for level in list(grids):
+        observed[level] = grids.pop(level).observations() > 0
+    seen = known_cells(spec, observed)
+    del observed
+    # the mean in place: no map-sized temporaries at the peak
+    total /= offsets.count
+    total *= 0.5
+    total += 0.5
+    total[~seen] = np.nan
+    return OccupancyMap(spec, total), updates
 
 
 def known_cells(
-    spec: GridSpec, observed: dict[int, npt.NDArray[np.int64]]
+    spec: GridSpec, observed: dict[int, npt.NDArray[np.bool_]]
 ) -> npt.NDArray[np.bool_]:
-    """The map's cells some sample's reading touched, from each level's observation counts
-    (summed over the samples; level -1, cast once, is on the map's cells). A coarse level's
+    """The map's cells some sample's reading touched, from each level's cells some sample's
+    reading touched (level -1, cast once, is on the map's cells). A coarse level's
     cells that were seen are spread onto the map's cells as its log-odds are (linearly,
     :func:`_finer`), and a map cell counts as seen where that reaches a half: the edge of what
     is known is drawn at the map's resolution, where copying the coarse cells drew it in blocks
     of up to 16 cells (issue 19, the Intel lab), and it stays within a coarse cell of them."""
     seen = np.zeros((spec.height, spec.width), dtype=bool)
     for level, counts in observed.items():
-        share = (counts > 0).astype(np.float64)
+        if level <= 0:
+            seen |= counts
+            continue
+        share = counts.astype(np.float64)
         for finer in range(level - 1, -1, -1):
             share = _finer(share, level_spec(spec, finer))
         seen |= share >= 0.5
@@ -517,11 +533,14 @@ def _halves(values: F64, axis: int) -> F64:
     """Each cell along ``axis`` split in two, 3/4 of its own value and 1/4 of the neighbour's
     on that side (its own at the grid's edge)."""
     v = np.moveaxis(values, axis, 0)
-    before = np.concatenate([v[:1], v[:-1]])
-    after = np.concatenate([v[1:], v[-1:]])
     out = np.empty((2 * v.shape[0], *v.shape[1:]))
-    out[0::2] = 0.75 * v + 0.25 * before
-    out[1::2] = 0.75 * v + 0.25 * after
+    quarter = 0.25 * v
+    for half, near, own in ((out[0::2], slice(None, -1), slice(1, None)),
+                            (out[1::2], slice(1, None), slice(None, -1))):  # fmt: skip
+        np.multiply(v, 0.75, out=half)
+        half[own] += quarter[near]  # the neighbour's quarter; at the edge its own
+        edge = 0 if own.start else -1
+        half[edge] += quarter[edge]
     return np.moveaxis(out, 0, axis)
 
 
