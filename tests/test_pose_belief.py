@@ -12,15 +12,16 @@ import numpy as np
 import pytest
 
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
-from gridmap_cli.mapping.pipeline import BuildOptions, build_map
+from gridmap_cli.mapping.pipeline import BuildOptions, _mean_map, build_map, plan_build
 from gridmap_cli.poses.pose_belief import (
     PoseBelief,
     align_draws,
+    calibrated_graph,
     rigid_fit,
     slam_belief,
     to_map_frame,
 )
-from gridmap_cli.poses.pose_graph import PoseGraph
+from gridmap_cli.poses.pose_graph import Edge, PoseGraph
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import load_robot
@@ -176,3 +177,75 @@ def test_readings_past_the_heading_limit_are_left_out_one_by_one() -> None:
     whole = build_map(log, ROBOT, dataclasses.replace(options, error_aware=ErrorAwareParams()))
     # a third of the run is left out, and the readings after it are mapped again
     assert 0.5 * whole.cell_updates < limited.cell_updates < 0.8 * whole.cell_updates
+
+
+def _twice_round(true_scale: float, seed: int = 0) -> PoseGraph:
+    """Two laps of the square, every edge measured with noise ``true_scale`` times the standard
+    deviations it is modelled with; each node of the second lap closed on the first lap's."""
+    rng = np.random.default_rng(seed)
+    lap = _square()
+    truth = np.vstack([lap, lap[1:]])
+    sxy, sth = 0.05, math.radians(1.0)
+
+    def measured(i: int, j: int, closure: bool) -> Edge:
+        a, b = truth[i], truth[j]
+        c, s = math.cos(a[2]), math.sin(a[2])
+        dx = c * (b[0] - a[0]) + s * (b[1] - a[1]) + true_scale * sxy * rng.standard_normal()
+        dy = -s * (b[0] - a[0]) + c * (b[1] - a[1]) + true_scale * sxy * rng.standard_normal()
+        dth = math.remainder(b[2] - a[2], 2 * math.pi) + true_scale * sth * rng.standard_normal()
+        return Edge(i, j, dx, dy, dth, sxy, sth, closure=closure)
+
+    n = len(lap)
+    edges = [measured(k, k + 1, False) for k in range(len(truth) - 1)]
+    edges += [measured(k, k + n - 1, True) for k in range(1, n - 1)]
+    return PoseGraph(truth.copy(), edges)
+
+
+@pytest.mark.parametrize("true_scale", [0.3, 1.0])
+def test_the_variance_factors_recover_the_true_noise_scale(true_scale: float) -> None:
+    graph = _twice_round(true_scale)
+    poses = graph.optimise()
+    calibrated, (xy, theta) = calibrated_graph(graph, poses)
+    # 40 closures, over 100 checks per component: the estimate is within about 20 %
+    assert 0.75 * true_scale < xy < 1.3 * true_scale
+    assert 0.75 * true_scale < theta < 1.3 * true_scale
+    assert calibrated.edges[0].sigma_xy_m == pytest.approx(graph.edges[0].sigma_xy_m * xy)
+    assert graph.edges[0].sigma_xy_m == 0.05  # the graph itself is left as it was
+
+
+def test_a_graph_without_a_loop_keeps_its_hand_set_noise() -> None:
+    graph = _drifting_graph(_square())
+    calibrated, scale = calibrated_graph(graph, graph.optimise())
+    assert graph.residual_budget(graph.optimise())[:, 1].max() < 1e-6  # nothing checks it
+    assert scale == (1.0, 1.0) and calibrated.edges == graph.edges
+
+
+def test_the_belief_carries_the_calibration_and_narrows_with_it() -> None:
+    graph = _twice_round(0.3)
+    poses = graph.optimise()
+    n = len(poses)
+    result = SimpleNamespace(graph=graph, poses=poses, covariance=None, keyframes=np.arange(n),
+                             scan_matched=SimpleNamespace(track=SimpleNamespace(
+                                 stamp_ns=np.arange(n) * 10**9)))  # fmt: skip
+    hand = slam_belief(result, calibrate=False)  # type: ignore[arg-type]
+    fitted = slam_belief(result)  # type: ignore[arg-type]
+    assert hand.scale == (1.0, 1.0) and fitted.scale[0] < 0.5
+    ratio = fitted.shape_cov[:, 0, 0] / hand.shape_cov[:, 0, 0]
+    assert 0.5 * fitted.scale[0] ** 2 < float(np.median(ratio)) < 2.0 * fitted.scale[0] ** 2
+
+
+def test_the_sampled_map_clamps_once_so_walls_a_few_draws_miss_stay_walls() -> None:
+    log = read_log(SAMPLE)
+    standard = build_map(log, ROBOT, BuildOptions()).map.prob
+    belief = _still_belief(log, 0.05)
+    options = BuildOptions(mode="error-aware", error_samples=4, pose_belief=belief)
+    once = build_map(log, ROBOT, options).map.prob
+    # the per-sample clamp, as the odometry's banded map takes it
+    tracks = belief.tracks(log.poses, 4)
+    plan = plan_build(log, ROBOT, BuildOptions())
+    each = _mean_map(log, plan, BuildOptions(), tracks, None).map.prob
+    occupied = lambda p: int(np.nansum(p >= 0.65))  # noqa: E731
+    assert occupied(each) < 0.6 * occupied(once)  # 5 cm of spread halved the clamped walls
+    assert occupied(once) > 0.8 * occupied(standard)
+    assert np.nanmax(once) <= 0.7 and np.nanmin(once) >= 0.01  # the mean is clamped as a map is
+    assert np.array_equal(np.isnan(once), np.isnan(each))  # unknown stays unknown

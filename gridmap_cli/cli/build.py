@@ -249,6 +249,7 @@ def build(
             from gridmap_cli.poses.pose_belief import slam_belief
 
             belief = slam_belief(slam, settings.error_samples, settings.error_seed)
+            slam_summary["belief_noise_scale"] = [round(f, 3) for f in belief.scale]
         if slam.warning:
             warn((f"--pose slam: {slam.warning}",), quiet)
     else:

@@ -348,6 +348,9 @@ def _sampled_grid(
 #: larger maps take the exact expected map, each track's standard map in row bands, at about
 #: the samples' count times the standard build's time.
 FAST_MAP_MAX_CELLS = 2 << 20
+#: The clamp of each sample's map when the mean is clamped once (``_mean_map``): wide enough
+#: that a cell's evidence is kept (p within 1e-9 of 0 or 1 only past a log-odds of 20).
+UNCLAMPED_P = (1e-9, 1.0 - 1e-9)
 
 
 def _belief_map(
@@ -367,8 +370,12 @@ def _belief_map(
         between_passes()
     plan = _steady_plan(plan, belief.uncertainty, options.error_aware.max_heading_spread_rad)
     count = min(options.error_samples, belief.draws.shape[0])
+    if count and np.array_equal(
+        belief.draws[:count], np.broadcast_to(belief.poses, belief.draws[:count].shape)
+    ):
+        count = 0  # every draw is the optimum: its standard map, to the bit
     tracks = belief.tracks(log.poses, count) if count else [log.poses]
-    return _mean_map(log, plan, standard, tracks, progress)
+    return _mean_map(log, plan, standard, tracks, progress, clamp_once=True)
 
 
 def _mean_map(
@@ -377,9 +384,18 @@ def _mean_map(
     standard: BuildOptions,
     tracks: list[PoseTrack],
     progress: Callable[[int], object] | None,
+    clamp_once: bool = False,
 ) -> BuildResult:
-    """The mean probability of the standard maps of ``log`` placed by each of ``tracks``."""
+    """The mean probability of the standard maps of ``log`` placed by each of ``tracks``.
+
+    ``clamp_once``: the samples' probabilities are averaged unclamped and the mean is clamped
+    to ``standard.clamp_p``, as the standard map clamps its summed log-odds once at the end.
+    Clamping each sample first caps a wall at 0.7 in every sample, 0.05 above the occupied
+    threshold, so a wall cell a tenth of the draws put a cell over fell out of a trinary map
+    (docs/sensor-model.md, "The pose graph's belief"). One track is its standard map either way."""
     count = len(tracks)
+    once = clamp_once and count > 1
+    sample_clamp = UNCLAMPED_P if once else standard.clamp_p
     spec = plan.spec
     bands = sample_bands(spec, count)
     # the running sum of the samples' probabilities, negated while no sample has seen the cell
@@ -400,11 +416,13 @@ def _mean_map(
             part = dataclasses.replace(plan, log=moved, travelled=travelled(track))
             grid = LogOddsAccumulator(spec, plan.sync.used, rows)
             accumulate(part, grid, standard, report)
-            band, band_updates = grid.finish(standard.clamp_p)
+            band, band_updates = grid.finish(sample_clamp)
             updates += band_updates
             add_sample(total[rows[0] * spec.width : rows[1] * spec.width], band.prob.ravel())
             del grid, band
     mean_in_place(total, count)
+    if once:
+        np.clip(total, standard.clamp_p[0], standard.clamp_p[1], out=total)  # NaN stays unknown
     mean = OccupancyMap(spec, total.reshape(spec.shape))
     return BuildResult(map=mean, sync=plan.sync, cell_updates=updates)
 

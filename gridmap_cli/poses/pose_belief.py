@@ -20,6 +20,20 @@ Two covariances are kept, because the graph's marginals answer a question a map 
   (:func:`shape_covariance`). Error-aware mapping uses these: crisp where loops closed, grey
   where the robot went once, not grey merely for being far from the start.
 
+The graph's edge noise is set by hand (:class:`~gridmap_cli.poses.slam.SlamParams`), the same
+for every log. For a map it is **calibrated on the graph's own residuals**
+(:func:`calibrated_graph`): where loops closed, the graph sees the same places from several
+passes, and how far the closures and the chain disagree at the optimum says how large the noise
+between passes really is (the a posteriori variance factor of a least-squares adjustment, one
+for translation and one for rotation: the whitened squared residuals over their redundancy,
+:meth:`~gridmap_cli.poses.pose_graph.PoseGraph.residual_budget`). On the shared CARMEN logs the
+factors are 0.28-0.46 for translation and 0.20-0.34 for rotation: the hand-set noise is 2-5
+times wider than the passes' disagreement, and its draws doubled walls that the optimum's map
+draws once. Without enough redundancy (no loop, or a few closures) the hand-set noise is kept.
+``gridmap trajectory`` writes the hand-set marginals instead (``calibrate=False``): against the
+SLAM benchmark's relations, which also carry errors the passes share, those are the consistent
+ones (docs/scan-matching.md, "Uncertainty").
+
 The draws (:meth:`PoseBelief.tracks`, for the sampled expected map) are joint, not per pose: the
 graph is linearised at its optimum and sampled as one Gaussian over all keyframes
 (:meth:`~gridmap_cli.poses.pose_graph.PoseGraph.sample`), so neighbouring keyframes move together
@@ -34,6 +48,7 @@ Numpy only: gtsam is used through the :class:`~gridmap_cli.poses.pose_graph.Pose
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -47,10 +62,51 @@ from gridmap_cli.poses.sync import interpolate_pose
 from gridmap_cli.records import PoseTrack
 
 if TYPE_CHECKING:
+    from gridmap_cli.poses.pose_graph import PoseGraph
     from gridmap_cli.poses.slam import SlamResult
 
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
+
+#: Redundancy (independent checks of the noise, :meth:`PoseGraph.residual_budget`) below which a
+#: variance factor is not estimated: a few closures say too little about the scale.
+MIN_REDUNDANCY = 20.0
+#: Rounds of the variance factors: scaling translation and rotation apart shifts the edges'
+#: redundancy a little, so the factors are estimated again on the scaled graph (on the shared
+#: logs the second round moves them by under 10 %, the third by under 3 %).
+CALIBRATION_ROUNDS = 3
+
+
+def calibrated_graph(graph: PoseGraph, poses: F64) -> tuple[PoseGraph, tuple[float, float]]:
+    """``graph`` with every edge's standard deviations scaled by the a posteriori factors of
+    translation and rotation at ``poses`` (the optimum), and the factors (the module text).
+    A component with less than :data:`MIN_REDUNDANCY` keeps the hand-set noise (factor 1).
+
+    The optimum is kept: the factors change the marginals, not the track (the optimiser's
+    weighting of translation against rotation moves by the ratio of the two factors, which the
+    first-order marginals at the same poses do not see)."""
+    factors = np.ones(2)
+    scaled = graph
+    for _ in range(CALIBRATION_ROUNDS):
+        budget = scaled.residual_budget(poses)
+        step = np.ones(2)
+        enough = budget[:, 1] >= MIN_REDUNDANCY
+        step[enough] = np.sqrt(np.maximum(budget[enough, 0], 1e-12) / budget[enough, 1])
+        factors = factors * step
+        scaled = _scaled(graph, float(factors[0]), float(factors[1]))
+        if np.all(np.abs(step - 1.0) < 0.02):
+            break
+    return scaled, (float(factors[0]), float(factors[1]))
+
+
+def _scaled(graph: PoseGraph, xy: float, theta: float) -> PoseGraph:
+    edges = [
+        dataclasses.replace(
+            e, sigma_xy_m=e.sigma_xy_m * xy, sigma_theta_rad=e.sigma_theta_rad * theta
+        )
+        for e in graph.edges
+    ]
+    return dataclasses.replace(graph, edges=edges)
 
 
 def frame_rotations(theta_rad: F64) -> F64:
@@ -134,7 +190,8 @@ class PoseBelief:
     (x, y, theta) in the map frame (m^2, m rad, rad^2), relative to the first pose;
     ``shape_cov`` (K, 3, 3): the same with the common rigid motion taken out; ``draws``
     (S, K, 3): joint draws of the keyframe poses, each laid on ``poses`` by its best rigid fit
-    (S may be 0).
+    (S may be 0); ``scale`` the factors the hand-set edge noise was calibrated by
+    (translation, rotation; :func:`calibrated_graph`).
     """
 
     stamp_ns: I64
@@ -142,6 +199,7 @@ class PoseBelief:
     cov: F64
     shape_cov: F64
     draws: F64
+    scale: tuple[float, float] = (1.0, 1.0)
 
     @property
     def uncertainty(self) -> PoseUncertainty:
@@ -175,15 +233,21 @@ class PoseBelief:
         return out
 
 
-def slam_belief(result: SlamResult, samples: int = 0, seed: int = 0) -> PoseBelief:
+def slam_belief(
+    result: SlamResult, samples: int = 0, seed: int = 0, calibrate: bool = True
+) -> PoseBelief:
     """The belief of ``result``'s pose graph: marginals and shape covariances in the map frame
-    and ``samples`` joint draws (seeded: the same seed, the same draws). Raises ValueError for
-    a result that kept no graph."""
+    and ``samples`` joint draws (seeded: the same seed, the same draws), of the graph whose
+    noise is calibrated on its residuals (:func:`calibrated_graph`; ``calibrate=False``: the
+    hand-set noise). Raises ValueError for a result that kept no graph."""
     graph = result.graph
     if graph is None:
         raise ValueError("the SLAM result kept no pose graph")
     poses = result.poses
-    own = result.covariance if result.covariance is not None else graph.marginals(poses)
+    scale = (1.0, 1.0)
+    if calibrate:
+        graph, scale = calibrated_graph(graph, poses)
+    own = graph.marginals(poses)
     cov = to_map_frame(own, poses[:, 2])
     j = frame_rotations(poses[:, 2])
     jt = np.transpose(j, (0, 2, 1))
@@ -200,4 +264,5 @@ def slam_belief(result: SlamResult, samples: int = 0, seed: int = 0) -> PoseBeli
         cov=cov,
         shape_cov=shape_covariance(poses, cov, product),
         draws=align_draws(draws, poses),
+        scale=scale,
     )

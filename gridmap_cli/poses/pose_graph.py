@@ -90,6 +90,41 @@ class PoseGraph:
         marginals = gtsam.Marginals(self._factors(), values)
         return np.stack([marginals.marginalCovariance(k) for k in range(len(poses))])
 
+    def residual_budget(self, poses: FloatArray) -> FloatArray:
+        """The a posteriori variance budget of the graph at ``poses`` (its optimum): shape (2, 2),
+        rows translation (x and y pooled) and rotation, columns the edges' summed whitened
+        squared residual and their redundancy (the share of each edge's information the rest of
+        the graph does not already fix: ``1 - sigma^-2 var(predicted)``, summed; the ratio of
+        the two is the variance factor, 1 when the edge noise is right).
+
+        A loop closure counts with its robust kernel's weight at the residual, as the optimiser
+        weighs it. Without a loop the redundancy is 0: nothing checks the noise."""
+        values = gtsam.Values()
+        for k, (x, y, th) in enumerate(poses):
+            values.insert(k, gtsam.Pose2(float(x), float(y), float(th)))
+        marginals = gtsam.Marginals(self._factors(), values)
+        pose2 = [gtsam.Pose2(float(x), float(y), float(th)) for x, y, th in poses]
+        out = np.zeros((2, 2))
+        for e in self.edges:
+            est = pose2[e.i].between(pose2[e.j])
+            r = gtsam.Pose2.Logmap(gtsam.Pose2(e.dx_m, e.dy_m, e.dtheta_rad).between(est))
+            info = np.array([e.sigma_xy_m, e.sigma_xy_m, e.sigma_theta_rad]) ** -2.0
+            weight = 1.0
+            if e.closure:  # Cauchy: w = 1 / (1 + |r|^2 / k^2) on the whitened residual
+                weight = 1.0 / (1.0 + float(info @ (r * r)) / self.cauchy_k**2)
+            keys = gtsam.KeyVector([e.i, e.j])
+            joint = marginals.jointMarginalCovariance(keys)
+            c = np.block(
+                [[joint.at(e.i, e.i), joint.at(e.i, e.j)], [joint.at(e.j, e.i), joint.at(e.j, e.j)]]
+            )
+            jac = np.hstack([-est.inverse().AdjointMap(), np.eye(3)])
+            predicted = np.diag(jac @ c @ jac.T)
+            chi = weight * info * r * r
+            red = 1.0 - weight * info * predicted
+            out[0] += (chi[0] + chi[1], red[0] + red[1])
+            out[1] += (chi[2], red[2])
+        return out
+
     def sample(self, poses: FloatArray, count: int, seed: int = 0) -> FloatArray:
         """``count`` joint draws of every node's pose from the graph's Gaussian at ``poses``
         (the optimum): shape (count, N, 3).
