@@ -175,3 +175,23 @@ def test_the_correlative_search_finds_nothing_where_nothing_matches() -> None:
     grid = LikelihoodGrid(target, 0.1, 0.1, 4, 2.0)
     found = search(grid, clutter, (0.0, 0.0, 0.0), 2.0, math.radians(10.0), math.radians(1.0), 0.5)
     assert found is None
+
+
+def test_the_closure_search_hands_the_heap_back_every_few_grids(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from gridmap_cli.poses import loop_closure
+    from gridmap_cli.poses.loop_closure import TRIM_EVERY_GRIDS, ClosureParams, Submaps
+
+    calls: list[int] = []
+    monkeypatch.setattr(loop_closure, "release_free_memory", lambda: calls.append(1) or True)
+    rng = np.random.default_rng(0)
+    n = 30
+    points = [rng.uniform(-3.0, 3.0, (200, 2)) for _ in range(n)]
+    local = np.column_stack([np.arange(n) * 0.5, np.zeros(n), np.zeros(n)])
+    submaps = Submaps(points, local, np.arange(n), ClosureParams())
+    for node in range(8 + 3 * TRIM_EVERY_GRIDS):  # 8 kept, then one let go per new grid
+        submaps.grid(node)
+    assert len(calls) == 3
+    submaps.grid(node)  # a kept grid: nothing let go, nothing handed back
+    assert len(calls) == 3
