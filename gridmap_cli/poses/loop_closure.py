@@ -35,10 +35,11 @@ TURN_M = 1.0
 CACHED_SUBMAPS = 60
 #: Likelihood grids let go between two hand-backs of the C heap's free pages: the searches'
 #: grids (several MB each) and temporaries, freed between live blocks, stayed resident, and
-#: Freiburg 079's closure search grew the process by some 340 MB of them. Handing back at every
-#: 4th grid: `build --pose slam` peak 826 -> 556 MiB, about 2 % more CPU (every grid: 490 MiB,
-#: 6 %; the maps are the same bytes).
-TRIM_EVERY_GRIDS = 4
+#: Freiburg 079's closure search grew the process by some 340 MB of them. `build --pose slam`
+#: there (farm-bench, 3 pairs, median): peak 826 -> 490 MiB handing back at every grid let
+#: go, for about 6 % more CPU (system time 1.2 -> 3.5 s); at every 4th, 824 -> 578 MiB and
+#: 5 %. The maps are the same bytes.
+TRIM_EVERY_GRIDS = 1
 
 
 @dataclass(frozen=True)
