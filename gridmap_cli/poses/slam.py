@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.geometry import compose, inverse
+from gridmap_cli.poses.carry import carry
 from gridmap_cli.poses.loop_closure import (
     Closure,
     ClosureParams,
@@ -50,7 +50,7 @@ from gridmap_cli.poses.scan_match import (
     laser_scans,
     match_scans,
 )
-from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
+from gridmap_cli.poses.sync import sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RobotDescription
 
@@ -269,14 +269,16 @@ def _closure_edge(c: Closure, p: SlamParams) -> Edge:
 
 
 def carried(match: ScanMatch, nodes: npt.NDArray[np.intp], poses: FloatArray) -> PoseTrack:
-    """Every scan's pose: its scan-matched pose carried by the keyframes' correction."""
+    """Every scan's pose: its scan-matched pose carried by the keyframes' correction, blended
+    between the two keyframes around it by the share of the motion (:func:`.carry.carry`)."""
     m = match.track
-    kx, ky, kth = m.x_m[nodes], m.y_m[nodes], m.theta_rad[nodes]
-    ix, iy, ith = inverse(kx, ky, kth)
-    cx, cy, cth = compose(poses[:, 0], poses[:, 1], poses[:, 2], ix, iy, ith)
-    correction = PoseTrack(stamp_ns=m.stamp_ns[nodes], x_m=cx, y_m=cy, theta_rad=cth)
-    ax, ay, ath, _ = interpolate_pose(correction, m.stamp_ns)
-    x, y, th = compose(ax, ay, ath, m.x_m, m.y_m, m.theta_rad)
+    x, y, th = carry(
+        m.stamp_ns,
+        (m.x_m, m.y_m, m.theta_rad),
+        m.stamp_ns[nodes],
+        (m.x_m[nodes], m.y_m[nodes], m.theta_rad[nodes]),
+        (poses[:, 0], poses[:, 1], poses[:, 2]),
+    )
     return PoseTrack(stamp_ns=m.stamp_ns.copy(), x_m=x, y_m=y, theta_rad=th)
 
 
