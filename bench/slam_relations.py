@@ -75,7 +75,10 @@ def run_log(name: str) -> LogScores:
         "scan-matched": corrected_track(data.poses, result.scan_matched),
         "slam": corrected_track(data.poses, result.match),
     }
-    scores = {k: score_track(t, relations, data.poses, offset_s=offset) for k, t in tracks.items()}
+    scores = {
+        k: score_track(t, relations, data.poses, offset_s=offset, moved=data.moved_stamps)
+        for k, t in tracks.items()
+    }
     return LogScores(name, scores, len(result.closures), len(result.track), seconds)
 
 

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.evaluation.relations import read_relations, score_track
-from gridmap_cli.records import PoseTrack
+from gridmap_cli.evaluation.relations import on_logged_clock, read_relations, score_track
+from gridmap_cli.records import MovedStamps, PoseTrack
 from tests.helpers import names, run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
@@ -152,3 +152,25 @@ def test_aces_odometry_scores_the_published_figure() -> None:
     score = score_track(odometry, relations, data.poses, offset_s=70.185)
     # the measurement: 0.549 m for the odometry
     assert score.count == len(relations) and score.trans_mean_m == pytest.approx(0.549, abs=0.01)
+
+
+def test_poses_are_looked_up_by_the_stamps_the_log_gave_them() -> None:
+    # the log said 105 s for the pose it printed after 107 s; the reader moved it to 107.001 s
+    track = _circle()
+    logged = track.stamp_ns.copy()
+    repaired = track.stamp_ns.copy()
+    repaired[5] = track.stamp_ns[7] + 1_000_000
+    order = np.argsort(repaired)
+    as_read = PoseTrack(
+        stamp_ns=repaired[order],
+        x_m=track.x_m[order],
+        y_m=track.y_m[order],
+        theta_rad=track.theta_rad[order],
+    )
+    relations = read_relations(io.StringIO(_relations_of(track, [(5, 20), (2, 5)])), "r")
+    moved = MovedStamps(stamp_ns=repaired[5:6], logged_ns=logged[5:6])
+    on_log = on_logged_clock(as_read, moved)
+    np.testing.assert_array_equal(on_log.stamp_ns, logged)
+    assert score_track(as_read, relations, moved=moved).trans_mean_m < 1e-6
+    # by the moved stamps the ends at 105 s fall between the poses at 104 and 106 s instead
+    assert score_track(as_read, relations).trans_mean_m > 0.01

@@ -10,6 +10,11 @@ The pose at a relation's stamp is the track's pose nearest in time if within ``t
 (0.1 s), else that nearest pose moved on by the odometry from its stamp to the relation's (what
 the benchmark's own evaluator does). A relation with a stamp outside the track's time span is
 left out and counted.
+
+The relations name poses by the log's own stamps. Where the reader had to move stamps so that
+time increases (a CARMEN log whose stamps go back by up to a second: Intel, a third of its
+lines), the poses are looked up by the stamps their lines carried (:func:`on_logged_clock`);
+by the moved ones, a relation end would take the pose of another line, up to a second away.
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ import numpy.typing as npt
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.poses.sync import interpolate_pose
-from gridmap_cli.records import PoseTrack
+from gridmap_cli.records import MovedStamps, PoseTrack
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -154,18 +159,46 @@ def poses_at(
     return x, y, th, valid
 
 
+def on_logged_clock(track: PoseTrack, moved: MovedStamps) -> PoseTrack:
+    """``track`` with each pose at a moved stamp put back at the stamp the log gave it, in the
+    order of those stamps (stable; equal ones one nanosecond apart, so the track stays strictly
+    increasing)."""
+    if len(moved.stamp_ns) == 0:
+        return track
+    at = np.clip(np.searchsorted(moved.stamp_ns, track.stamp_ns), 0, len(moved.stamp_ns) - 1)
+    hit = moved.stamp_ns[at] == track.stamp_ns
+    stamps = np.where(hit, moved.logged_ns[at], track.stamp_ns)
+    order = np.argsort(stamps, kind="stable")
+    sorted_ns = stamps[order].astype(np.int64)
+    # equal stamps one nanosecond apart: a running maximum of (stamp - rank) keeps the order
+    rank = np.arange(len(sorted_ns), dtype=np.int64)
+    sorted_ns = np.maximum.accumulate(sorted_ns - rank) + rank
+    return PoseTrack(
+        stamp_ns=sorted_ns,
+        x_m=track.x_m[order],
+        y_m=track.y_m[order],
+        theta_rad=track.theta_rad[order],
+    )
+
+
 def score_track(
     track: PoseTrack,
     relations: Relations,
     odometry: PoseTrack | None = None,
     tolerance_s: float = 0.1,
     offset_s: float = 0.0,
+    moved: MovedStamps | None = None,
 ) -> RelationScore:
     """Score ``track`` (any frame) against ``relations``; see the module text.
 
     ``offset_s``: the relations' clock minus the track's (0 when both carry the log's own clock;
-    a log republished with times from its start needs the start's time here).
+    a log republished with times from its start needs the start's time here). ``moved``: the
+    stamps the reader moved (``RangeLog.moved_stamps``): the track and the odometry are looked up
+    by the log's own stamps there.
     """
+    if moved is not None:
+        track = on_logged_clock(track, moved)
+        odometry = None if odometry is None else on_logged_clock(odometry, moved)
     shift = round(offset_s * 1e9)
     x1, y1, t1, ok1 = poses_at(track, relations.t1_ns - shift, odometry, tolerance_s)
     x2, y2, t2, ok2 = poses_at(track, relations.t2_ns - shift, odometry, tolerance_s)
