@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gridmap_cli.evaluation.relations import RelationScore, read_relations, score_track
-from gridmap_cli.poses.scan_match import corrected_track
+from gridmap_cli.poses.scan_match import corrected_track, match_log
 from gridmap_cli.poses.slam import slam_log
 from gridmap_cli.readers import read_logs
 from gridmap_cli.readers.options import ReadOptions
@@ -67,12 +67,15 @@ def run_log(name: str) -> LogScores:
     data = read_logs((path,), None, ReadOptions())
     relations = read_relations(DATA / "slam-benchmark" / relations_file)
     started = time.perf_counter()
-    result = slam_log(data, robot_from_log(path, data.metadata))
+    robot = robot_from_log(path, data.metadata)
+    result = slam_log(data, robot)
     seconds = time.perf_counter() - started
+    # --pose scan-matched's own matcher (slam's runs with its own settings, poses/slam.py)
+    open_loop = match_log(data, robot)
     # the corrected tracks at every odometry stamp, as `gridmap trajectory --relations` scores
     tracks = {
         "odometry": data.poses,
-        "scan-matched": corrected_track(data.poses, result.scan_matched),
+        "scan-matched": corrected_track(data.poses, open_loop),
         "slam": corrected_track(data.poses, result.match),
     }
     scores = {
