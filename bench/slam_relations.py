@@ -132,7 +132,8 @@ def section(results: list[LogScores]) -> list[str]:
         "scores it, on the ground-truth relations of Kümmerle et al. 2009 "
         "(`../shared/data/slam-benchmark`): mean ± standard deviation of the translational and "
         "rotational error over the relations, the pose at a relation's stamp being the nearest "
-        "within 0.1 s, else that pose moved on by the odometry. Offsets (the relations' clock "
+        "within 0.1 s, else that pose moved on by the odometry, by the stamps the log gave the "
+        "poses where the reader moved them (scan-matching.md). Offsets (the relations' clock "
         "minus the shared logs' own): Intel 976052857.338 s, ACES 70.185 s, Freiburg 079 "
         "1211.417 s. The published figures are mean translational errors: GMapping and graph "
         "mapping from Kümmerle et al. 2009, Cartographer from Hess et al., ICRA 2016.",
