@@ -167,6 +167,16 @@ class ReadingStream:
 
 
 @dataclass(frozen=True)
+class MovedStamps:
+    """Stamps a reader moved so that time increases, shape (K,) each: ``stamp_ns`` as the
+    records carry them (increasing), ``logged_ns`` as the file printed them. A benchmark that
+    names poses by the file's stamps (the SLAM relations) looks them up by ``logged_ns``."""
+
+    stamp_ns: npt.NDArray[np.int64]
+    logged_ns: npt.NDArray[np.int64]
+
+
+@dataclass(frozen=True)
 class RangeLog:
     """Everything a reader learned from one log file.
 
@@ -199,6 +209,9 @@ class RangeLog:
     names_are_columns: bool = False
     stream: ReadingStream | None = None
     odometry_missing: str | None = None
+    #: the stamps the reader moved so that time increases (a CARMEN log whose stamps go back),
+    #: with what the file said; None when every stamp is the file's own
+    moved_stamps: MovedStamps | None = None
 
     @property
     def reading_count(self) -> int:

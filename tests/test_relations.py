@@ -11,8 +11,13 @@ import numpy as np
 import pytest
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.evaluation.relations import read_relations, score_track
-from gridmap_cli.records import PoseTrack
+from gridmap_cli.evaluation.relations import (
+    on_logged_clock,
+    printed_step_ns,
+    read_relations,
+    score_track,
+)
+from gridmap_cli.records import MovedStamps, PoseTrack
 from tests.helpers import names, run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
@@ -152,3 +157,49 @@ def test_aces_odometry_scores_the_published_figure() -> None:
     score = score_track(odometry, relations, data.poses, offset_s=70.185)
     # the measurement: 0.549 m for the odometry
     assert score.count == len(relations) and score.trans_mean_m == pytest.approx(0.549, abs=0.01)
+
+
+def test_poses_are_looked_up_by_the_stamps_the_log_gave_them() -> None:
+    # the log said 105 s for the pose it printed after 107 s; the reader moved it to 107.001 s
+    track = _circle()
+    logged = track.stamp_ns.copy()
+    repaired = track.stamp_ns.copy()
+    repaired[5] = track.stamp_ns[7] + 1_000_000
+    order = np.argsort(repaired)
+    as_read = PoseTrack(
+        stamp_ns=repaired[order],
+        x_m=track.x_m[order],
+        y_m=track.y_m[order],
+        theta_rad=track.theta_rad[order],
+    )
+    relations = read_relations(io.StringIO(_relations_of(track, [(5, 20), (2, 5)])), "r")
+    moved = MovedStamps(stamp_ns=repaired[5:6], logged_ns=logged[5:6])
+    on_log = on_logged_clock(as_read, moved)
+    np.testing.assert_array_equal(on_log.stamp_ns, logged)
+    assert score_track(as_read, relations, moved=moved).trans_mean_m < 1e-6
+    # by the moved stamps the ends at 105 s fall between the poses at 104 and 106 s instead
+    assert score_track(as_read, relations).trans_mean_m > 0.01
+
+
+def test_the_printed_step_is_found_per_decade_of_seconds() -> None:
+    stamps = np.array(
+        [12_345_000, 512_346_000_000, 512_347_000_000, 2_612_410_000_000, 2_612_420_000_000]
+    )
+    np.testing.assert_array_equal(
+        printed_step_ns(stamps), [1_000, 1_000_000, 1_000_000, 10_000_000, 10_000_000]
+    )
+
+
+def test_equal_logged_stamps_are_spread_over_their_printed_step_in_file_order() -> None:
+    # four lines printed "2612.41" and one "2612.42" (six significant digits: a 10 ms step)
+    logged = np.array([2612.41, 2612.41, 2612.41, 2612.41, 2612.42])
+    logged_ns = np.round(logged * 1e9).astype(np.int64)
+    repaired = logged_ns[0] + np.arange(5, dtype=np.int64) * 1_000
+    repaired[4] = logged_ns[4]
+    track = PoseTrack(stamp_ns=repaired, x_m=np.arange(5.0), y_m=np.zeros(5), theta_rad=np.zeros(5))
+    moved = MovedStamps(stamp_ns=repaired[1:4], logged_ns=logged_ns[1:4])
+    out = on_logged_clock(track, moved)
+    np.testing.assert_array_equal(out.x_m, np.arange(5.0))
+    offsets_ms = (out.stamp_ns[:4] - logged_ns[0]) / 1e6
+    np.testing.assert_allclose(offsets_ms, [-3.75, -1.25, 1.25, 3.75])
+    assert out.stamp_ns[4] == logged_ns[4]

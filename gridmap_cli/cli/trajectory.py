@@ -158,7 +158,9 @@ def trajectory(
     if relations is not None:
         # a corrected track is scored at every odometry stamp too (the track `build` maps
         # with), so a relation between two scans finds the pose the estimate gives at its time
-        score = score_track(scored, truth, data.poses, offset_s=relations_offset)
+        score = score_track(
+            scored, truth, data.poses, offset_s=relations_offset, moved=data.moved_stamps
+        )
         if score.count == 0:
             raise GridmapError(
                 f"{relations}: no relation lies within the track's time span; is the clock "

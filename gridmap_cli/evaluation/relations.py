@@ -10,6 +10,11 @@ The pose at a relation's stamp is the track's pose nearest in time if within ``t
 (0.1 s), else that nearest pose moved on by the odometry from its stamp to the relation's (what
 the benchmark's own evaluator does). A relation with a stamp outside the track's time span is
 left out and counted.
+
+The relations name poses by the log's own stamps. Where the reader had to move stamps so that
+time increases (a CARMEN log whose stamps go back by up to a second: Intel, a third of its
+lines), the poses are looked up by the stamps their lines carried (:func:`on_logged_clock`);
+by the moved ones, a relation end would take the pose of another line, up to a second away.
 """
 
 from __future__ import annotations
@@ -24,8 +29,8 @@ import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
-from gridmap_cli.poses.sync import interpolate_pose
-from gridmap_cli.records import PoseTrack
+from gridmap_cli.poses.sync import interpolate_pose, stamp_groups
+from gridmap_cli.records import MovedStamps, PoseTrack
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -154,18 +159,74 @@ def poses_at(
     return x, y, th, valid
 
 
+def on_logged_clock(track: PoseTrack, moved: MovedStamps) -> PoseTrack:
+    """``track`` with each pose at a moved stamp put back at the stamp the log gave it, in the
+    order of those stamps (stable), so the relations find the poses they name.
+
+    Equal stamps are spread over the step they were printed to (:func:`printed_step_ns`), in
+    their order: a log printed with six significant digits (the Intel log from 1,000 s on) gives
+    up to ten lines the same stamp, a 10 ms step standing for the moments within it, and the
+    relations' stamps, to the microsecond, fall among them.
+    """
+    if len(moved.stamp_ns) == 0:
+        return track
+    at = np.clip(np.searchsorted(moved.stamp_ns, track.stamp_ns), 0, len(moved.stamp_ns) - 1)
+    hit = moved.stamp_ns[at] == track.stamp_ns
+    stamps = np.where(hit, moved.logged_ns[at], track.stamp_ns)
+    order = np.argsort(stamps, kind="stable")
+    sorted_ns = stamps[order].astype(np.int64)
+    first, group = stamp_groups(sorted_ns)
+    size = np.bincount(group)[group]
+    rank = np.arange(len(sorted_ns), dtype=np.int64) - first[group]
+    step = printed_step_ns(sorted_ns)
+    spread = np.where(size > 1, ((rank + 0.5) / size - 0.5) * step, 0.0)
+    sorted_ns = sorted_ns + np.round(spread).astype(np.int64)
+    # still strictly increasing where a spread meets the next stamp: one nanosecond apart
+    index = np.arange(len(sorted_ns), dtype=np.int64)
+    sorted_ns = np.maximum.accumulate(sorted_ns - index) + index
+    return PoseTrack(
+        stamp_ns=sorted_ns,
+        x_m=track.x_m[order],
+        y_m=track.y_m[order],
+        theta_rad=track.theta_rad[order],
+    )
+
+
+def printed_step_ns(stamp_ns: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+    """The step each stamp (M,) was printed to, ns: for each decade of seconds, the largest power
+    of ten from 1 us to 1 s that divides every stamp of that decade (a log printed with six
+    significant digits: 1 ms from 100 s, 10 ms from 1,000 s; one printed to the microsecond:
+    1 us)."""
+    seconds = np.maximum(np.abs(stamp_ns) / 1e9, 1e-9)
+    decade = np.floor(np.log10(seconds)).astype(np.int64)
+    step = np.full(len(stamp_ns), 1_000, dtype=np.int64)
+    for d in np.unique(decade):
+        inside = decade == d
+        q = 1_000_000_000
+        while q > 1_000 and np.any(stamp_ns[inside] % q):
+            q //= 10
+        step[inside] = q
+    return step
+
+
 def score_track(
     track: PoseTrack,
     relations: Relations,
     odometry: PoseTrack | None = None,
     tolerance_s: float = 0.1,
     offset_s: float = 0.0,
+    moved: MovedStamps | None = None,
 ) -> RelationScore:
     """Score ``track`` (any frame) against ``relations``; see the module text.
 
     ``offset_s``: the relations' clock minus the track's (0 when both carry the log's own clock;
-    a log republished with times from its start needs the start's time here).
+    a log republished with times from its start needs the start's time here). ``moved``: the
+    stamps the reader moved (``RangeLog.moved_stamps``): the track and the odometry are looked up
+    by the log's own stamps there.
     """
+    if moved is not None:
+        track = on_logged_clock(track, moved)
+        odometry = None if odometry is None else on_logged_clock(odometry, moved)
     shift = round(offset_s * 1e9)
     x1, y1, t1, ok1 = poses_at(track, relations.t1_ns - shift, odometry, tolerance_s)
     x2, y2, t2, ok2 = poses_at(track, relations.t2_ns - shift, odometry, tolerance_s)

@@ -35,6 +35,7 @@ from scipy.spatial import cKDTree
 
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
+from gridmap_cli.poses.carry import carry
 from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription
@@ -373,19 +374,17 @@ def match_log(
 def corrected_track(odometry: PoseTrack, match: ScanMatch) -> PoseTrack:
     """The odometry carried by the scans' corrections, at the odometry's and the scans' stamps.
 
-    The correction at scan k is ``corrected_k (-) odometry_k`` (the odometry frame's pose in the
-    corrected frame); between scans it is interpolated (linear in x, y, shortest arc in theta),
-    before the first and after the last scan it is the nearest one's. So the track keeps the
-    odometry's own shape between scans and passes through every corrected scan pose.
+    Between two scans the odometry is carried from both and the two blended by the share of the
+    odometry's motion done (:func:`.carry.carry`); before the first and after the last scan the
+    nearest one carries it. So the track keeps the odometry's own shape between scans and passes
+    through every corrected scan pose.
     """
     stamps = np.union1d(odometry.stamp_ns, match.track.stamp_ns).astype(np.int64)
     ox, oy, oth, _ = interpolate_pose(odometry, stamps)
     m, o = match.track, match.odometry
-    ix, iy, ith = inverse(o.x_m, o.y_m, o.theta_rad)
-    cx, cy, cth = compose(m.x_m, m.y_m, m.theta_rad, ix, iy, ith)
-    correction = PoseTrack(stamp_ns=m.stamp_ns, x_m=cx, y_m=cy, theta_rad=cth)
-    kx, ky, kth, _ = interpolate_pose(correction, stamps)
-    x, y, th = compose(kx, ky, kth, ox, oy, oth)
+    x, y, th = carry(
+        stamps, (ox, oy, oth), m.stamp_ns, (o.x_m, o.y_m, o.theta_rad), (m.x_m, m.y_m, m.theta_rad)
+    )
     return PoseTrack(stamp_ns=stamps, x_m=x, y_m=y, theta_rad=th)
 
 

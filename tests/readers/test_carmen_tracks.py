@@ -109,3 +109,18 @@ def test_repair_moves_backward_and_repeated_stamps_forward_only() -> None:
 def test_constant_stamps_become_microseconds_in_file_order() -> None:
     out, _, repeats, _ = repair_stamps([7] * 5)
     assert out == [7 + i * STAMP_STEP_NS for i in range(5)] and repeats == 4
+
+
+def test_the_odometry_stamps_the_repair_moved_are_kept_with_what_the_log_said() -> None:
+    events = [
+        Event("odom", 1, 0, (0.0, 0.0, 0.0)),
+        Event("odom", 2, 2_000_000, (1.0, 0.0, 0.0)),
+        Event("odom", 3, 1_000_000, (2.0, 0.0, 0.0)),  # went back: moved to 2 ms + 1 us
+        Event("odom", 4, 3_000_000, (3.0, 0.0, 0.0)),
+    ]
+    tracks = build_tracks("x.log", events, 4)
+    assert tracks.moved is not None
+    np.testing.assert_array_equal(tracks.moved.stamp_ns, [2_000_000 + STAMP_STEP_NS])
+    np.testing.assert_array_equal(tracks.moved.logged_ns, [1_000_000])
+    in_order = [Event("odom", k + 1, k * 1_000_000, (float(k), 0.0, 0.0)) for k in range(3)]
+    assert build_tracks("x.log", in_order, 3).moved is None

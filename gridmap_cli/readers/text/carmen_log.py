@@ -347,6 +347,7 @@ class _Parser:
             truth=tracks.truth,
             metadata=metadata,
             odometry_missing=tracks.odometry_missing,
+            moved_stamps=tracks.moved,
         )
 
     def choose_lasers(self, last_line: int) -> dict[int, str]:

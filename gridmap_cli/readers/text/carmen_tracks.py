@@ -35,7 +35,7 @@ import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
-from gridmap_cli.records import PoseTrack
+from gridmap_cli.records import MovedStamps, PoseTrack
 
 #: The smallest step between consecutive stamps after the repair: CARMEN prints microseconds.
 STAMP_STEP_NS = 1_000
@@ -64,7 +64,8 @@ class Tracks:
     """What :func:`build_tracks` makes of the events.
 
     ``event_stamps_ns``: the repaired stamp of every event (a restart gets the stamp before it;
-    it is not on any track). ``notes``: metadata lines for people.
+    it is not on any track). ``notes``: metadata lines for people. ``moved``: the odometry
+    stamps the repair moved and what the log said (None when it moved none).
     """
 
     odometry: PoseTrack
@@ -72,6 +73,7 @@ class Tracks:
     event_stamps_ns: list[int]
     notes: dict[str, str] = field(default_factory=dict)
     odometry_missing: str | None = None  # why ``odometry`` is no odometry (see RangeLog)
+    moved: MovedStamps | None = None
 
 
 def _same(a: tuple[float, float, float], b: tuple[float, float, float]) -> bool:
@@ -181,6 +183,7 @@ def build_tracks(path: str, events: list[Event], last_line: int) -> Tracks:
 
     notes: dict[str, str] = {}
     odo_stamps: list[int] = []
+    own_ns: list[int] = []  # the lines' own stamps, for a benchmark that names poses by them
     odo_rows: list[tuple[float, float, float]] = []
     if odom_idx:
         current: tuple[float, float, float] | None = None
@@ -191,10 +194,12 @@ def build_tracks(path: str, events: list[Event], last_line: int) -> Tracks:
                 k += 1
                 if not restart[i]:
                     odo_stamps.append(stamps[i])
+                    own_ns.append(event.stamp_ns)
                     odo_rows.append(current)
             elif event.kind == "scan" and current is not None:
                 # the odometry at the scan: where the last ODOM line before it put the robot
                 odo_stamps.append(stamps[i])
+                own_ns.append(event.stamp_ns)
                 odo_rows.append(current)
         n_restarts = sum(restart)
         missing = _only_repeats(events, restart) if corrected else None
@@ -206,6 +211,7 @@ def build_tracks(path: str, events: list[Event], last_line: int) -> Tracks:
         for i, event in enumerate(events):
             if event.kind == "scan" and event.pose is not None:
                 odo_stamps.append(stamps[i])
+                own_ns.append(event.stamp_ns)
                 odo_rows.append(event.pose)
         notes["odometry"] = "no ODOM lines: the laser lines' robot poses"
     if not odo_rows:
@@ -234,8 +240,12 @@ def build_tracks(path: str, events: list[Event], last_line: int) -> Tracks:
             f"before; {moved} moved forward (at most {largest / 1e9:.3g} s) so that time "
             "increases in file order"
         )
+    fixed_odo, logged_odo = np.asarray(odo_stamps, np.int64), np.asarray(own_ns, np.int64)
+    differ = fixed_odo != logged_odo
+    own = MovedStamps(fixed_odo[differ], logged_odo[differ]) if differ.any() else None
     return Tracks(odometry=_track(odo_stamps, odo_rows), truth=truth, event_stamps_ns=stamps,
-                  notes=notes, odometry_missing=missing if odom_idx else None)  # fmt: skip
+                  notes=notes, odometry_missing=missing if odom_idx else None,
+                  moved=own)  # fmt: skip
 
 
 def _only_repeats(events: list[Event], restart: list[bool]) -> str | None:
