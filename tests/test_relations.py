@@ -203,3 +203,20 @@ def test_equal_logged_stamps_are_spread_over_their_printed_step_in_file_order() 
     offsets_ms = (out.stamp_ns[:4] - logged_ns[0]) / 1e6
     np.testing.assert_allclose(offsets_ms, [-3.75, -1.25, 1.25, 3.75])
     assert out.stamp_ns[4] == logged_ns[4]
+
+
+def test_trajectory_writes_the_stamps_the_log_gave(tmp_path: Path) -> None:
+    """A CARMEN line whose stamp goes back is moved forward by the reader to keep time running;
+    the TUM file carries it at the stamp the log printed, as the relations name it."""
+    stamps = [0.0, 0.5, 1.0, 0.9, 2.0, 2.5]  # the fourth goes back
+    lines = [f"ODOM {0.1 * k:.3f} 0 0 0 0 0 {t:.6f} host {t:.6f}" for k, t in enumerate(stamps)]
+    lines += [f"FLASER 3 1.0 1.0 1.0 0 0 0 0 0 0 {t} host {t}" for t in (2.1, 2.2)]
+    log = tmp_path / "back.log"
+    log.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "odo.tum"
+    code, _, stderr = run("trajectory", str(log), "--pose", "odometry", "-o", str(out))
+    assert code == 0, stderr
+    rows = np.loadtxt(out)
+    written = dict(zip(np.round(rows[:, 0], 6), rows[:, 1], strict=True))
+    assert written[0.9] == pytest.approx(0.3)  # the line printed at 0.9 s, at 0.9 s
+    assert set(stamps) <= set(written)
