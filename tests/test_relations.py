@@ -15,6 +15,7 @@ from gridmap_cli.evaluation.relations import (
     on_logged_clock,
     printed_step_ns,
     read_relations,
+    reordered_on_logged_clock,
     score_track,
 )
 from gridmap_cli.records import MovedStamps, PoseTrack
@@ -220,3 +221,14 @@ def test_trajectory_writes_the_stamps_the_log_gave(tmp_path: Path) -> None:
     written = dict(zip(np.round(rows[:, 0], 6), rows[:, 1], strict=True))
     assert written[0.9] == pytest.approx(0.3)  # the line printed at 0.9 s, at 0.9 s
     assert set(stamps) <= set(written)
+
+
+def test_the_logged_clock_order_takes_what_is_written_beside_each_pose_along() -> None:
+    track = _circle(8)
+    logged = track.stamp_ns.copy()
+    logged[3] = logged[1] + 1  # printed before the second pose's neighbour: it goes back
+    moved = MovedStamps(stamp_ns=track.stamp_ns[3:4], logged_ns=logged[3:4])
+    out, order = reordered_on_logged_clock(track, moved)
+    assert list(order[:4]) == [0, 1, 3, 2]
+    assert np.array_equal(out.x_m, track.x_m[order])
+    assert np.all(np.diff(out.stamp_ns) > 0)

@@ -21,7 +21,7 @@ from gridmap_cli.cli.common import (
 )
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.evaluation.relations import on_logged_clock, read_relations, score_track
+from gridmap_cli.evaluation.relations import read_relations, reordered_on_logged_clock, score_track
 from gridmap_cli.poses.scan_match import STATUS_NAMES, corrected_track, match_log
 from gridmap_cli.poses.sync import POSE_SOURCES, select_poses
 from gridmap_cli.readers import format_names, read_logs
@@ -170,7 +170,9 @@ def trajectory(
     if data.moved_stamps is not None:
         # the log's own clock: a stamp the reader moved forward is written as the log gave it,
         # so the benchmark's relations (and evo) find this pose under the log's stamp
-        track = on_logged_clock(track, data.moved_stamps)
+        track, order = reordered_on_logged_clock(track, data.moved_stamps)
+        status = None if status is None else [status[int(k)] for k in order]
+        covariance = None if covariance is None else (covariance[0][order], covariance[1][order])
     write_trajectory(output, track, status, covariance)
     summary["seconds"] = round(time.perf_counter() - started, 3)
     if as_json:

@@ -168,8 +168,16 @@ def on_logged_clock(track: PoseTrack, moved: MovedStamps) -> PoseTrack:
     up to ten lines the same stamp, a 10 ms step standing for the moments within it, and the
     relations' stamps, to the microsecond, fall among them.
     """
+    return reordered_on_logged_clock(track, moved)[0]
+
+
+def reordered_on_logged_clock(
+    track: PoseTrack, moved: MovedStamps
+) -> tuple[PoseTrack, npt.NDArray[np.intp]]:
+    """:func:`on_logged_clock` and the order it took the poses of ``track`` in (indices into
+    ``track``), for what is written beside each pose (status, covariance)."""
     if len(moved.stamp_ns) == 0:
-        return track
+        return track, np.arange(len(track))
     at = np.clip(np.searchsorted(moved.stamp_ns, track.stamp_ns), 0, len(moved.stamp_ns) - 1)
     hit = moved.stamp_ns[at] == track.stamp_ns
     stamps = np.where(hit, moved.logged_ns[at], track.stamp_ns)
@@ -189,7 +197,7 @@ def on_logged_clock(track: PoseTrack, moved: MovedStamps) -> PoseTrack:
         x_m=track.x_m[order],
         y_m=track.y_m[order],
         theta_rad=track.theta_rad[order],
-    )
+    ), order
 
 
 def printed_step_ns(stamp_ns: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
