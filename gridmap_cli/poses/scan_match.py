@@ -90,7 +90,7 @@ class ScanMatchParams:
     max_correction_m: float = 0.5
     max_correction_rad: float = math.radians(15.0)
     correction_per_m: float = 0.5
-    degenerate_ratio: float = 0.02
+    degenerate_ratio: float = 0.002
     scale_min_m: float = 10.0
     scale_max_error: float = 0.1
     rescale_blind_m: float = 5.0
@@ -156,12 +156,14 @@ class ScanMatch:
         return int(np.count_nonzero(self.status == DEGENERATE))
 
     def summary(self) -> dict[str, float | int]:
-        """Counts for people and JSON: scans, matched, fallbacks, degenerate, seconds."""
+        """Counts for people and JSON: scans, matched, fallbacks, degenerate, the odometry's
+        distance scale learned, seconds."""
         return {
             "scans": len(self.track),
             "matched": int(np.count_nonzero(self.status == MATCHED)),
             "fallbacks": self.fallbacks,
             "degenerate": self.degenerate,
+            "distance_scale": round(self.distance_scale, 4),
             "seconds": round(self.seconds, 3),
         }
 

@@ -75,7 +75,7 @@ class SlamParams:
     fallback_scale: float = 5.0
     #: along a featureless corridor an edge holds only the odometry (the match said nothing
     #: there): this much more sigma per metre along it, loose enough that a closure stretches
-    #: the corridor rather than bending the track (the edges' heading sigma is loose too)
+    #: the corridor rather than bending the track
     degenerate_sigma_per_m: float = 0.5
     closure_sigma_xy_m: float = 0.05
     closure_sigma_theta_rad: float = math.radians(1.0)
