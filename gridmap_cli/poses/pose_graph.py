@@ -37,6 +37,17 @@ class Edge:
     sigma_xy_m: float
     sigma_theta_rad: float
     closure: bool = False
+    #: extra standard deviation (m) along ``weak_axis`` (unit vector, node j's frame): a stretch
+    #: of featureless corridor, where the measurement is the odometry's (:mod:`.degeneracy`)
+    weak_sigma_m: float = 0.0
+    weak_axis: tuple[float, float] = (1.0, 0.0)
+
+    def covariance(self) -> FloatArray:
+        """The 3 x 3 covariance of (x, y, theta), node j's frame."""
+        cov = np.diag([self.sigma_xy_m**2, self.sigma_xy_m**2, self.sigma_theta_rad**2])
+        u = np.asarray(self.weak_axis)
+        cov[:2, :2] += self.weak_sigma_m**2 * np.outer(u, u)
+        return cov
 
 
 @dataclass
@@ -54,7 +65,11 @@ class PoseGraph:
         kernel = gtsam.noiseModel.mEstimator.Cauchy.Create(cauchy_k or self.cauchy_k)
         for e in self.edges:
             sigmas = np.array([e.sigma_xy_m, e.sigma_xy_m, e.sigma_theta_rad])
-            diagonal = gtsam.noiseModel.Diagonal.Sigmas(sigmas)
+            diagonal = (
+                gtsam.noiseModel.Gaussian.Covariance(e.covariance())
+                if e.weak_sigma_m > 0
+                else gtsam.noiseModel.Diagonal.Sigmas(sigmas)
+            )
             noise = gtsam.noiseModel.Robust.Create(kernel, diagonal) if e.closure else diagonal
             rel = gtsam.Pose2(e.dx_m, e.dy_m, e.dtheta_rad)
             graph.add(gtsam.BetweenFactorPose2(e.i, e.j, rel, noise))
@@ -186,6 +201,15 @@ def edge_residuals(poses: FloatArray, edges: list[Edge]) -> FloatArray:
     measured relative pose against the estimated one."""
     if not edges:
         return np.zeros((0, 2))
+    dx, dy, dth = edge_errors(poses, edges).T
+    return np.column_stack([np.hypot(dx, dy), np.abs(dth)])
+
+
+def edge_errors(poses: FloatArray, edges: list[Edge]) -> FloatArray:
+    """Each edge's error at ``poses`` as a pose (E, 3): the estimated relative pose seen from
+    the measured one (x, y in node j's frame, metres; theta wrapped, radians)."""
+    if not edges:
+        return np.zeros((0, 3))
     i = np.array([e.i for e in edges])
     j = np.array([e.j for e in edges])
     ix, iy, ith = inverse(poses[i, 0], poses[i, 1], poses[i, 2])
@@ -196,4 +220,4 @@ def edge_residuals(poses: FloatArray, edges: list[Edge]) -> FloatArray:
         np.array([e.dtheta_rad for e in edges]),
     )
     dx, dy, dth = compose(mx, my, mth, ex, ey, eth)
-    return np.column_stack([np.hypot(dx, dy), np.abs(wrap_angle(dth))])
+    return np.column_stack([dx, dy, wrap_angle(dth)])

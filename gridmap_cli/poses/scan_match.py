@@ -12,7 +12,8 @@ A match is judged before it is trusted (``docs/scan-matching.md``):
   match, or a correction larger than the odometry can plausibly be wrong by: the step keeps the
   odometry's increment (a *fallback*);
 - *degenerate*: the translation is constrained in one direction only (a featureless corridor):
-  the correction is kept across the corridor and the odometry is kept along it.
+  the correction is kept across the corridor and the odometry is kept along it, its distance
+  scale corrected by what the fully constrained steps measured (:mod:`.degeneracy`).
 
 Frames: the corrected track is in the odometry frame, starting at the odometry's pose at the
 first scan. Poses between scans, and other sensors' readings, are placed by carrying the
@@ -36,6 +37,7 @@ from scipy.spatial import cKDTree
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.poses.carry import carry
+from gridmap_cli.poses.degeneracy import DistanceScale, keep_across, weak_axis
 from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription
@@ -68,6 +70,12 @@ class ScanMatchParams:
     guess. ``degenerate_ratio``: smallest over largest eigenvalue of the translation block of
     the match's Hessian below which the match is degenerate. ``heading_starts_rad``: extra
     starting headings (offsets from the guess) tried when the first match is poor.
+    ``scale_min_m``/``scale_max_error``: the odometry's distance scale is learned from the
+    straight (turning under ``scale_turn_rad``) matched steps once they cover this many metres,
+    within 1 +- this (:class:`DistanceScale`);
+    ``scale_min_m`` infinite keeps the odometry's own scale. When the matcher kept more than
+    ``rescale_blind_m`` of odometry along weak axes before the scale was learned,
+    the scans are matched again with the learned scale from the start.
     """
 
     max_range_m: float = 30.0
@@ -83,7 +91,11 @@ class ScanMatchParams:
     max_correction_m: float = 0.5
     max_correction_rad: float = math.radians(15.0)
     correction_per_m: float = 0.5
-    degenerate_ratio: float = 0.02
+    degenerate_ratio: float = 0.002
+    scale_min_m: float = 10.0
+    scale_max_error: float = 0.1
+    rescale_blind_m: float = 5.0
+    scale_turn_rad: float = math.radians(2.0)
     heading_starts_rad: tuple[float, ...] = (
         math.radians(-8.0),
         math.radians(8.0),
@@ -94,7 +106,9 @@ class ScanMatchParams:
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if f.name != "heading_starts_rad" and not (value >= 0 and math.isfinite(value)):
+            if f.name == "heading_starts_rad":
+                continue
+            if not (value >= 0 and (math.isfinite(value) or f.name == "scale_min_m")):
                 raise ValueError(f"{f.name} must be a finite number >= 0, got {value}")
 
 
@@ -121,6 +135,9 @@ class ScanMatch:
     odometry's poses at the same stamps. ``status``: :data:`MATCHED`, :data:`FALLBACK`,
     :data:`DEGENERATE` or :data:`FIRST`. ``inlier_fraction``: share of the scan's points
     within ``inlier_m`` of the local map after the match (NaN for the first scan).
+    ``weak_axis`` (S, 2): the unit vector (odometry frame) along which a degenerate match kept
+    the odometry, NaN for the others; ``distance_scale``: the odometry's distance scale the
+    matcher had learned by the last scan (1: none learned).
     """
 
     track: PoseTrack
@@ -128,6 +145,8 @@ class ScanMatch:
     status: npt.NDArray[np.int8]
     inlier_fraction: FloatArray
     seconds: float
+    weak_axis: FloatArray | None = None
+    distance_scale: float = 1.0
 
     @property
     def fallbacks(self) -> int:
@@ -138,12 +157,14 @@ class ScanMatch:
         return int(np.count_nonzero(self.status == DEGENERATE))
 
     def summary(self) -> dict[str, float | int]:
-        """Counts for people and JSON: scans, matched, fallbacks, degenerate, seconds."""
+        """Counts for people and JSON: scans, matched, fallbacks, degenerate, the odometry's
+        distance scale learned, seconds."""
         return {
             "scans": len(self.track),
             "matched": int(np.count_nonzero(self.status == MATCHED)),
             "fallbacks": self.fallbacks,
             "degenerate": self.degenerate,
+            "distance_scale": round(self.distance_scale, 4),
             "seconds": round(self.seconds, 3),
         }
 
@@ -254,13 +275,43 @@ def match_scans(
     """
     params = params or ScanMatchParams()
     started = time.perf_counter()
-    n = len(scans)
     ox, oy, oth, valid = interpolate_pose(odometry, scans.stamp_ns)
     if not valid.all():
         raise GridmapError("scan_match: scans outside the odometry's time span")
+    odo = (ox, oy, oth)
+    poses, status, score, weak, scale = _match_pass(scans, odo, params, 1.0, progress)
+    if scale.blind_m > params.rescale_blind_m and scale.factor != 1.0:
+        # a corridor driven before the scale was known kept the odometry's own scale there, and
+        # the rest of the track the learned one: a loop through both would not close. Again,
+        # with the scale from the start (costs a second pass, only on such logs).
+        poses, status, score, weak, scale = _match_pass(scans, odo, params, scale.factor, None)
+    track = PoseTrack(
+        stamp_ns=scans.stamp_ns.copy(),
+        x_m=np.ascontiguousarray(poses[:, 0]),
+        y_m=np.ascontiguousarray(poses[:, 1]),
+        theta_rad=np.ascontiguousarray(wrap_angle(poses[:, 2])),
+    )
+    odometry_track = PoseTrack(stamp_ns=scans.stamp_ns.copy(), x_m=ox, y_m=oy, theta_rad=oth)
+    seconds = time.perf_counter() - started
+    return ScanMatch(track, odometry_track, status, score, seconds, weak, scale.factor)
+
+
+def _match_pass(
+    scans: Scans,
+    odometry: tuple[FloatArray, FloatArray, FloatArray],
+    params: ScanMatchParams,
+    prior_scale: float,
+    progress: Progress | None,
+) -> tuple[FloatArray, npt.NDArray[np.int8], FloatArray, FloatArray, DistanceScale]:
+    """One pass of :func:`match_scans`: poses (S, 3), status, inlier fractions, weak axes
+    (S, 2) and the distance scale learned (``prior_scale`` until it is)."""
+    ox, oy, oth = odometry
+    n = len(scans)
     poses = np.zeros((n, 3))
     status = np.full(n, MATCHED, dtype=np.int8)
     score = np.full(n, np.nan)
+    weak = np.full((n, 2), np.nan)
+    scale = DistanceScale(params.scale_min_m, params.scale_max_error, prior_scale)
     local = _LocalMap(params)
     for k in range(n):
         pts = scans.points[k]
@@ -273,20 +324,36 @@ def match_scans(
             dx, dy, dth = compose(ix, iy, ith, ox[k], oy[k], oth[k])
             gx, gy, gth = compose(poses[k - 1, 0], poses[k - 1, 1], poses[k - 1, 2], dx, dy, dth)
             guess = (float(gx), float(gy), float(gth))
+            # where the match keeps the odometry (along a corridor, or all of it on a fallback)
+            # it keeps it with the learned distance scale; GICP itself starts from the
+            # odometry's own guess, so a log that matches everywhere is not changed by it
+            f = scale.factor
+            sx, sy, _ = compose(
+                poses[k - 1, 0], poses[k - 1, 1], poses[k - 1, 2], f * dx, f * dy, dth
+            )
+            scaled = (float(sx), float(sy), float(gth))
             step_m = float(math.hypot(dx, dy))
-            poses[k], status[k], score[k] = _match_one(pts, guess, step_m, local, params)
+            poses[k], status[k], score[k], axis = _match_one(
+                pts, guess, step_m, local, params, scaled
+            )
+            if axis is not None:
+                scale.kept(abs(float(axis @ (poses[k, :2] - poses[k - 1, :2]))))
+            if axis is not None:
+                weak[k] = axis
+            elif (
+                status[k] == MATCHED
+                and status[k - 1] in (MATCHED, FIRST)
+                and abs(float(dth)) < params.scale_turn_rad
+            ):
+                # straight steps only: on a turn the odometry's distance is the arc, and its
+                # rotation error moves the step sideways
+                mx, my, _ = compose(*inverse(*poses[k - 1]), *poses[k])
+                scale.add((float(mx), float(my)), (float(dx), float(dy)))
         if len(pts) and local.wants(tuple(poses[k])):
             local.add(_transform(pts, tuple(poses[k])), tuple(poses[k]))
         if progress is not None:
             progress("scan matching", k + 1, n)
-    track = PoseTrack(
-        stamp_ns=scans.stamp_ns.copy(),
-        x_m=np.ascontiguousarray(poses[:, 0]),
-        y_m=np.ascontiguousarray(poses[:, 1]),
-        theta_rad=np.ascontiguousarray(wrap_angle(poses[:, 2])),
-    )
-    odo = PoseTrack(stamp_ns=scans.stamp_ns.copy(), x_m=ox, y_m=oy, theta_rad=oth)
-    return ScanMatch(track, odo, status, score, time.perf_counter() - started)
+    return poses, status, score, weak, scale
 
 
 def _match_one(
@@ -295,10 +362,14 @@ def _match_one(
     step_m: float,
     local: _LocalMap,
     params: ScanMatchParams,
-) -> tuple[tuple[float, float, float], int, float]:
-    """One scan's pose, status and inlier fraction."""
+    kept: tuple[float, float, float] | None = None,
+) -> tuple[tuple[float, float, float], int, float, FloatArray | None]:
+    """One scan's pose, status, inlier fraction and weak axis (map frame; None unless
+    degenerate). GICP starts from ``guess``; ``kept`` (default ``guess``) is the pose a
+    fallback takes and a degenerate match keeps along its weak axis."""
+    kept = kept or guess
     if local.cloud is None or local.tree is None or local.tree2d is None:
-        return guess, FALLBACK, 0.0
+        return kept, FALLBACK, 0.0, None
     voxel = params.downsample_m
     source, _ = small_gicp.preprocess_points(
         _sheet(pts, voxel), downsampling_resolution=voxel, num_neighbors=10
@@ -306,7 +377,7 @@ def _match_one(
     planar = np.asarray(source.points())[:, :2]
     planar = planar[np.abs(np.asarray(source.points())[:, 2] - 0.5 * voxel) < 0.25 * voxel]
     if len(planar) < params.min_points:
-        return guess, FALLBACK, 0.0
+        return kept, FALLBACK, 0.0, None
     limit_m = params.max_correction_m + params.correction_per_m * step_m
     best: tuple[float, tuple[float, float, float], FloatArray] | None = None
     for offset in (0.0, *params.heading_starts_rad):
@@ -333,18 +404,14 @@ def _match_one(
         if fraction >= params.min_inlier_fraction:
             break
     if best is None:
-        return guess, FALLBACK, 0.0
+        return kept, FALLBACK, 0.0, None
     fraction, pose, hessian = best
     if fraction < params.min_inlier_fraction:
-        return guess, FALLBACK, fraction
-    # small_gicp's tangent is (rotation, translation): the x, y block is H[3:5, 3:5]
-    values, vectors = np.linalg.eigh(hessian[3:5, 3:5])
-    if values[1] <= 0 or values[0] / values[1] < params.degenerate_ratio:
-        strong = vectors[:, 1]
-        shift = np.array([pose[0] - guess[0], pose[1] - guess[1]])
-        kept = strong * float(strong @ shift)
-        return (guess[0] + kept[0], guess[1] + kept[1], pose[2]), DEGENERATE, fraction
-    return pose, MATCHED, fraction
+        return kept, FALLBACK, fraction, None
+    axis = weak_axis(hessian, params.degenerate_ratio, pose[2])
+    if axis is not None:
+        return keep_across(kept, pose, axis), DEGENERATE, fraction, axis
+    return pose, MATCHED, fraction, None
 
 
 def match_log(

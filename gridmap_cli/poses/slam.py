@@ -29,6 +29,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.poses.carry import carry
+from gridmap_cli.poses.degeneracy import weak_stretch
 from gridmap_cli.poses.loop_closure import (
     Closure,
     ClosureParams,
@@ -38,7 +39,7 @@ from gridmap_cli.poses.loop_closure import (
     relative,
     verify,
 )
-from gridmap_cli.poses.pose_graph import Edge, PoseGraph, edge_residuals
+from gridmap_cli.poses.pose_graph import Edge, PoseGraph, edge_errors, edge_residuals
 from gridmap_cli.poses.scan_match import (
     FALLBACK,
     NoLaserError,
@@ -79,6 +80,10 @@ class SlamParams:
     sigma_theta_rad: float = math.radians(0.5)
     sigma_theta_per_m: float = math.radians(0.5)
     fallback_scale: float = 5.0
+    #: along a featureless corridor an edge holds only the odometry (the match said nothing
+    #: there): this much more sigma per metre along it, loose enough that a closure stretches
+    #: the corridor rather than bending the track
+    degenerate_sigma_per_m: float = 0.5
     closure_sigma_xy_m: float = 0.05
     closure_sigma_theta_rad: float = math.radians(1.0)
     reject_m: float = 0.3
@@ -172,20 +177,28 @@ def keyframes(poses: FloatArray, params: SlamParams) -> npt.NDArray[np.intp]:
 
 
 def sequential_edges(
-    local: FloatArray, status: npt.NDArray[np.int8], nodes: npt.NDArray[np.intp], p: SlamParams
+    local: FloatArray,
+    status: npt.NDArray[np.int8],
+    nodes: npt.NDArray[np.intp],
+    p: SlamParams,
+    weak: FloatArray | None = None,
 ) -> list[Edge]:
-    """Edges between consecutive keyframes from the scan-matched poses ``local`` (S, 3)."""
+    """Edges between consecutive keyframes from the scan-matched poses ``local`` (S, 3); where
+    scans between them were degenerate (``weak`` (S, 2), the scan matcher's weak axes), the
+    edge is looser along the corridor by ``degenerate_sigma_per_m`` per metre along it."""
     edges = []
     for a in range(len(nodes) - 1):
         s, t = int(nodes[a]), int(nodes[a + 1])
         dx, dy, dth = relative(local, t, s)
         dist = math.hypot(dx, dy)
         scale = p.fallback_scale if (status[s + 1 : t + 1] == FALLBACK).any() else 1.0
+        weak_m, axis = weak_stretch(local, weak, s, t) if weak is not None else (0.0, (1.0, 0.0))
         edges.append(
             Edge(
                 a, a + 1, dx, dy, dth,
                 scale * (p.sigma_xy_m + p.sigma_xy_per_m * dist),
                 scale * (p.sigma_theta_rad + p.sigma_theta_per_m * dist),
+                weak_sigma_m=p.degenerate_sigma_per_m * weak_m, weak_axis=axis,
             )
         )  # fmt: skip
     return edges
@@ -200,7 +213,8 @@ def optimise_with_closures(
     m = match.track
     local = np.column_stack([m.x_m, m.y_m, m.theta_rad])
     nodes = keyframes(local, params)
-    graph = PoseGraph(local[nodes].copy(), sequential_edges(local, match.status, nodes, params))
+    edges = sequential_edges(local, match.status, nodes, params, match.weak_axis)
+    graph = PoseGraph(local[nodes].copy(), edges)
     submaps = Submaps(scans.points, local, nodes, params.closure)
     estimate = graph.initial.copy()
     tried: set[tuple[int, int]] = set()
@@ -260,6 +274,25 @@ def optimise_with_closures(
     return nodes, estimate, graph, list(accepted.values()), len(tried), rejected, dropped
 
 
+def _bend_sigma(poses: FloatArray, edges: list[Edge]) -> float:
+    """The largest error of ``edges`` at ``poses`` in their own standard deviations: the
+    translation whitened by the edge's x, y covariance (looser along a corridor), the rotation
+    by its sigma."""
+    if not edges:
+        return 0.0
+    errors = edge_errors(poses, edges)
+    worst = 0.0
+    for e, (dx, dy, dth) in zip(edges, errors, strict=True):
+        shift = np.array([dx, dy])
+        cov = e.covariance()[:2, :2]
+        worst = max(
+            worst,
+            math.sqrt(float(shift @ np.linalg.solve(cov, shift))),
+            abs(float(dth)) / e.sigma_theta_rad,
+        )
+    return worst
+
+
 def _near(ends: FloatArray, a: float, b: float, within_m: float) -> bool:
     """Whether some pair of path positions in ``ends`` (M, 2) lies within ``within_m`` of
     (``a``, ``b``) at both ends."""
@@ -312,9 +345,7 @@ def slam_scans(
     after = edge_residuals(poses, closure_edges)
     covariance = graph.marginals(poses) if params.covariance else None
     sequential = [e for e in graph.edges if not e.closure]
-    bend = edge_residuals(poses, sequential)
-    sigmas = np.array([(e.sigma_xy_m, e.sigma_theta_rad) for e in sequential]).reshape(-1, 2)
-    bend_sigma = float((bend / sigmas).max()) if len(sequential) else 0.0
+    bend_sigma = _bend_sigma(poses, sequential)
     return SlamResult(
         match=dataclasses.replace(match, track=track),
         scan_matched=match,

@@ -46,6 +46,16 @@ class RobotDescription:
     def by_name(self) -> dict[str, RangeSensor]:
         return {s.name: s for s in self.sensors}
 
+    def lasers(self) -> dict[str, list[str]]:
+        """Each laser's name and its beams' names in beam order (``laser1``: ``laser1_0``...),
+        as :func:`laser_beams` names them."""
+        beams: dict[str, list[tuple[int, str]]] = {}
+        for s in self.sensors:
+            stem, _, index = s.name.rpartition("_")
+            if s.kind == "laser" and stem and index.isdigit():
+                beams.setdefault(stem, []).append((int(index), s.name))
+        return {stem: [n for _, n in sorted(b)] for stem, b in beams.items()}
+
 
 def laser_beams(
     name: str,

@@ -102,6 +102,13 @@ class _Mounts(_State):
             robot_part = "and no --robot describing it"
         else:
             robot_part = f"and robot '{self.robot.name}' has no sensor named '{frame}'"
+            lasers = self.robot.lasers()
+            if lasers and frame in self.scans:
+                # its lasers could not be paired with this frame: several of either, or
+                # another beam count
+                robot_part += (
+                    f" (its lasers: {', '.join(lasers)}; name one '{frame}' in a robot YAML)"
+                )
         return InputFileError(
             self.path,
             f"sensor frame '{frame}' ({self.frame_topic[frame]}): mounting pose unknown: "

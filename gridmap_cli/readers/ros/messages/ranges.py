@@ -173,12 +173,15 @@ class _Ranges(_Mounts):
             [scan.angle_min, scan.angle_increment, scan.range_min, scan.range_max]
         ).tolist()
         known = self.robot.by_name() if self.robot is not None else {}
-        if mount is None and all(n in known for n in names):
+        robot_names = names
+        if mount is None and not all(n in known for n in names):
+            robot_names = self._sole_robot_laser(base, scan) or names
+        if mount is None and all(n in known for n in robot_names):
             self.mount_from[frame] = "robot"
             return [
-                RangeSensor(n, known[n].x_m, known[n].y_m, known[n].yaw_rad, 0.0, rmin, rmax,
+                RangeSensor(n, known[r].x_m, known[r].y_m, known[r].yaw_rad, 0.0, rmin, rmax,
                             "laser")
-                for n in names
+                for n, r in zip(names, robot_names, strict=True)
             ]  # fmt: skip
         x, y, yaw = mount or self._unmounted(base, frame)
         yaws = wrap_angle(yaw + first + np.arange(len(names)) * step).tolist()
@@ -186,6 +189,24 @@ class _Ranges(_Mounts):
             RangeSensor(name, x, y, beam_yaw, 0.0, rmin, rmax, "laser")
             for name, beam_yaw in zip(names, yaws, strict=True)
         ]
+
+    def _sole_robot_laser(self, base: str, scan: _Scan) -> list[str] | None:
+        """The beam names of the robot's laser when the pairing is unambiguous: the robot
+        describes one laser, with ``scan``'s beam count, and one laser frame of the recording
+        has no mounting of its own (a Pioneer's ``/scan`` in frame ``laser`` and a robot file
+        that calls its SICK ``laser1``). None otherwise (the frame is then refused)."""
+        if self.robot is None:
+            return None
+        lasers = self.robot.lasers()
+        unmounted = [
+            f for f, sc in self.scans.items()
+            if self.tree.lookup(base, f) is None
+            and not all(f"{f}_{i}" in self.robot.by_name() for i in range(sc.count))
+        ]  # fmt: skip
+        if len(lasers) != 1 or len(unmounted) != 1:
+            return None
+        beams = next(iter(lasers.values()))
+        return beams if len(beams) == scan.count else None
 
     def _cloud_sonars(self) -> list[RangeSensor]:
         assert self.robot is not None
@@ -195,11 +216,17 @@ class _Ranges(_Mounts):
         """Ranges from RosAria point clouds: distance from each sonar's mount to its point."""
         topic = self.frame_topic[self.clouds[0][1]]
         if self.robot is None:
+            lasers = sorted({self.frame_topic[f] for f in self.scans})
+            alone = (
+                f", or --range-topic {' --range-topic '.join(lasers)} to map the laser alone"
+                if lasers
+                else ""
+            )
             self.refusals.refuse(
                 InputFileError(
                     self.path,
                     f"{topic}: sonar point clouds (as RosAria publishes them) need the sonar "
-                    "positions: give --robot (a preset, robot YAML or ARIA .p file)",
+                    f"positions: give --robot (a preset, robot YAML or ARIA .p file){alone}",
                 )
             )
             return

@@ -1,0 +1,127 @@
+"""Registrations that cannot see every direction: long, featureless corridors.
+
+Between two parallel walls a scan match pins the robot across the corridor and in heading, and
+says nothing along it: GICP's Hessian has one small eigenvalue, and the pose it returns slides
+along the corridor by whatever its iterations happen to do. The scan matcher
+(:mod:`.scan_match`) therefore keeps the odometry along that *weak axis*, and the pose graph
+(:mod:`.slam`) gives the edges across such a stretch the odometry's uncertainty along it, so a
+loop closure stretches or shrinks the corridor instead of bending the rest of the track.
+
+- :func:`weak_axis`: the weak translation direction of a match, from its Hessian.
+- :func:`keep_across`: a matched pose with its correction along the weak axis taken out.
+- :func:`weak_stretch`: how far a stretch of the track went along weak axes, and which way.
+- :class:`DistanceScale`: the odometry's distance scale, learned from the steps that matched in
+  every direction, so that "the odometry along the corridor" is the odometry with its scale
+  error taken out (a Pioneer's uncalibrated distance is off by 1-2 %: a metre in a 60 m
+  corridor). Without enough such steps it is 1.
+
+Frames: small_gicp's Hessian is over a perturbation on the right of ``T_target_source``
+(rotation, translation), so its translation block is in the *source* (robot) frame; the weak
+axis is turned into the map frame by the matched heading.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def weak_axis(hessian: FloatArray, ratio: float, theta_rad: float) -> FloatArray | None:
+    """The unit vector (2,) in the map frame along which a match is unconstrained, or None.
+
+    ``hessian`` (6, 6): small_gicp's, tangent (rotation, translation) in the robot frame;
+    degenerate when the smaller eigenvalue of its x, y block is under ``ratio`` times the
+    larger. ``theta_rad``: the matched heading (robot frame -> map frame).
+    """
+    values, vectors = np.linalg.eigh(hessian[3:5, 3:5])
+    if values[1] > 0 and values[0] / values[1] >= ratio:
+        return None
+    c, s = math.cos(theta_rad), math.sin(theta_rad)
+    u = vectors[:, 0]
+    return np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
+
+
+def keep_across(
+    guess: tuple[float, float, float], pose: tuple[float, float, float], weak: FloatArray
+) -> tuple[float, float, float]:
+    """``pose`` with its correction from ``guess`` along ``weak`` (map frame) removed: the guess
+    along the weak axis, the match across it and in heading."""
+    shift = np.array([pose[0] - guess[0], pose[1] - guess[1]])
+    across = shift - weak * float(weak @ shift)
+    return guess[0] + float(across[0]), guess[1] + float(across[1]), pose[2]
+
+
+@dataclass
+class DistanceScale:
+    """The odometry's distance scale: matched distance over odometry distance, summed over the
+    steps that matched in every direction (each step's matched increment projected on the
+    odometry's direction, both in the robot frame at the step's start). A ratio of sums, not a
+    least-squares slope: the odometry's random distance error would bias a slope low.
+
+    ``min_m``: odometry distance of such steps before the estimate is used (1 until then);
+    ``max_error``: the estimate is clipped to 1 +- this (a scale further off is a matcher
+    problem, not tyres). ``prior``: the scale used until then. :attr:`blind_m`: distance the
+    matcher kept the odometry along weak axes before the estimate was used: where the prior's
+    scale, not the learned one, went into the track.
+    """
+
+    min_m: float = 10.0
+    max_error: float = 0.05
+    prior: float = 1.0
+    blind_m: float = 0.0
+    _matched_m: float = 0.0
+    _travel_m: float = 0.0
+
+    def add(self, matched: tuple[float, float], odometry: tuple[float, float]) -> None:
+        """One step that matched: its increments (metres, robot frame of the step's start)."""
+        length = math.hypot(*odometry)
+        if length <= 0:
+            return
+        self._matched_m += (matched[0] * odometry[0] + matched[1] * odometry[1]) / length
+        self._travel_m += length
+
+    def kept(self, odometry_m: float) -> None:
+        """Distance kept from the odometry along a weak axis: counted while the estimate is not
+        in use."""
+        if not self.learned:
+            self.blind_m += odometry_m
+
+    @property
+    def learned(self) -> bool:
+        return self._travel_m >= self.min_m
+
+    @property
+    def factor(self) -> float:
+        """The scale to multiply the odometry's increments by."""
+        if not self.learned:
+            return self.prior
+        return min(
+            1.0 + self.max_error, max(1.0 - self.max_error, self._matched_m / self._travel_m)
+        )
+
+
+def weak_stretch(
+    poses: FloatArray, weak: FloatArray, start: int, end: int
+) -> tuple[float, tuple[float, float]]:
+    """Distance (m) the scans ``start + 1 .. end`` moved along their weak axes, and the mean
+    axis as a unit vector in the frame of pose ``end``. ``poses`` (S, 3) and ``weak`` (S, 2),
+    map frame, NaN where a scan matched in every direction."""
+    axes = weak[start + 1 : end + 1]
+    steps = np.diff(poses[start : end + 1, :2], axis=0)
+    used = np.isfinite(axes[:, 0])
+    if not used.any():
+        return 0.0, (1.0, 0.0)
+    axes, steps = axes[used], steps[used]
+    along = np.einsum("ij,ij->i", axes, steps)
+    distance = float(np.abs(along).sum())
+    # the axis's sign is arbitrary: align each with the first before averaging
+    signs = np.where(axes @ axes[0] < 0, -1.0, 1.0)
+    mean = (axes * signs[:, None]).sum(axis=0)
+    mean /= float(np.hypot(*mean)) or 1.0
+    c, s = math.cos(poses[end, 2]), math.sin(poses[end, 2])
+    return distance, (float(c * mean[0] + s * mean[1]), float(-s * mean[0] + c * mean[1]))

@@ -1,0 +1,138 @@
+"""`gridmap build BAG --pose slam` on the ROS 1 bag a Pioneer running ROSARIA and a SICK driver
+records (issue 20): a simulated loop with poor odometry, written by ``rosbags``' ROS 1 writer as
+``rosbag record`` would (tests/readers/pioneer_bag.py), mapped with no topic flags and scored
+against the world; and the one-line errors where the bag leaves a choice open."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gridmap_cli.mapping.grid import OccupancyMap
+from gridmap_cli.records import RangeLog
+from gridmap_cli.robot import load_robot
+from gridmap_cli.sim.path import WaypointPath
+from gridmap_cli.sim.simulate import simulate
+from gridmap_cli.writers.csv_log import save_csv_log
+from gridmap_cli.writers.map_image import write_map
+from tests.helpers import run
+from tests.readers.pioneer_bag import write_pioneer_bag
+from tests.test_scan_match import room_world
+
+LOOP = [[2, 1.5], [10, 1.5], [10, 6.5], [2, 6.5], [2, 1.5]]
+
+
+@pytest.fixture(scope="module")
+def pioneer(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, RangeLog]:
+    """A folder with the world (world.yaml), the run as CSV with its truth (run.csv, which
+    evaluate places maps by) and as a ROSARIA bag (run.bag)."""
+    folder = tmp_path_factory.mktemp("pioneer")
+    world = room_world()
+    path = WaypointPath(waypoints=np.asarray(LOOP, dtype=np.float64), speed_m_s=0.5)
+    log = simulate(world, path, load_robot("p3at-lms200"), seed=3, drift=3.0)
+    log.metadata["robot"] = "p3at-lms200"
+    save_csv_log(log, folder / "run.csv")
+    occupied = OccupancyMap(world.spec, world.occupied.astype(np.float64))
+    write_map(folder / "world.pgm", occupied, mode="trinary")
+    write_pioneer_bag(log, folder / "run.bag")
+    return folder, log
+
+
+def f1(folder: Path, bag: Path, pose: str, *extra: str) -> float:
+    """``build BAG --pose POSE`` (laser only: the sonar is not in the bag) scored by evaluate."""
+    out = folder / f"{bag.stem}-{pose}.png"
+    code, _, stderr = run("build", str(bag), "--pose", pose, "-o", str(out), "--map-mode",
+                          "scale", "--force", *extra)  # fmt: skip
+    assert code == 0, stderr
+    code, stdout, stderr = run("evaluate", str(out.with_suffix(".yaml")), "--truth",
+                               str(folder / "world.yaml"), "--log", str(folder / "run.csv"),
+                               "--pose", pose, "--json")  # fmt: skip
+    assert code == 0, stderr
+    return float(json.loads(stdout)["f1"])
+
+
+def test_slam_maps_a_rosaria_bag_where_odometry_cannot(pioneer: tuple[Path, RangeLog]) -> None:
+    folder, _ = pioneer
+    bag = folder / "run.bag"
+    odometry, slam = f1(folder, bag, "odometry"), f1(folder, bag, "slam")
+    assert odometry < 0.5
+    assert slam >= 0.70 and slam > odometry + 0.3
+
+
+def test_the_laser_frame_is_found_with_or_without_a_slash_and_without_tf(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    """ROS 1 drivers spell frames `/laser` or `laser`; a bag with no base_link -> laser
+    transform takes the robot file's one laser (named `laser1` there, not `laser`)."""
+    _, log = pioneer
+    tracks = []
+    for name, options in (
+        ("plain", {}),
+        ("slash", {"laser_frame": "/laser"}),
+        ("untransformed", {"mounting": None}),
+    ):
+        bag = write_pioneer_bag(log, tmp_path / f"{name}.bag", **options)  # type: ignore[arg-type]
+        out = tmp_path / f"{name}.tum"
+        robot = ("--robot", "p3at-lms200") if name == "untransformed" else ()
+        code, _, stderr = run("trajectory", str(bag), "--pose", "slam", "-o", str(out), *robot)
+        assert code == 0, stderr
+        tracks.append(np.loadtxt(out))
+    plain, slash, untransformed = tracks
+    assert np.array_equal(slash, plain)
+    # the robot file's beam directions are whole degrees, the scan's float32 angles are not:
+    # the same track to within what that changes in the matcher
+    assert np.abs(untransformed[:, 1:3] - plain[:, 1:3]).max() < 0.05
+
+
+def test_a_laser_with_no_mounting_anywhere_is_refused_in_one_line(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    _, log = pioneer
+    bag = write_pioneer_bag(log, tmp_path / "bare.bag", mounting=None)
+    out = tmp_path / "map.png"
+    code, _, stderr = run("build", str(bag), "--pose", "slam", "-o", str(out), "--robot", "p3at")
+    assert code == 1
+    assert stderr.strip().splitlines() == [
+        f"Error: {bag}: sensor frame 'laser' (/scan): mounting pose unknown: no transform from "
+        "'base_link' to it on /tf, and robot 'p3at' has no sensor named 'laser'"
+    ]
+    assert not out.exists() and not out.with_suffix(".yaml").exists()
+
+
+def test_two_odometry_topics_are_an_error_naming_both(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    _, log = pioneer
+    bag = write_pioneer_bag(log, tmp_path / "two.bag", second_odometry="/odom")
+    out = tmp_path / "map.png"
+    code, _, stderr = run("build", str(bag), "--pose", "slam", "-o", str(out))
+    assert code != 0
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: ")
+    assert "/RosAria/pose" in lines[0] and "/odom" in lines[0] and "--odom-topic" in lines[0]
+    assert not out.exists()
+    code, _, stderr = run("build", str(bag), "--pose", "slam", "-o", str(out), "--odom-topic",
+                          "/RosAria/pose", "--quiet")  # fmt: skip
+    assert code == 0, stderr
+
+
+def test_rosaria_sonar_without_a_robot_names_both_ways_out(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    """RosAria's sonar cloud cannot be placed without the robot's sonar ring: the error says
+    to give it, or to map the laser alone; either then builds."""
+    folder, log = pioneer
+    bag = write_pioneer_bag(log, tmp_path / "sonar.bag", sonar=True)
+    out = tmp_path / "map.png"
+    code, _, stderr = run("build", str(bag), "--pose", "slam", "-o", str(out))
+    assert code == 1
+    assert stderr.strip().splitlines() == [
+        f"Error: {bag}: /RosAria/sonar: sonar point clouds (as RosAria publishes them) need the "
+        "sonar positions: give --robot (a preset, robot YAML or ARIA .p file), or --range-topic "
+        "/scan to map the laser alone"
+    ]
+    assert not out.exists()
+    assert f1(folder, bag, "slam", "--range-topic", "/scan") >= 0.70
