@@ -9,7 +9,6 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -18,22 +17,23 @@ from gridmap_cli.errors import GridmapError, MapSizeError, NoDataError
 from gridmap_cli.mapping import expected
 from gridmap_cli.mapping.bands import add_sample, mean_in_place, sample_bands
 from gridmap_cli.mapping.grid import (
-    DEFAULT_CLAMP_P,
-    DEFAULT_MAX_CELLS,
     GridSpec,
     LogOddsAccumulator,
     OccupancyMap,
 )
 from gridmap_cli.mapping.models.fading import (
-    ErrorAwareParams,
     FadedRayModel,
     FadedSonarModel,
     FadeParams,
     PoseSpread,
     scan_steps,
 )
-from gridmap_cli.mapping.models.ray import RayModel, RayParams
-from gridmap_cli.mapping.models.standard import StandardSonarModel, StandardSonarParams
+from gridmap_cli.mapping.models.ray import RayModel
+from gridmap_cli.mapping.models.standard import StandardSonarModel
+from gridmap_cli.mapping.options import MAPPING_MODES as MAPPING_MODES
+from gridmap_cli.mapping.options import MAX_RESOLUTION_M as MAX_RESOLUTION_M
+from gridmap_cli.mapping.options import BuildOptions as BuildOptions
+from gridmap_cli.mapping.options import BuildResult as BuildResult
 from gridmap_cli.mapping.plan import BuildPlan as BuildPlan
 from gridmap_cli.mapping.plan import SensorModel as SensorModel
 from gridmap_cli.mapping.plan import split_by_kind
@@ -60,59 +60,6 @@ from gridmap_cli.poses.sync import (
 )
 from gridmap_cli.records import PoseTrack, RangeLog, cut_chunks, span_text
 from gridmap_cli.robot import RangeSensor, RobotDescription
-
-MAPPING_MODES = ("standard", "error-aware")
-#: The coarsest cell size build takes: a range sensor sees a few metres, so coarser cells map
-#: nothing (``--resolution 1e6`` used to give a 2 x 2 map without a word).
-MAX_RESOLUTION_M = 5.0
-
-
-@dataclass(frozen=True)
-class BuildOptions:
-    """How to build a map. Units: metres; see docs/sensor-model.md for the model's defaults."""
-
-    resolution_m: float = 0.05
-    mode: str = "standard"
-    sonar: StandardSonarParams = field(default_factory=StandardSonarParams)
-    ray: RayParams = field(default_factory=RayParams)
-    clamp_p: tuple[float, float] = DEFAULT_CLAMP_P
-    error_aware: ErrorAwareParams = field(default_factory=ErrorAwareParams)
-    odometry_error: OdometryError | None = None
-    margin_m: float = 0.2
-    max_cells: int = DEFAULT_MAX_CELLS
-    batch_size: int = 20_000
-    #: Error-aware mode: tracks sampled from the odometry-error model whose standard maps are
-    #: averaged (the expected map, :func:`expected_map`); 0 maps with the analytic model, the
-    #: standard models' evidence faded by the pose spread. 16 won on accuracy in every
-    #: measurement (docs/sensor-model.md); it costs about 1.2-1.5 standard builds.
-    error_samples: int = 16
-    #: Seed of the sampled tracks: the same seed, the same map.
-    error_seed: int = 0
-    #: Take the signed systematic errors of ``odometry_error`` (version 3) out of the track
-    #: before mapping, in either mode; the error-aware spread then has the random part alone
-    #: (:func:`corrected_for_build`).
-    correct_odometry: bool = False
-    #: Processes mapping the readings; the map does not depend on it
-    #: (:mod:`gridmap_cli.mapping.shards`).
-    jobs: int = 1
-    #: Error-aware mode: the pose graph's belief about the track (``--pose slam``), used instead
-    #: of the odometry-error model: its marginals fade the readings, its draws are the sampled
-    #: tracks. None: the covariance carried along the odometry by ``odometry_error``.
-    pose_belief: PoseBelief | None = None
-
-
-@dataclass(frozen=True)
-class BuildResult:
-    """The map and what went into it."""
-
-    map: OccupancyMap
-    sync: SyncStats
-    cell_updates: int
-
-    @property
-    def observed_cells(self) -> int:
-        return self.map.cell_counts(1.0, 0.0)[0]
-
 
 #: Log readings synchronised at a time, by build and by inspect: with the models' bounds kept and
 #: the readings let go, a chunk at a time, the synchronised readings never exist for the whole
