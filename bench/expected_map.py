@@ -27,7 +27,7 @@ from gridmap_cli.evaluation.evaluate import (
     odometry_frame_in_world,
     sensed_region,
 )
-from gridmap_cli.mapping import expected
+from gridmap_cli.mapping import expected_oracle
 from gridmap_cli.mapping.grid import OccupancyMap
 from gridmap_cli.mapping.pipeline import BuildOptions, build_map, corrected_for_build, plan_build
 from gridmap_cli.poses.odometry_error import load_odometry_error
@@ -108,7 +108,7 @@ def oracle(log: RangeLog, robot: RobotDescription, options: BuildOptions, k: int
     assert options.odometry_error is not None
     noise = StepNoise.of(options.odometry_error)
     tracks = sample_tracks(log.poses, noise, k, options.error_seed)
-    return expected.exact(plan, tracks, standard.clamp_p, standard.batch_size)
+    return expected_oracle.exact(plan, tracks, standard.clamp_p, standard.batch_size)
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli.mapping import expected
+from gridmap_cli.mapping import expected, expected_oracle
 from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
 from gridmap_cli.mapping.pipeline import BuildOptions, build_map, plan_build
 from gridmap_cli.poses.odometry_error import OdometryError
@@ -37,7 +37,7 @@ def oracle(
     if spec is not None:
         plan = dataclasses.replace(plan, spec=spec)
     tracks = sample_tracks(log.poses, StepNoise.of(odometry), k, seed)
-    return expected.exact(plan, tracks, options.clamp_p, options.batch_size)
+    return expected_oracle.exact(plan, tracks, options.clamp_p, options.batch_size)
 
 
 def fast(log: RangeLog, odometry: OdometryError, k: int) -> OccupancyMap:

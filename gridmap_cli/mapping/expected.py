@@ -26,8 +26,9 @@ one more standard build instead of K:
   averaged separately).
 
 Moved cones and rays go through compiled kernels (:func:`cast_sectors`, :func:`cast_rays`),
-each equal bit for bit to its numpy reference. :func:`exact` is the oracle: K full standard
-builds. Perfect odometry is the standard map to the bit (the caller checks).
+each equal bit for bit to its numpy reference. The oracle is
+:func:`~gridmap_cli.mapping.expected_oracle.exact`: K full standard builds. Perfect odometry
+is the standard map to the bit (the caller checks).
 """
 
 from __future__ import annotations
@@ -35,24 +36,24 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import TypeVar
 
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.mapping.grid import GridSpec, LogOddsAccumulator, OccupancyMap, logodds
+from gridmap_cli.mapping.grid import LogOddsAccumulator, OccupancyMap, logodds
+from gridmap_cli.mapping.levels import finer
+from gridmap_cli.mapping.levels import known_cells as known_cells
+from gridmap_cli.mapping.levels import level_spec as level_spec
+from gridmap_cli.mapping.levels import upsample as upsample
 from gridmap_cli.mapping.models.kernels import compiled
 from gridmap_cli.mapping.models.ray import RayModel, RaySegments, end_cells, row_runs
 from gridmap_cli.mapping.models.sector import rows_of_range
 from gridmap_cli.mapping.models.standard import SectorEvidence, StandardSonarModel
 from gridmap_cli.mapping.plan import BuildPlan
-from gridmap_cli.mapping.shards import accumulate_log_odds, batch_bounds
-from gridmap_cli.poses.odometry_error import travelled
+from gridmap_cli.mapping.shards import batch_bounds
 from gridmap_cli.poses.pose_uncertainty import PoseUncertainty, SampledOffsets
 from gridmap_cli.poses.sync import SensorReadings, select_readings
-from gridmap_cli.records import PoseTrack
 
-T = TypeVar("T", bound=np.generic)
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
 
@@ -110,23 +111,6 @@ class _Casts:
     owner: list[I64] = dataclasses.field(default_factory=list)
     sectors: list[Cones] = dataclasses.field(default_factory=list)
     rays: list[RaySegments] = dataclasses.field(default_factory=list)
-
-
-def level_spec(spec: GridSpec, level: int) -> GridSpec:
-    """The grid of cells ``2 ** level`` times the map's, sharing its origin and covering it."""
-    f = 1 << level
-    return GridSpec(
-        spec.origin_x_m, spec.origin_y_m, spec.resolution_m * f, -(-spec.width // f),
-        -(-spec.height // f),
-    )  # fmt: skip
-
-
-def upsample(values: npt.NDArray[T], spec: GridSpec, level: int) -> npt.NDArray[T]:
-    """A level's cells onto the map's: each map cell takes its coarse cell's value."""
-    if level == 0:
-        return values
-    f = 1 << level
-    return np.repeat(np.repeat(values, f, axis=0), f, axis=1)[: spec.height, : spec.width]
 
 
 def levels(
@@ -442,7 +426,7 @@ def average(
     """The mean over samples of each sample's map probabilities; returns it and the updates.
 
     Per sample, each level's log-odds are added into the next finer level's, coarsest first
-    (interpolated linearly, :func:`_finer`), so one pass of the map's size per sample takes
+    (interpolated linearly, :func:`finer`), so one pass of the map's size per sample takes
     them all; the probabilities are summed as
     ``tanh(l / 2)`` (``p = (1 + tanh(l / 2)) / 2``). Observation counts are kept over all
     samples: a cell is known when some sample's reading touched it."""
@@ -468,7 +452,7 @@ def average(
         summed: F64 | None = None
         for level in range(order[0] if order else -1, -1, -1):
             if summed is not None:
-                summed = _finer(summed, level_spec(spec, level))
+                summed = finer(summed, level_spec(spec, level))
             if level not in by_level:
                 continue
             grid = grids[level]
@@ -497,71 +481,3 @@ def average(
     total += 0.5
     total[~seen] = np.nan
     return OccupancyMap(spec, total), updates
-
-
-def known_cells(
-    spec: GridSpec, observed: dict[int, npt.NDArray[np.bool_]]
-) -> npt.NDArray[np.bool_]:
-    """The map's cells some sample's reading touched, from each level's cells some sample's
-    reading touched (level -1, cast once, is on the map's cells). A coarse level's
-    cells that were seen are spread onto the map's cells as its log-odds are (linearly,
-    :func:`_finer`), and a map cell counts as seen where that reaches a half: the edge of what
-    is known is drawn at the map's resolution, where copying the coarse cells drew it in blocks
-    of up to 16 cells (issue 19, the Intel lab), and it stays within a coarse cell of them."""
-    seen = np.zeros((spec.height, spec.width), dtype=bool)
-    for level, counts in observed.items():
-        if level <= 0:
-            seen |= counts
-            continue
-        share = counts.astype(np.float64)
-        for finer in range(level - 1, -1, -1):
-            share = _finer(share, level_spec(spec, finer))
-        seen |= share >= 0.5
-    return seen
-
-
-def _finer(values: F64, fine: GridSpec) -> F64:
-    """A level's log-odds onto the next finer level's cells, linear between the coarse cells'
-    centres (a finer cell's centre lies a quarter of a coarse cell from its coarse cell's
-    centre). Copying each coarse cell's value drew the coarse cells as blocks and scored
-    worse (docs/sensor-model.md)."""
-    out = _halves(_halves(values, 0), 1)
-    return out[: fine.height, : fine.width]
-
-
-def _halves(values: F64, axis: int) -> F64:
-    """Each cell along ``axis`` split in two, 3/4 of its own value and 1/4 of the neighbour's
-    on that side (its own at the grid's edge)."""
-    v = np.moveaxis(values, axis, 0)
-    out = np.empty((2 * v.shape[0], *v.shape[1:]))
-    quarter = 0.25 * v
-    for half, near, own in ((out[0::2], slice(None, -1), slice(1, None)),
-                            (out[1::2], slice(1, None), slice(None, -1))):  # fmt: skip
-        np.multiply(v, 0.75, out=half)
-        half[own] += quarter[near]  # the neighbour's quarter; at the edge its own
-        edge = 0 if own.start else -1
-        half[edge] += quarter[edge]
-    return np.moveaxis(out, 0, axis)
-
-
-def exact(
-    plan: BuildPlan,
-    tracks: list[PoseTrack],
-    clamp_p: tuple[float, float],
-    batch_size: int,
-) -> OccupancyMap:
-    """The oracle the fast map is measured against: the full standard build of every track in
-    ``tracks`` (synchronised again, on the map's cells), probabilities averaged. ``plan``'s
-    models must map every reading (no heading-spread cut)."""
-    shape = (plan.spec.height, plan.spec.width)
-    total, seen = np.zeros(shape), np.zeros(shape, dtype=bool)
-    for track in tracks:
-        moved = dataclasses.replace(plan.log, poses=track)
-        part = dataclasses.replace(plan, log=moved, travelled=travelled(track))
-        grid = LogOddsAccumulator(plan.spec)
-        accumulate_log_odds(part, grid, batch_size, 1)
-        prob = grid.occupancy_map(clamp_p).prob
-        known = ~np.isnan(prob)
-        seen |= known
-        total += np.where(known, prob, 0.5)
-    return OccupancyMap(plan.spec, np.where(seen, total / len(tracks), np.nan))
