@@ -213,6 +213,27 @@ def test_the_variance_factors_recover_the_true_noise_scale(true_scale: float) ->
     assert graph.edges[0].sigma_xy_m == 0.05  # the graph itself is left as it was
 
 
+def test_an_edge_loose_along_a_corridor_is_checked_and_scaled_as_the_optimiser_weighs_it() -> None:
+    """The variance budget whitens each edge by its own covariance, looser along a corridor
+    (:meth:`Edge.covariance`), and the calibration scales that looseness with the rest."""
+    graph = _twice_round(1.0)
+    poses = graph.optimise()
+    loose = dataclasses.replace(
+        graph,
+        edges=[dataclasses.replace(e, weak_sigma_m=0.0 if e.closure else 0.5,
+                                   weak_axis=(1.0, 0.0)) for e in graph.edges],
+    )  # fmt: skip
+    tight, wide = graph.residual_budget(poses), loose.residual_budget(poses)
+    # along the corridor the chain's residuals count for less (the hand-set sigma alone: the
+    # same budget as the tight graph)
+    assert wide[0, 0] < 0.9 * tight[0, 0]
+    assert wide[1] == pytest.approx(tight[1], rel=0.05)  # rotation: the same noise
+    calibrated, (xy, _) = calibrated_graph(loose, poses)
+    chain = calibrated.edges[0]
+    assert chain.weak_sigma_m == pytest.approx(0.5 * xy)
+    assert chain.sigma_xy_m == pytest.approx(graph.edges[0].sigma_xy_m * xy)
+
+
 def test_a_graph_without_a_loop_keeps_its_hand_set_noise() -> None:
     graph = _drifting_graph(_square())
     calibrated, scale = calibrated_graph(graph, graph.optimise())

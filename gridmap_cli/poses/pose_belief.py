@@ -102,7 +102,10 @@ def calibrated_graph(graph: PoseGraph, poses: F64) -> tuple[PoseGraph, tuple[flo
 def _scaled(graph: PoseGraph, xy: float, theta: float) -> PoseGraph:
     edges = [
         dataclasses.replace(
-            e, sigma_xy_m=e.sigma_xy_m * xy, sigma_theta_rad=e.sigma_theta_rad * theta
+            e,
+            sigma_xy_m=e.sigma_xy_m * xy,
+            sigma_theta_rad=e.sigma_theta_rad * theta,
+            weak_sigma_m=e.weak_sigma_m * xy,
         )
         for e in graph.edges
     ]
@@ -247,7 +250,9 @@ def slam_belief(
     scale = (1.0, 1.0)
     if calibrate:
         graph, scale = calibrated_graph(graph, poses)
-    own = graph.marginals(poses)
+    # the hand-set graph's marginals, when the SLAM run already computed them
+    kept = None if calibrate else result.covariance
+    own = kept if kept is not None else graph.marginals(poses)
     cov = to_map_frame(own, poses[:, 2])
     j = frame_rotations(poses[:, 2])
     jt = np.transpose(j, (0, 2, 1))

@@ -64,13 +64,14 @@ class PoseGraph:
         graph.add(gtsam.PriorFactorPose2(0, gtsam.Pose2(*self.initial[0]), prior))
         kernel = gtsam.noiseModel.mEstimator.Cauchy.Create(cauchy_k or self.cauchy_k)
         for e in self.edges:
-            sigmas = np.array([e.sigma_xy_m, e.sigma_xy_m, e.sigma_theta_rad])
-            diagonal = (
+            gaussian = (
                 gtsam.noiseModel.Gaussian.Covariance(e.covariance())
                 if e.weak_sigma_m > 0
-                else gtsam.noiseModel.Diagonal.Sigmas(sigmas)
+                else gtsam.noiseModel.Diagonal.Sigmas(
+                    np.array([e.sigma_xy_m, e.sigma_xy_m, e.sigma_theta_rad])
+                )
             )
-            noise = gtsam.noiseModel.Robust.Create(kernel, diagonal) if e.closure else diagonal
+            noise = gtsam.noiseModel.Robust.Create(kernel, gaussian) if e.closure else gaussian
             rel = gtsam.Pose2(e.dx_m, e.dy_m, e.dtheta_rad)
             graph.add(gtsam.BetweenFactorPose2(e.i, e.j, rel, noise))
         return graph
@@ -123,21 +124,28 @@ class PoseGraph:
         for e in self.edges:
             est = pose2[e.i].between(pose2[e.j])
             r = gtsam.Pose2.Logmap(gtsam.Pose2(e.dx_m, e.dy_m, e.dtheta_rad).between(est))
-            info = np.array([e.sigma_xy_m, e.sigma_xy_m, e.sigma_theta_rad]) ** -2.0
+            # the edge's own information, looser along a corridor (:meth:`Edge.covariance`),
+            # as the optimiser weighs it; x, y and theta do not mix in it
+            info = np.linalg.inv(e.covariance())
             weight = 1.0
             if e.closure:  # Cauchy: w = 1 / (1 + |r|^2 / k^2) on the whitened residual
-                weight = 1.0 / (1.0 + float(info @ (r * r)) / self.cauchy_k**2)
+                weight = 1.0 / (1.0 + float(r @ info @ r) / self.cauchy_k**2)
             keys = gtsam.KeyVector([e.i, e.j])
             joint = marginals.jointMarginalCovariance(keys)
             c = np.block(
                 [[joint.at(e.i, e.i), joint.at(e.i, e.j)], [joint.at(e.j, e.i), joint.at(e.j, e.j)]]
             )
             jac = np.hstack([-est.inverse().AdjointMap(), np.eye(3)])
-            predicted = np.diag(jac @ c @ jac.T)
-            chi = weight * info * r * r
-            red = 1.0 - weight * info * predicted
-            out[0] += (chi[0] + chi[1], red[0] + red[1])
-            out[1] += (chi[2], red[2])
+            predicted = jac @ c @ jac.T
+            t_info, t_r = info[:2, :2], r[:2]
+            out[0] += (
+                weight * float(t_r @ t_info @ t_r),
+                2.0 - weight * float(np.trace(t_info @ predicted[:2, :2])),
+            )
+            out[1] += (
+                weight * info[2, 2] * r[2] ** 2,
+                1.0 - weight * info[2, 2] * predicted[2, 2],
+            )
         return out
 
     def sample(self, poses: FloatArray, count: int, seed: int = 0) -> FloatArray:
