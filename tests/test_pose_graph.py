@@ -177,11 +177,11 @@ def test_the_correlative_search_finds_nothing_where_nothing_matches() -> None:
     assert found is None
 
 
-def test_the_closure_search_hands_the_heap_back_every_few_grids(
+def test_the_closure_search_hands_the_heap_back_at_every_grid_let_go(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     from gridmap_cli.poses import loop_closure
-    from gridmap_cli.poses.loop_closure import TRIM_EVERY_GRIDS, ClosureParams, Submaps
+    from gridmap_cli.poses.loop_closure import ClosureParams, Submaps
 
     calls: list[int] = []
     monkeypatch.setattr(loop_closure, "release_free_memory", lambda: calls.append(1) or True)
@@ -190,7 +190,7 @@ def test_the_closure_search_hands_the_heap_back_every_few_grids(
     points = [rng.uniform(-3.0, 3.0, (200, 2)) for _ in range(n)]
     local = np.column_stack([np.arange(n) * 0.5, np.zeros(n), np.zeros(n)])
     submaps = Submaps(points, local, np.arange(n), ClosureParams())
-    for node in range(8 + 3 * TRIM_EVERY_GRIDS):  # 8 kept, then one let go per new grid
+    for node in range(8 + 3):  # 8 kept, then one let go per new grid
         submaps.grid(node)
     assert len(calls) == 3
     submaps.grid(node)  # a kept grid: nothing let go, nothing handed back

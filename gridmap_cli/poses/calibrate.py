@@ -383,11 +383,7 @@ def checked(cal: Calibration, odometry: PoseTrack, truth: PoseTrack) -> Calibrat
     m = cal.model
     walks = (m.range_m_per_sqrt_m, m.bearing_rad_per_sqrt_rad, m.heading_rad_per_sqrt_m)
     se = cal.walk_variance_se
-    weak = (
-        _weak(walks[0], se[0]),
-        _weak(walks[1], se[1]),
-        _weak(walks[2], se[2]),
-    )
+    weak = (_weak(walks[0], se[0]), _weak(walks[1], se[1]), _weak(walks[2], se[2]))
     if not any(weak):
         return out
     along, turn, per_m = (q * factor if w else q for q, w in zip(walks, weak, strict=True))

@@ -33,13 +33,6 @@ FloatArray = npt.NDArray[np.float64]
 TURN_M = 1.0
 #: Submaps kept built (the most recently used): each holds about a megabyte.
 CACHED_SUBMAPS = 60
-#: Likelihood grids let go between two hand-backs of the C heap's free pages: the searches'
-#: grids (several MB each) and temporaries, freed between live blocks, stayed resident, and
-#: Freiburg 079's closure search grew the process by some 340 MB of them. `build --pose slam`
-#: there (farm-bench, 3 pairs, median): peak 826 -> 490 MiB handing back at every grid let
-#: go, for about 6 % more CPU (system time 1.2 -> 3.5 s); at every 4th, 824 -> 578 MiB and
-#: 5 %. The maps are the same bytes.
-TRIM_EVERY_GRIDS = 1
 
 
 @dataclass(frozen=True)
@@ -156,7 +149,6 @@ class Submaps:
         turns = np.abs(wrap_angle(np.diff(local[:, 2])))
         self.travel = np.concatenate([[0.0], np.cumsum(steps + TURN_M * turns)])
         self._grids: OrderedDict[int, LikelihoodGrid] = OrderedDict()
-        self._evicted = 0
         self.coarse_runs = 0
 
     def grid(self, node: int) -> LikelihoodGrid:
@@ -175,9 +167,12 @@ class Submaps:
         self._grids[node] = grid
         if len(self._grids) > 8:
             self._grids.popitem(last=False)
-            self._evicted += 1
-            if self._evicted % TRIM_EVERY_GRIDS == 0:
-                release_free_memory()
+            # the searches' grids (several MB each) and temporaries, freed between live blocks,
+            # stayed resident: Freiburg 079's closure search grew the process by some 340 MB.
+            # Handing the C heap's free pages back at every grid let go (farm-bench, 3 pairs,
+            # median): peak 826 -> 490 MiB for about 6 % more CPU; at every 4th, 578 MiB for
+            # 5 %. The maps are the same bytes.
+            release_free_memory()
         return grid
 
     def sample(self, node: int) -> FloatArray:

@@ -338,7 +338,6 @@ def _match_pass(
             )
             if axis is not None:
                 scale.kept(abs(float(axis @ (poses[k, :2] - poses[k - 1, :2]))))
-            if axis is not None:
                 weak[k] = axis
             elif (
                 status[k] == MATCHED
