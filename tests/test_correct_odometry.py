@@ -107,7 +107,8 @@ def test_error_aware_corrects_known_biases_by_default_and_says_so(tmp_path: Path
 
 def test_the_default_corrects_nothing_it_cannot(tmp_path: Path) -> None:
     """Standard mode, a reference track and a file without signed biases: no correction by
-    default, and no error for the flag not given."""
+    default, and no error for the flag not given (the explicit flag is refused where it cannot
+    apply)."""
     v1 = tmp_path / "v1.yaml"
     v1.write_text("gridmap-odometry-error: 1\nrange_m_per_m: 0.02\n")
     log = str(SAMPLES / "corridor_loop.csv")
@@ -116,6 +117,23 @@ def test_the_default_corrects_nothing_it_cannot(tmp_path: Path) -> None:
     assert old == built(tmp_path, "v1-no", log, *ea, "--odometry-error", str(v1),
                         "--no-correct-odometry")  # fmt: skip
     assert built(tmp_path, "std", log) == built(tmp_path, "std-no", log, "--no-correct-odometry")
+    v3 = tmp_path / "v3.yaml"
+    v3.write_text(
+        "gridmap-odometry-error: 3\ndistance_scale_bias: 0.05\nrange_m_per_sqrt_m: 0.01\n"
+    )
+    # a reference track has no odometry to correct: no error for the flag not given (it is
+    # one when given), and the same map as --no-correct-odometry
+    ref = ("--pose", "global", *ea, "--odometry-error", str(v3))
+    assert built(tmp_path, "ref", log, *ref) == built(tmp_path, "ref-no", log, *ref,
+                                                      "--no-correct-odometry")  # fmt: skip
+    out = tmp_path / "refused"
+    out.mkdir()
+    code, _, err = run("build", log, "-o", str(out / "m.png"), *ref, "--correct-odometry")
+    assert code == 2 and "--correct-odometry corrects the robot's own odometry" in err
+    # standard mode stays drift-blind: it does not take the file unless told to correct
+    code, _, err = run("build", log, "-o", str(out / "m.png"), "--odometry-error", str(v3))
+    assert code == 2 and "apply to --mode error-aware" in err
+    assert names(out) == set()
 
 
 @pytest.mark.parametrize("mode", [(), ("--mode", "error-aware")])
