@@ -22,10 +22,10 @@ import numpy as np
 
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.mapping.selection import Selection, apply_selection
-from gridmap_cli.poses.calibrate import Calibration, calibrate_tracks
+from gridmap_cli.poses.calibration.calibrate import Calibration, calibrate_tracks
+from gridmap_cli.poses.calibration.windows import truth_at_odometry
 from gridmap_cli.poses.odometry_error import OdometryError, correct_track, travelled
-from gridmap_cli.poses.pose_uncertainty import StepNoise, propagate
-from gridmap_cli.poses.windows import truth_at_odometry
+from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise, propagate
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import robot_from_log

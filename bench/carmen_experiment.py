@@ -46,6 +46,7 @@ from gridmap_cli.evaluation.evaluate import (
     sensed_region,
 )
 from gridmap_cli.mapping.selection import Selection, apply_selection
+from gridmap_cli.poses.calibration.windows import truth_at_odometry
 from gridmap_cli.poses.odometry_error import (
     FORMAT_KEY,
     FORMAT_VERSION,
@@ -53,7 +54,6 @@ from gridmap_cli.poses.odometry_error import (
     load_odometry_error,
 )
 from gridmap_cli.poses.sync import sensors_for_log
-from gridmap_cli.poses.windows import truth_at_odometry
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import robot_from_log

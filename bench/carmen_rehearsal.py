@@ -55,14 +55,14 @@ from gridmap_cli.evaluation.evaluate import (
     sensed_region,
 )
 from gridmap_cli.mapping.selection import Selection, apply_selection
+from gridmap_cli.poses.calibration.windows import truth_at_odometry
 from gridmap_cli.poses.odometry_error import (
     correct_track,
     load_odometry_error,
     save_odometry_error,
 )
-from gridmap_cli.poses.pose_uncertainty import StepNoise, propagate
 from gridmap_cli.poses.sync import sensors_for_log
-from gridmap_cli.poses.windows import truth_at_odometry
+from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise, propagate
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import robot_from_log

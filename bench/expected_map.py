@@ -31,8 +31,8 @@ from gridmap_cli.mapping import expected_oracle
 from gridmap_cli.mapping.grid import OccupancyMap
 from gridmap_cli.mapping.pipeline import BuildOptions, build_map, corrected_for_build, plan_build
 from gridmap_cli.poses.odometry_error import load_odometry_error
-from gridmap_cli.poses.pose_uncertainty import StepNoise, sample_tracks
 from gridmap_cli.poses.sync import sensors_for_log
+from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise, sample_tracks
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RobotDescription, load_robot

@@ -18,8 +18,8 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.geometry import wrap_angle
-from gridmap_cli.poses.pose_graph import PoseGraph
-from gridmap_cli.poses.slam import slam_corrected_log
+from gridmap_cli.poses.correction.pose_graph import PoseGraph
+from gridmap_cli.poses.correction.slam import slam_corrected_log
 from gridmap_cli.readers import read_log
 
 INTEL = Path(__file__).resolve().parents[2] / "shared/data/carmen/intel-corrected.log.gz"

@@ -37,7 +37,7 @@ from scipy import ndimage
 from gridmap_cli.evaluation.evaluate import NLL_CLIP, ProbabilityMap, map_in_world
 from gridmap_cli.mapping.grid import OccupancyMap
 from gridmap_cli.mapping.pipeline import BuildOptions, build_map
-from gridmap_cli.poses.scan_match import ScanMatch, corrected_track, match_log
+from gridmap_cli.poses.correction.scan_match import ScanMatch, corrected_track, match_log
 from gridmap_cli.poses.sync import interpolate_pose
 from gridmap_cli.poses.track_error import TrackError, track_error
 from gridmap_cli.readers import read_logs
@@ -201,7 +201,7 @@ COEFFICIENTS = (
 def residual_drift(results: list[LogResult]) -> list[str]:
     """``gridmap calibrate --pose scan-matched``'s coefficients per log, and the largest of each
     (the documented default when no reference exists)."""
-    from gridmap_cli.poses.calibrate import calibrate
+    from gridmap_cli.poses.calibration.calibrate import calibrate
 
     lines = ["| log | " + " | ".join(COEFFICIENTS) + " |", "|---" * (len(COEFFICIENTS) + 1) + "|"]
     values = []

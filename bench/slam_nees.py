@@ -6,7 +6,7 @@ relation (``../shared/data/slam-benchmark``), compares the estimated relative po
 covariance the graph predicts for it (:mod:`gridmap_cli.evaluation.relation_nees`): NEES, whose
 median is 2.37 when the covariances are right. It does so twice: with the graph's hand-set
 edge noise (what ``gridmap trajectory`` writes) and with the noise calibrated on the graph's
-own residuals (what the error-aware map samples, :func:`~gridmap_cli.poses.pose_belief.
+own residuals (what the error-aware map samples, :func:`~gridmap_cli.poses.uncertainty.pose_belief.
 calibrated_graph`).
 
 A relation's ends rarely fall on a kept scan (these logs keep a scan every 0.2-3 s, the
@@ -43,11 +43,11 @@ from gridmap_cli.evaluation.relation_nees import (
     relative_covariance,
 )
 from gridmap_cli.evaluation.relations import Relations, read_relations
-from gridmap_cli.poses.pose_belief import calibrated_graph
-from gridmap_cli.poses.pose_graph import PoseGraph
-from gridmap_cli.poses.scan_match import FALLBACK
-from gridmap_cli.poses.slam import SlamParams, SlamResult, slam_log
+from gridmap_cli.poses.correction.pose_graph import PoseGraph
+from gridmap_cli.poses.correction.scan_match import FALLBACK
+from gridmap_cli.poses.correction.slam import SlamParams, SlamResult, slam_log
 from gridmap_cli.poses.sync import interpolate_pose
+from gridmap_cli.poses.uncertainty.pose_belief import calibrated_graph
 from gridmap_cli.readers import read_logs
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import PoseTrack

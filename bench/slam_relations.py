@@ -24,8 +24,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gridmap_cli.evaluation.relations import RelationScore, read_relations, score_track
-from gridmap_cli.poses.scan_match import corrected_track, match_log
-from gridmap_cli.poses.slam import slam_log
+from gridmap_cli.poses.correction.scan_match import corrected_track, match_log
+from gridmap_cli.poses.correction.slam import slam_log
 from gridmap_cli.readers import read_logs
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import robot_from_log
@@ -70,7 +70,8 @@ def run_log(name: str) -> LogScores:
     robot = robot_from_log(path, data.metadata)
     result = slam_log(data, robot)
     seconds = time.perf_counter() - started
-    # --pose scan-matched's own matcher (slam's runs with its own settings, poses/slam.py)
+    # --pose scan-matched's own matcher (slam's runs with its own settings,
+    # poses/correction/slam.py)
     open_loop = match_log(data, robot)
     # the corrected tracks at every odometry stamp, as `gridmap trajectory --relations` scores
     tracks = {

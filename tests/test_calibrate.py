@@ -12,7 +12,7 @@ import pytest
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.mapping.mapfile import load_map
-from gridmap_cli.poses.calibrate import CalibrationError, calibrate
+from gridmap_cli.poses.calibration.calibrate import CalibrationError, calibrate
 from gridmap_cli.poses.odometry_error import (
     VERSION_2_KEYS,
     VERSION_3_KEYS,
@@ -322,8 +322,8 @@ def test_jumps_of_the_reference_are_left_out_not_fitted() -> None:
 def test_the_cli_table_names_the_fit_it_reports() -> None:
     # cli/calibrate.py keeps copies of these so that --help need not import scipy
     from gridmap_cli.cli import calibrate as cli_calibrate
-    from gridmap_cli.poses import calibrate as poses_calibrate
-    from gridmap_cli.poses import robust_fit
+    from gridmap_cli.poses.calibration import calibrate as poses_calibrate
+    from gridmap_cli.poses.calibration import robust_fit
 
     assert cli_calibrate.JITTER_LADDER == poses_calibrate.JITTER_LADDER
     assert cli_calibrate.OUTLIER_SIGMA == robust_fit.OUTLIER_SIGMA

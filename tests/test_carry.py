@@ -1,4 +1,4 @@
-"""Carrying anchor corrections along a denser track (gridmap_cli/poses/carry.py)."""
+"""Carrying anchor corrections along a denser track (gridmap_cli/poses/correction/carry.py)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from gridmap_cli.geometry import compose, wrap_angle
-from gridmap_cli.poses.carry import carry
+from gridmap_cli.poses.correction.carry import carry
 
 
 def _line(n: int, far_m: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

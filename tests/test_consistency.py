@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli.poses.calibrate import calibrate_tracks, checked
-from gridmap_cli.poses.consistency import SegmentCovariance, consistency
+from gridmap_cli.poses.calibration.calibrate import calibrate_tracks, checked
+from gridmap_cli.poses.calibration.consistency import SegmentCovariance, consistency
+from gridmap_cli.poses.calibration.windows import truth_at_odometry
 from gridmap_cli.poses.odometry_error import correct_track
-from gridmap_cli.poses.pose_uncertainty import StepNoise, key_steps, propagate
-from gridmap_cli.poses.windows import truth_at_odometry
+from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise, key_steps, propagate
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import PoseTrack
 

@@ -9,7 +9,7 @@ import pytest
 
 from gridmap_cli.evaluation.evaluate import odometry_frame_in_world
 from gridmap_cli.mapping.mapfile import load_map
-from gridmap_cli.poses.calibrate import calibrate
+from gridmap_cli.poses.calibration.calibrate import calibrate
 from gridmap_cli.poses.odometry_error import correct_track, save_odometry_error
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import load_robot

@@ -1,5 +1,5 @@
-"""poses/degeneracy.py: the weak axis of a match, keeping the odometry along it, the odometry's
-distance scale, and how far a stretch of track went along weak axes."""
+"""poses/correction/degeneracy.py: the weak axis of a match, keeping the odometry along it, the
+odometry's distance scale, and how far a stretch of track went along weak axes."""
 
 from __future__ import annotations
 
@@ -10,7 +10,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from gridmap_cli.poses.degeneracy import DistanceScale, keep_across, weak_axis, weak_stretch
+from gridmap_cli.poses.correction.degeneracy import (
+    DistanceScale,
+    keep_across,
+    weak_axis,
+    weak_stretch,
+)
 
 
 def corridor_hessian(along_robot_rad: float) -> np.ndarray:

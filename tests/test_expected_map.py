@@ -13,7 +13,7 @@ from gridmap_cli.mapping import expected, expected_oracle
 from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
 from gridmap_cli.mapping.pipeline import BuildOptions, build_map, plan_build
 from gridmap_cli.poses.odometry_error import OdometryError
-from gridmap_cli.poses.pose_uncertainty import StepNoise, sample_tracks
+from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise, sample_tracks
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import load_robot

@@ -1,5 +1,5 @@
-"""The pose graph's belief (gridmap_cli/poses/pose_belief.py): marginals in the map frame, the
-shape covariance with the rigid motion taken out, and joint draws that keep both."""
+"""The pose graph's belief (gridmap_cli/poses/uncertainty/pose_belief.py): marginals in the map
+frame, the shape covariance with the rigid motion taken out, and joint draws that keep both."""
 
 from __future__ import annotations
 
@@ -13,7 +13,8 @@ import pytest
 
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.pipeline import BuildOptions, _mean_map, build_map, plan_build
-from gridmap_cli.poses.pose_belief import (
+from gridmap_cli.poses.correction.pose_graph import Edge, PoseGraph
+from gridmap_cli.poses.uncertainty.pose_belief import (
     PoseBelief,
     align_draws,
     calibrated_graph,
@@ -21,7 +22,6 @@ from gridmap_cli.poses.pose_belief import (
     slam_belief,
     to_map_frame,
 )
-from gridmap_cli.poses.pose_graph import Edge, PoseGraph
 from gridmap_cli.readers import read_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import load_robot

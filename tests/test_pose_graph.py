@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from gridmap_cli.poses.correlative import LikelihoodGrid, search
-from gridmap_cli.poses.loop_closure import ClosureParams, candidates
-from gridmap_cli.poses.pose_graph import Edge, PoseGraph, edge_residuals
-from gridmap_cli.poses.slam import SlamParams, keyframes
+from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
+from gridmap_cli.poses.correction.loop_closure import ClosureParams, candidates
+from gridmap_cli.poses.correction.pose_graph import Edge, PoseGraph, edge_residuals
+from gridmap_cli.poses.correction.slam import SlamParams, keyframes
 
 
 def _square(n_side: int = 10, side_m: float = 10.0) -> np.ndarray:
@@ -180,8 +180,8 @@ def test_the_correlative_search_finds_nothing_where_nothing_matches() -> None:
 def test_the_closure_search_hands_the_heap_back_at_every_grid_let_go(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    from gridmap_cli.poses import loop_closure
-    from gridmap_cli.poses.loop_closure import ClosureParams, Submaps
+    from gridmap_cli.poses.correction import loop_closure
+    from gridmap_cli.poses.correction.loop_closure import ClosureParams, Submaps
 
     calls: list[int] = []
     monkeypatch.setattr(loop_closure, "release_free_memory", lambda: calls.append(1) or True)

@@ -8,7 +8,7 @@ import numpy as np
 
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.poses.odometry_error import OdometryError
-from gridmap_cli.poses.pose_uncertainty import (
+from gridmap_cli.poses.uncertainty.pose_uncertainty import (
     StepNoise,
     key_steps,
     project,

@@ -12,8 +12,7 @@ import numpy.typing as npt
 import pytest
 
 from gridmap_cli.mapping.grid import GridSpec
-from gridmap_cli.poses.odometry_error import travelled
-from gridmap_cli.poses.scan_match import (
+from gridmap_cli.poses.correction.scan_match import (
     FALLBACK,
     FIRST,
     NoLaserError,
@@ -25,6 +24,7 @@ from gridmap_cli.poses.scan_match import (
     match_scans,
     scan_matched_log,
 )
+from gridmap_cli.poses.odometry_error import travelled
 from gridmap_cli.poses.sync import interpolate_pose
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RobotDescription, load_robot

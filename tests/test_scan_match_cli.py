@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli.poses.scan_match import match_log
+from gridmap_cli.poses.correction.scan_match import match_log
 from gridmap_cli.readers import read_logs
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.writers.csv_log import save_csv_log

@@ -37,7 +37,7 @@ def test_a_simulated_loop_gives_a_slam_track_and_its_counts(tmp_path: Path) -> N
 
 
 def test_a_track_bent_far_beyond_its_noise_is_warned_about() -> None:
-    from gridmap_cli.poses.slam import slam_log
+    from gridmap_cli.poses.correction.slam import slam_log
     from gridmap_cli.robot import load_robot
 
     log = simulate_run(room_world(), [[2, 1.5], [10, 1.5], [10, 6.5], [2, 6.5], [2, 1.5]],
@@ -52,8 +52,8 @@ def test_a_track_bent_far_beyond_its_noise_is_warned_about() -> None:
 @pytest.mark.skipif(not (DATA / "slam-benchmark").is_dir(), reason="../shared/data is not present")
 def test_aces_slam_beats_scan_matching_on_the_benchmark() -> None:
     from gridmap_cli.evaluation.relations import read_relations, score_track
-    from gridmap_cli.poses.scan_match import corrected_track
-    from gridmap_cli.poses.slam import slam_log
+    from gridmap_cli.poses.correction.scan_match import corrected_track
+    from gridmap_cli.poses.correction.slam import slam_log
     from gridmap_cli.readers import read_logs
     from gridmap_cli.readers.options import ReadOptions
     from gridmap_cli.robot import robot_from_log

@@ -10,8 +10,19 @@ import math
 import numpy as np
 import pytest
 
-from gridmap_cli.poses.scan_match import DEGENERATE, ScanMatchParams, laser_scans, match_log
-from gridmap_cli.poses.slam import SlamParams, SlamResult, _bend_sigma, sequential_edges, slam_scans
+from gridmap_cli.poses.correction.scan_match import (
+    DEGENERATE,
+    ScanMatchParams,
+    laser_scans,
+    match_log,
+)
+from gridmap_cli.poses.correction.slam import (
+    SlamParams,
+    SlamResult,
+    _bend_sigma,
+    sequential_edges,
+    slam_scans,
+)
 from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
 from gridmap_cli.poses.track_error import track_error
 from gridmap_cli.records import PoseTrack, RangeLog

@@ -11,8 +11,8 @@ import pytest
 from gridmap_cli.evaluation.spread_map import pose_spread_map, reading_spreads
 from gridmap_cli.mapping.grid import GridSpec
 from gridmap_cli.poses.odometry_error import OdometryError, save_odometry_error
-from gridmap_cli.poses.pose_uncertainty import PoseUncertainty, StepNoise, propagate
 from gridmap_cli.poses.sync import SensorReadings, select_readings, synchronise
+from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty, StepNoise, propagate
 from gridmap_cli.readers import read_log
 from gridmap_cli.robot import RangeSensor, robot_from_log
 from tests.helpers import run

@@ -44,7 +44,7 @@ def test_a_csv_build_imports_no_decoder_plotting_or_scipy(tmp_path: Path) -> Non
     # nor what only batch runs, scan matching or --draw-path use, nor numpy.ma (np.unique
     # loads it); the compiled kernels are there
     assert not modules & {
-        "gridmap_cli.runs.batch", "gridmap_cli.poses.scan_match",
+        "gridmap_cli.runs.batch", "gridmap_cli.poses.correction.scan_match",
         "gridmap_cli.writers.preview", "numpy.ma",
     }  # fmt: skip
     assert "gridmap_cli.mapping.models._ckernels" in modules

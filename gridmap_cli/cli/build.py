@@ -53,8 +53,8 @@ from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, check_map_outputs, write_map
 
 if TYPE_CHECKING:
-    from gridmap_cli.poses.pose_belief import PoseBelief
-    from gridmap_cli.poses.scan_match import ScanMatch
+    from gridmap_cli.poses.correction.scan_match import ScanMatch
+    from gridmap_cli.poses.uncertainty.pose_belief import PoseBelief
     from gridmap_cli.writers.preview import DrawnTrack
 
 #: --pose values whose track the laser makes: the readings are held, and --fuse refuses them
@@ -235,18 +235,20 @@ def build(
     slam_summary: dict[str, object] | None = None
     belief: PoseBelief | None = None
     if pose == "scan-matched":
-        from gridmap_cli.poses.scan_match import scan_matched_log  # scipy, small_gicp: only here
+        from gridmap_cli.poses.correction.scan_match import (
+            scan_matched_log,
+        )  # scipy, small_gicp: only here
 
         with StageBars(quiet) as bars:
             data, match = scan_matched_log(data, robot_desc, progress=bars)
     elif pose == "slam":
-        from gridmap_cli.poses.slam import slam_corrected_log  # gtsam: only here
+        from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
 
         with StageBars(quiet) as bars:
             data, slam = slam_corrected_log(data, robot_desc, progress=bars)
         slam_summary = slam.summary()
         if mode == "error-aware":  # the graph's marginals and draws, not the odometry's
-            from gridmap_cli.poses.pose_belief import slam_belief
+            from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
 
             belief = slam_belief(slam, settings.error_samples, settings.error_seed)
             slam_summary["belief_noise_scale"] = [round(f, 3) for f in belief.scale]

@@ -29,7 +29,7 @@ from gridmap_cli.writers import check_output
 
 if TYPE_CHECKING:
     # scipy.ndimage (0.3 s) comes with it: imported when the command runs
-    from gridmap_cli.poses.calibrate import Calibration
+    from gridmap_cli.poses.calibration.calibrate import Calibration
     from gridmap_cli.robot import RangeSensor, RobotDescription
 
 #: calibrate.JITTER_LADDER and robust_fit.OUTLIER_SIGMA, kept here so that --help stays fast
@@ -125,7 +125,7 @@ def calibrate(
     laser's correction of the odometry. Odometry and reference are compared over windows of
     travel of several lengths; see docs/odometry-error.md.
     """
-    from gridmap_cli.poses.calibrate import calibrate as calibrate_log
+    from gridmap_cli.poses.calibration.calibrate import calibrate as calibrate_log
     from gridmap_cli.poses.odometry_error import save_odometry_error
 
     if not (window_m > 0.0 and math.isfinite(window_m)):
@@ -209,14 +209,14 @@ def _no_reference(path: Path, data: RangeLog, robot: str | None) -> None:
 
 def _own_reference(path: Path, data: RangeLog, robot: str | None, reference: str) -> RangeLog:
     """The log with its reference replaced by gridmap's own correction of its odometry."""
-    from gridmap_cli.poses.scan_match import NoLaserError, scan_matched_log
+    from gridmap_cli.poses.correction.scan_match import NoLaserError, scan_matched_log
 
     description = _robot(path, data, robot)
     try:
         if reference == "scan-matched":
             corrected, _ = scan_matched_log(data, description)
         else:
-            from gridmap_cli.poses.slam import slam_corrected_log  # gtsam: only here
+            from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
 
             corrected, _ = slam_corrected_log(data, description)
     except NoLaserError as exc:
@@ -233,7 +233,7 @@ def _corrected(path: Path, data: RangeLog, robot: str | None, quiet: bool, pose:
     """The log with its odometry replaced by the scan-matched track (one pose per scan) or the
     pose graph's (``pose`` "slam"), the track whose residual drift against the reference is
     then calibrated."""
-    from gridmap_cli.poses.scan_match import match_log
+    from gridmap_cli.poses.correction.scan_match import match_log
     from gridmap_cli.robot import load_robot, robot_from_log
 
     description = load_robot(robot) if robot else robot_from_log(path, data.metadata)
@@ -241,7 +241,7 @@ def _corrected(path: Path, data: RangeLog, robot: str | None, quiet: bool, pose:
         if pose == "scan-matched":
             track = match_log(data, description, progress=bars).track
         else:
-            from gridmap_cli.poses.slam import slam_corrected_log  # gtsam: only here
+            from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
 
             track = slam_corrected_log(data, description, progress=bars)[0].poses
     return dataclasses.replace(data, poses=track)
@@ -337,7 +337,7 @@ def _check_lines(c: Calibration) -> list[str]:
     """The check of the random walks on the positions, at a map's lengths."""
     if not math.isfinite(c.consistency):
         return []
-    from gridmap_cli.poses.calibrate import WALK_KEYS
+    from gridmap_cli.poses.calibration.calibrate import WALK_KEYS
 
     cut = [n for n, w in zip(WALK_KEYS, c.walk_checked, strict=True) if w]
     return [

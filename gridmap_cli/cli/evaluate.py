@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     # scipy.ndimage (0.3 s) comes with it: imported when the command runs
     from gridmap_cli.evaluation.evaluate import Evaluation, ProbabilityMap
     from gridmap_cli.mapping.grid import GridSpec
-    from gridmap_cli.poses.pose_uncertainty import PoseUncertainty
+    from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty
     from gridmap_cli.records import RangeLog
     from gridmap_cli.robot import RobotDescription
 
@@ -280,16 +280,16 @@ def _pose_spread(
     """``log`` with the poses the map was built with, and their covariance as build's
     error-aware mode takes it: the pose graph's (slam), or the odometry error carried along
     the odometry or the scan-matched track."""
-    from gridmap_cli.poses.pose_uncertainty import StepNoise, propagate
+    from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise, propagate
 
     if pose == "slam":
-        from gridmap_cli.poses.pose_belief import slam_belief
-        from gridmap_cli.poses.slam import slam_corrected_log  # gtsam: only here
+        from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
+        from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
 
         placed, result = slam_corrected_log(log, robot)
         return placed, slam_belief(result).uncertainty
     if pose == "scan-matched":
-        from gridmap_cli.poses.scan_match import scan_matched_log
+        from gridmap_cli.poses.correction.scan_match import scan_matched_log
 
         log, _ = scan_matched_log(log, robot)
     assert odometry is not None  # the usage checks ask for it

@@ -22,7 +22,7 @@ from gridmap_cli.cli.common import (
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.evaluation.relations import read_relations, reordered_on_logged_clock, score_track
-from gridmap_cli.poses.scan_match import STATUS_NAMES, corrected_track, match_log
+from gridmap_cli.poses.correction.scan_match import STATUS_NAMES, corrected_track, match_log
 from gridmap_cli.poses.sync import POSE_SOURCES, select_poses
 from gridmap_cli.readers import format_names, read_logs
 from gridmap_cli.readers.options import ReadOptions
@@ -134,11 +134,11 @@ def trajectory(
         status = [STATUS_NAMES[int(s)] for s in match.status]
         summary["scan_match"] = match.summary()
     elif pose == "slam":
-        from gridmap_cli.poses.slam import slam_log  # gtsam: only here
+        from gridmap_cli.poses.correction.slam import slam_log  # gtsam: only here
 
         if robot_desc is None:
             robot_desc = robot_from_log(logs[0], data.metadata)
-        from gridmap_cli.poses.pose_belief import slam_belief
+        from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
 
         with StageBars(quiet) as bars:
             result = slam_log(data, robot_desc, progress=bars)

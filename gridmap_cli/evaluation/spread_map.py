@@ -1,11 +1,11 @@
 """Where a map's uncertainty comes from: the pose spread at which each cell was seen.
 
 The error-aware map carries the pose covariance along the odometry track
-(:mod:`gridmap_cli.poses.pose_uncertainty`); each reading was taken with the covariance of its
-stamp. Its spread is drawn as two numbers: the position spread (metres, the standard deviation
-along the covariance ellipse's long axis) and the heading spread (radians, the standard deviation
-of theta). In an error-aware map a cell that only poorly placed readings looked at stays grey
-however many of them there were. This module draws, per cell, the *smallest* position spread of
+(:mod:`gridmap_cli.poses.uncertainty.pose_uncertainty`); each reading was taken with the covariance
+of its stamp. Its spread is drawn as two numbers: the position spread (metres, the standard
+deviation along the covariance ellipse's long axis) and the heading spread (radians, the standard
+deviation of theta). In an error-aware map a cell that only poorly placed readings looked at stays
+grey however many of them there were. This module draws, per cell, the *smallest* position spread of
 the readings whose beam crossed the cell (and the heading spread of those readings), so a user
 can tell a region that is grey because the pose was lost there from one that is grey because the
 sensors disagree. No file I/O: :mod:`gridmap_cli.cli.evaluate` reads the log and the odometry
@@ -21,8 +21,8 @@ import numpy.typing as npt
 
 from gridmap_cli.mapping.grid import GridSpec, SpanSums
 from gridmap_cli.mapping.models.ray import RaySegments, row_runs
-from gridmap_cli.poses.pose_uncertainty import PoseUncertainty
 from gridmap_cli.poses.sync import SensorReadings, select_readings
+from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -114,10 +114,10 @@ def pose_spread_map(
     """The smallest pose spread at which each cell of ``spec`` was crossed by a reading's beam.
 
     ``readings`` in the map's (odometry) frame; ``uncertainty`` the pose covariance along the
-    same track (:func:`~gridmap_cli.poses.pose_uncertainty.propagate`). Readings are cut into
-    groups of one level of the position spread and one of the heading spread (``levels`` each,
-    from 0 to the largest); groups are drawn from the smallest position spread up and each cell
-    keeps the first group that crossed it, so its values are exact to within one level.
+    same track (:func:`~gridmap_cli.poses.uncertainty.pose_uncertainty.propagate`). Readings are
+    cut into groups of one level of the position spread and one of the heading spread (``levels``
+    each, from 0 to the largest); groups are drawn from the smallest position spread up and each
+    cell keeps the first group that crossed it, so its values are exact to within one level.
     """
     f, g = reading_spreads(readings, uncertainty)
     qf, step_f = _quantise(f, levels)

@@ -5,10 +5,10 @@ Each sample's map is the standard map of its track. Four things make K of them c
 one more standard build instead of K:
 
 * **One sync.** A sampled track moves every pose owned by a key pose by one rigid motion
-  (:class:`~gridmap_cli.poses.pose_uncertainty.SampledOffsets`), and the readings' sensor poses
-  move with it; so the readings are synchronised once and each sample moves their geometry.
-* **Cells no finer than the spread.** A reading whose position is uncertain by sigma (the
-  smaller principal spread: :func:`levels`) lands, in each sample, somewhere within sigma of
+  (:class:`~gridmap_cli.poses.uncertainty.pose_uncertainty.SampledOffsets`), and the readings'
+  sensor poses move with it; so the readings are synchronised once and each sample moves their
+  geometry. * **Cells no finer than the spread.** A reading whose position is uncertain by sigma
+  (the smaller principal spread: :func:`levels`) lands, in each sample, somewhere within sigma of
   its nominal cells. Cast on cells up to sigma wide (a grid 2, 4, 8 or 16 times coarser,
   aligned with the map's), the evidence a map cell gets in a sample is the evidence near its
   coarse cell's centre (interpolated linearly between centres): less than a coarse cell off,
@@ -51,8 +51,8 @@ from gridmap_cli.mapping.models.sector import rows_of_range
 from gridmap_cli.mapping.models.standard import SectorEvidence, StandardSonarModel
 from gridmap_cli.mapping.plan import BuildPlan
 from gridmap_cli.mapping.shards import batch_bounds
-from gridmap_cli.poses.pose_uncertainty import PoseUncertainty, SampledOffsets
 from gridmap_cli.poses.sync import SensorReadings, select_readings
+from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty, SampledOffsets
 
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]

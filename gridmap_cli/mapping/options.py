@@ -10,8 +10,8 @@ from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.models.ray import RayParams
 from gridmap_cli.mapping.models.standard import StandardSonarParams
 from gridmap_cli.poses.odometry_error import OdometryError
-from gridmap_cli.poses.pose_belief import PoseBelief
 from gridmap_cli.poses.sync import SyncStats
+from gridmap_cli.poses.uncertainty.pose_belief import PoseBelief
 
 MAPPING_MODES = ("standard", "error-aware")
 #: The coarsest cell size build takes: a range sensor sees a few metres, so coarser cells map

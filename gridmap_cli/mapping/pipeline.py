@@ -42,21 +42,21 @@ from gridmap_cli.mapping.shards import (
     batch_bounds as batch_bounds,  # callers cut batches as build does
 )
 from gridmap_cli.poses.odometry_error import OdometryError, correct_track, travelled
-from gridmap_cli.poses.pose_belief import PoseBelief
-from gridmap_cli.poses.pose_uncertainty import (
-    PoseUncertainty,
-    SampledOffsets,
-    StepNoise,
-    propagate,
-    sample_offsets,
-    sample_tracks,
-)
 from gridmap_cli.poses.sync import (
     SensorReadings,
     SyncStats,
     select_readings,
     sensors_for_log,
     synchronise,
+)
+from gridmap_cli.poses.uncertainty.pose_belief import PoseBelief
+from gridmap_cli.poses.uncertainty.pose_uncertainty import (
+    PoseUncertainty,
+    SampledOffsets,
+    StepNoise,
+    propagate,
+    sample_offsets,
+    sample_tracks,
 )
 from gridmap_cli.records import PoseTrack, RangeLog, cut_chunks, span_text
 from gridmap_cli.robot import RangeSensor, RobotDescription
@@ -213,8 +213,8 @@ def expected_map(
 ) -> BuildResult:
     """The expected map under the pose belief: the mean probability of the standard maps of
     ``options.error_samples`` tracks drawn from the odometry-error model
-    (:func:`~gridmap_cli.poses.pose_uncertainty.sample_offsets`: systematic errors drawn once
-    per track, a random error per key step, composed along the path, so every correlation
+    (:func:`~gridmap_cli.poses.uncertainty.pose_uncertainty.sample_offsets`: systematic errors
+    drawn once per track, a random error per key step, composed along the path, so every correlation
     along it is kept), on the grid of the standard build (readings a sample moves off it are
     cut); :mod:`gridmap_cli.mapping.expected` says how it costs a few standard builds, not K.
     A cell some samples' readings missed counts as the prior 0.5 in those; a cell none touched

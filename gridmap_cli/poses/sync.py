@@ -83,7 +83,8 @@ class SyncStats:
 
 
 #: ``scan-matched`` is the odometry corrected by the laser: it needs the sensors' mounting, so
-#: :func:`gridmap_cli.poses.scan_match.scan_matched_log` makes it, not :func:`select_poses`.
+#: :func:`gridmap_cli.poses.correction.scan_match.scan_matched_log` makes it, not
+#: :func:`select_poses`.
 POSE_SOURCES = ("odometry", "global", "scan-matched")
 
 
@@ -101,7 +102,7 @@ def select_poses(log: RangeLog, source: str) -> RangeLog:
         return log
     if source == "scan-matched":
         raise GridmapError(
-            "scan-matched poses come from gridmap_cli.poses.scan_match.scan_matched_log"
+            "scan-matched poses come from gridmap_cli.poses.correction.scan_match.scan_matched_log"
         )
     if source != "global":
         raise GridmapError(f"unknown pose source '{source}' (known: {', '.join(POSE_SOURCES)})")

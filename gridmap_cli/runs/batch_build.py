@@ -111,17 +111,19 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
     warnings: list[str] = []
     build = options.build
     if options.pose == "scan-matched":
-        from gridmap_cli.poses.scan_match import scan_matched_log  # scipy, small_gicp: only here
+        from gridmap_cli.poses.correction.scan_match import (
+            scan_matched_log,
+        )  # scipy, small_gicp: only here
 
         data, _ = scan_matched_log(data, robot)
     elif options.pose == "slam":
-        from gridmap_cli.poses.slam import slam_corrected_log  # gtsam: only here
+        from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
 
         data, slam = slam_corrected_log(data, robot)
         if slam.warning:
             warnings.append(f"--pose slam: {slam.warning}")
         if build.mode == "error-aware":  # the graph's marginals and draws, as build maps them
-            from gridmap_cli.poses.pose_belief import slam_belief
+            from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
 
             belief = slam_belief(slam, build.error_samples, build.error_seed)
             build = dataclasses.replace(build, pose_belief=belief)

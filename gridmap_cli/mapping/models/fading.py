@@ -1,8 +1,8 @@
 """The error-aware models: the standard models' log-odds evidence, faded by the pose spread.
 
 Each reading's pose error comes from the covariance carried along the odometry track
-(:mod:`gridmap_cli.poses.pose_uncertainty`), projected through the sensor's lever arm onto the
-reading's range and bearing: ``sigma_z = k z + s_along``, ``sigma_theta = beta / 2 +
+(:mod:`gridmap_cli.poses.uncertainty.pose_uncertainty`), projected through the sensor's lever arm
+onto the reading's range and bearing: ``sigma_z = k z + s_along``, ``sigma_theta = beta / 2 +
 s_across / z`` (the seed paper's eq. 11 and 12 with f and g replaced by the projections). Eq. 10
 is a density normalised by ``1 / (2 pi sigma_z sigma_theta)``: the wider the spread, the less a
 reading says about any one cell. The reading's evidence is therefore weighted by the ratio of
@@ -32,8 +32,8 @@ from gridmap_cli.mapping.models.standard import (
     StandardSonarModel,
     accumulate_sectors,
 )
-from gridmap_cli.poses.pose_uncertainty import PoseUncertainty, project
 from gridmap_cli.poses.sync import SensorReadings, select_readings
+from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty, project
 from gridmap_cli.robot import RangeSensor
 
 #: Ray weights are rounded to multiples of 1 / RAY_WEIGHT_LEVELS, so that a batch's rays map in a

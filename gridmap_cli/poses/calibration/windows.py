@@ -15,10 +15,10 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.geometry import wrap_angle
+from gridmap_cli.poses.calibration.robust_fit import Rung
 from gridmap_cli.poses.odometry_error import travelled
-from gridmap_cli.poses.pose_uncertainty import key_steps
-from gridmap_cli.poses.robust_fit import Rung
 from gridmap_cli.poses.sync import interpolate_pose
+from gridmap_cli.poses.uncertainty.pose_uncertainty import key_steps
 from gridmap_cli.records import PoseTrack, RangeLog
 
 FloatArray = npt.NDArray[np.float64]
@@ -100,8 +100,9 @@ def key_turning(
     truth: PoseTrack, signed_turn: FloatArray, key_m: float, key_rad: float
 ) -> FloatArray:
     """At each pose (N,), the sum so far of the absolute net turns of the key steps of
-    ``key_m`` or ``key_rad`` (:func:`~gridmap_cli.poses.pose_uncertainty.key_steps`), linear
-    in the pose index within a key step; ``signed_turn``: the running sum of the wrapped turns."""
+    ``key_m`` or ``key_rad`` (:func:`~gridmap_cli.poses.uncertainty.pose_uncertainty.key_steps`),
+    linear in the pose index within a key step; ``signed_turn``: the running sum of the wrapped
+    turns."""
     if len(truth) == 0:
         return np.zeros(0)
     keys = key_steps(truth, key_m, key_rad)

@@ -28,9 +28,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.poses.carry import carry
-from gridmap_cli.poses.degeneracy import weak_stretch
-from gridmap_cli.poses.loop_closure import (
+from gridmap_cli.poses.correction.carry import carry
+from gridmap_cli.poses.correction.degeneracy import weak_stretch
+from gridmap_cli.poses.correction.loop_closure import (
     Closure,
     ClosureParams,
     Submaps,
@@ -39,8 +39,8 @@ from gridmap_cli.poses.loop_closure import (
     relative,
     verify,
 )
-from gridmap_cli.poses.pose_graph import Edge, PoseGraph, edge_errors, edge_residuals
-from gridmap_cli.poses.scan_match import (
+from gridmap_cli.poses.correction.pose_graph import Edge, PoseGraph, edge_errors, edge_residuals
+from gridmap_cli.poses.correction.scan_match import (
     FALLBACK,
     NoLaserError,
     Progress,

@@ -10,8 +10,8 @@ position error that the odometry's positions never show.
 So the fit is checked on the positions: from every key pose of the calibration track, the
 corrected odometry is placed at the reference pose and its position error after ``H`` metres
 is compared with the covariance the random walks predict (:class:`SegmentCovariance`, exactly
-what :func:`~gridmap_cli.poses.pose_uncertainty.propagate` carries with the systematic terms
-at 0, plus the reference's jitter at both ends). The normalised squared error (NEES) of a
+what :func:`~gridmap_cli.poses.uncertainty.pose_uncertainty.propagate` carries with the systematic
+terms at 0, plus the reference's jitter at both ends). The normalised squared error (NEES) of a
 consistent model has the median of a chi-square with 2 degrees of freedom, ``2 ln 2``; the
 square root of the median NEES over the long horizons over that is the factor by which the
 random walks mispredict.
@@ -26,7 +26,7 @@ import numpy.typing as npt
 
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.poses.odometry_error import travelled
-from gridmap_cli.poses.pose_uncertainty import StepNoise, key_increments, key_steps
+from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise, key_increments, key_steps
 from gridmap_cli.records import PoseTrack
 
 F64 = npt.NDArray[np.float64]
@@ -48,11 +48,11 @@ def _prefix(values: F64) -> F64:
 
 class SegmentCovariance:
     """The position covariance the random walks of ``noise`` grow between any two key poses of
-    ``track`` (``keys``, :func:`~gridmap_cli.poses.pose_uncertainty.key_steps`), in closed form:
-    a step's position noise is added at its end, and its heading noise moves every later key
-    pose about that end, so running sums over the steps give any segment's covariance at once.
-    The same numbers :func:`~gridmap_cli.poses.pose_uncertainty.propagate` carries from the
-    segment's first pose with the systematic terms at 0."""
+    ``track`` (``keys``, :func:`~gridmap_cli.poses.uncertainty.pose_uncertainty.key_steps`), in
+    closed form: a step's position noise is added at its end, and its heading noise moves every
+    later key pose about that end, so running sums over the steps give any segment's covariance at
+    once. The same numbers :func:`~gridmap_cli.poses.uncertainty.pose_uncertainty.propagate`
+    carries from the segment's first pose with the systematic terms at 0."""
 
     def __init__(self, track: PoseTrack, keys: npt.NDArray[np.int64], noise: StepNoise) -> None:
         dx, dy, dth = key_increments(track, keys)

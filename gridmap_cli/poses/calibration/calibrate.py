@@ -11,7 +11,7 @@ window shows is the error made within it, whatever the drift before it:
   wrapped heading increments, so a window may turn more than pi).
 
 The log is cut again at :data:`JITTER_LADDER` times the window, and
-:func:`~gridmap_cli.poses.robust_fit.robust_fit` fits all of these windows at once: the
+:func:`~gridmap_cli.poses.calibration.robust_fit.robust_fit` fits all of these windows at once: the
 *systematic* part, signed (distance scale, turn scale, heading drift per metre: a known bias
 ``build --correct-odometry`` takes out of the track), and the *random* part, the variance of
 what is left, split into the reference's jitter (the same at every window length) and the
@@ -36,17 +36,9 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.poses.consistency import consistency
-from gridmap_cli.poses.odometry_error import (
-    DEFAULT_SONAR_RELATIVE_ERROR,
-    MAX_BIAS,
-    OdometryError,
-    correct_track,
-    travelled,
-)
-from gridmap_cli.poses.pose_uncertainty import StepNoise
-from gridmap_cli.poses.robust_fit import RobustFit, robust_fit, walk_standard_errors
-from gridmap_cli.poses.windows import (
+from gridmap_cli.poses.calibration.consistency import consistency
+from gridmap_cli.poses.calibration.robust_fit import RobustFit, robust_fit, walk_standard_errors
+from gridmap_cli.poses.calibration.windows import (
     BUDGET_TOLERANCE,
     DEFAULT_WINDOW_M,
     DEFAULT_WINDOW_RAD,
@@ -55,6 +47,14 @@ from gridmap_cli.poses.windows import (
     compare_windows,
     truth_at_odometry,
 )
+from gridmap_cli.poses.odometry_error import (
+    DEFAULT_SONAR_RELATIVE_ERROR,
+    MAX_BIAS,
+    OdometryError,
+    correct_track,
+    travelled,
+)
+from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise
 from gridmap_cli.records import PoseTrack, RangeLog
 
 FloatArray = npt.NDArray[np.float64]
@@ -134,7 +134,7 @@ class Calibration:
     consistency_pairs: int = 0
     random_walk_scale: float = 1.0
     #: Standard errors of the random walks' variances (along, turn, heading per metre), the
-    #: block jackknife's (:func:`~gridmap_cli.poses.robust_fit.walk_standard_errors`).
+    #: block jackknife's (:func:`~gridmap_cli.poses.calibration.robust_fit.walk_standard_errors`).
     walk_variance_se: tuple[float, float, float] = (math.inf, math.inf, math.inf)
     #: Which random walks the check on the positions scaled (along, turn, heading per metre).
     walk_checked: tuple[bool, bool, bool] = (False, False, False)
@@ -193,7 +193,7 @@ def fit(
     sonar_relative_error: float = DEFAULT_SONAR_RELATIVE_ERROR,
     ladder: Sequence[Windows] = (),
 ) -> Calibration:
-    """Fit the model to compared windows (:mod:`gridmap_cli.poses.robust_fit` gives the
+    """Fit the model to compared windows (:mod:`gridmap_cli.poses.calibration.robust_fit` gives the
     estimators).
 
     ``ladder``: the same tracks cut into windows of other lengths. With two lengths or more

@@ -25,7 +25,7 @@ from scipy.spatial import cKDTree
 
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.heap import release_free_memory
-from gridmap_cli.poses.correlative import LikelihoodGrid, search
+from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -36,8 +36,8 @@ from scipy.spatial import cKDTree
 
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
-from gridmap_cli.poses.carry import carry
-from gridmap_cli.poses.degeneracy import DistanceScale, keep_across, weak_axis
+from gridmap_cli.poses.correction.carry import carry
+from gridmap_cli.poses.correction.degeneracy import DistanceScale, keep_across, weak_axis
 from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription

@@ -20,14 +20,14 @@ Two covariances are kept, because the graph's marginals answer a question a map 
   (:func:`shape_covariance`). Error-aware mapping uses these: crisp where loops closed, grey
   where the robot went once, not grey merely for being far from the start.
 
-The graph's edge noise is set by hand (:class:`~gridmap_cli.poses.slam.SlamParams`), the same
-for every log. For a map it is **calibrated on the graph's own residuals**
+The graph's edge noise is set by hand (:class:`~gridmap_cli.poses.correction.slam.SlamParams`), the
+same for every log. For a map it is **calibrated on the graph's own residuals**
 (:func:`calibrated_graph`): where loops closed, the graph sees the same places from several
 passes, and how far the closures and the chain disagree at the optimum says how large the noise
 between passes really is (the a posteriori variance factor of a least-squares adjustment, one
 for translation and one for rotation: the whitened squared residuals over their redundancy,
-:meth:`~gridmap_cli.poses.pose_graph.PoseGraph.residual_budget`). On the shared CARMEN logs the
-factors are 0.28-0.46 for translation and 0.20-0.34 for rotation: the hand-set noise is 2-5
+:meth:`~gridmap_cli.poses.correction.pose_graph.PoseGraph.residual_budget`). On the shared CARMEN
+logs the factors are 0.28-0.46 for translation and 0.20-0.34 for rotation: the hand-set noise is 2-5
 times wider than the passes' disagreement, and its draws doubled walls that the optimum's map
 draws once. Without enough redundancy (no loop, or a few closures) the hand-set noise is kept.
 ``gridmap trajectory`` writes the hand-set marginals instead (``calibrate=False``): against the
@@ -36,14 +36,14 @@ ones (docs/scan-matching.md, "Uncertainty").
 
 The draws (:meth:`PoseBelief.tracks`, for the sampled expected map) are joint, not per pose: the
 graph is linearised at its optimum and sampled as one Gaussian over all keyframes
-(:meth:`~gridmap_cli.poses.pose_graph.PoseGraph.sample`), so neighbouring keyframes move together
-as the edges between them say, and each draw is then laid on the optimum by the rigid motion
-that fits it best (as :attr:`~PoseBelief.shape_cov` is). Independent draws from each pose's
+(:meth:`~gridmap_cli.poses.correction.pose_graph.PoseGraph.sample`), so neighbouring keyframes move
+together as the edges between them say, and each draw is then laid on the optimum by the rigid
+motion that fits it best (as :attr:`~PoseBelief.shape_cov` is). Independent draws from each pose's
 marginal would shake every keyframe against its neighbours and smear walls that every draw of
 the joint belief keeps straight.
 
-Numpy only: gtsam is used through the :class:`~gridmap_cli.poses.pose_graph.PoseGraph` a
-:class:`~gridmap_cli.poses.slam.SlamResult` carries, when :func:`slam_belief` is called.
+Numpy only: gtsam is used through the :class:`~gridmap_cli.poses.correction.pose_graph.PoseGraph` a
+:class:`~gridmap_cli.poses.correction.slam.SlamResult` carries, when :func:`slam_belief` is called.
 """
 
 from __future__ import annotations
@@ -57,13 +57,13 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.geometry import compose, inverse, wrap_angle
-from gridmap_cli.poses.pose_uncertainty import PoseUncertainty
 from gridmap_cli.poses.sync import interpolate_pose
+from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty
 from gridmap_cli.records import PoseTrack
 
 if TYPE_CHECKING:
-    from gridmap_cli.poses.pose_graph import PoseGraph
-    from gridmap_cli.poses.slam import SlamResult
+    from gridmap_cli.poses.correction.pose_graph import PoseGraph
+    from gridmap_cli.poses.correction.slam import SlamResult
 
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
