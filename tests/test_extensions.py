@@ -12,9 +12,9 @@ def test_a_missing_extension_falls_back_unless_compiled_is_asked(
 ) -> None:
     monkeypatch.setattr(extensions, "_loaded", {})
     name = "gridmap_cli._no_such_extension"
-    monkeypatch.setenv("GRIDMAP_KERNELS", "auto")
+    monkeypatch.setattr(extensions, "KERNELS", "auto")
     assert extensions.optional(name) is None
-    monkeypatch.setenv("GRIDMAP_KERNELS", "compiled")
+    monkeypatch.setattr(extensions, "KERNELS", "compiled")
     with pytest.raises(ImportError):
         extensions.optional(name)
 
@@ -23,8 +23,8 @@ def test_a_present_extension_is_loaded_once_and_numpy_turns_it_off(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     monkeypatch.setattr(extensions, "_loaded", {})
-    monkeypatch.setenv("GRIDMAP_KERNELS", "auto")
+    monkeypatch.setattr(extensions, "KERNELS", "auto")
     first = extensions.optional("gridmap_cli.readers.ros._cwalk")
     assert first is not None and extensions.optional("gridmap_cli.readers.ros._cwalk") is first
-    monkeypatch.setenv("GRIDMAP_KERNELS", "numpy")
+    monkeypatch.setattr(extensions, "KERNELS", "numpy")
     assert extensions.optional("gridmap_cli.readers.ros._cwalk") is None

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gridmap_cli import extensions
 from gridmap_cli.errors import MapSizeError
 from gridmap_cli.mapping import bands, pipeline
 from gridmap_cli.mapping import grid as grid_module
@@ -66,7 +67,7 @@ def _mapped(grid: LogOddsAccumulator, n: int = 400) -> LogOddsAccumulator:
 def test_a_window_of_rows_holds_what_the_whole_grid_holds_there(
     monkeypatch: pytest.MonkeyPatch, kernels: str
 ) -> None:
-    monkeypatch.setenv("GRIDMAP_KERNELS", kernels)
+    monkeypatch.setattr(extensions, "KERNELS", kernels)
     whole = _mapped(LogOddsAccumulator(SPEC))
     assert np.count_nonzero(whole.observations()) > 1000
     for rows in [(0, 30), (30, 31), (31, SPEC.height)]:
@@ -104,7 +105,7 @@ def test_the_sums_do_not_depend_on_the_order_of_the_runs() -> None:
 def test_finishing_in_place_gives_the_copying_conversion_to_the_bit(
     monkeypatch: pytest.MonkeyPatch, kernels: str
 ) -> None:
-    monkeypatch.setenv("GRIDMAP_KERNELS", kernels)
+    monkeypatch.setattr(extensions, "KERNELS", kernels)
     monkeypatch.setattr(grid_module, "STRIP_CELLS", 500)  # many strips of a few rows
     g = _mapped(LogOddsAccumulator(SPEC), 40)  # some cells left unknown
     copied = g.occupancy_map((0.12, 0.97))
@@ -138,7 +139,7 @@ def test_the_fixed_point_keeps_a_long_logs_totals_inside_int64() -> None:
 def test_evidence_beyond_the_limit_is_refused(
     monkeypatch: pytest.MonkeyPatch, kernels: str
 ) -> None:
-    monkeypatch.setenv("GRIDMAP_KERNELS", kernels)
+    monkeypatch.setattr(extensions, "KERNELS", kernels)
     sectors, rays = _evidence(np.random.default_rng(4), 50)
     with pytest.raises(ValueError, match="outside"):
         accumulate_sectors(

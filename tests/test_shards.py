@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gridmap_cli import extensions
 from gridmap_cli.mapping import pipeline, shards
 from gridmap_cli.mapping.grid import LogOddsAccumulator
 from gridmap_cli.mapping.pipeline import BuildOptions, plan_build
@@ -43,7 +44,7 @@ def test_error_aware_jobs_give_the_map_of_one_job_byte_for_byte(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, kernels: str
 ) -> None:
     # both error-aware maps (sampled tracks, analytic fade) are log-odds shards, on either kernels
-    monkeypatch.setenv("GRIDMAP_KERNELS", kernels)
+    monkeypatch.setattr(extensions, "KERNELS", kernels)
     log = tmp_path / "laser.2d"
     code, _, stderr = run(
         "simulate", str(SAMPLES / "worlds" / "office.yaml"), str(SAMPLES / "paths" / "office.yaml"),

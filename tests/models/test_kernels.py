@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from gridmap_cli import extensions
 from gridmap_cli.mapping import expected
 from gridmap_cli.mapping.grid import GridSpec, LogOddsAccumulator
 from gridmap_cli.mapping.models import kernels
@@ -45,7 +46,7 @@ def _sectors(rng: np.random.Generator, n: int) -> SectorEvidence:
 def _both(monkeypatch: pytest.MonkeyPatch, add: object) -> tuple[LogOddsAccumulator, ...]:
     grids = []
     for choice in ("numpy", "compiled"):
-        monkeypatch.setenv("GRIDMAP_KERNELS", choice)
+        monkeypatch.setattr(extensions, "KERNELS", choice)
         grid = LogOddsAccumulator(SPEC)
         add(grid)  # type: ignore[operator]
         grids.append(grid)
@@ -71,7 +72,7 @@ def test_numpy_reference_is_what_accumulate_sectors_runs_without_numba(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     ev = _sectors(np.random.default_rng(1), 300)
-    monkeypatch.setenv("GRIDMAP_KERNELS", "numpy")
+    monkeypatch.setattr(extensions, "KERNELS", "numpy")
     a, b = LogOddsAccumulator(SPEC), LogOddsAccumulator(SPEC)
     assert accumulate_sectors(a, ev) == accumulate_sectors_numpy(b, ev)
     assert np.array_equal(a.log_odds(), b.log_odds())
@@ -106,12 +107,12 @@ def test_ray_kernel_equals_the_numpy_reference(monkeypatch: pytest.MonkeyPatch) 
 def test_the_extension_is_built_and_chosen(monkeypatch: pytest.MonkeyPatch) -> None:
     # the dev install builds it (gcc and the Python headers are on every machine we test on):
     # a missing extension would leave every other test here comparing numpy with itself
-    monkeypatch.setenv("GRIDMAP_KERNELS", "compiled")
+    monkeypatch.setattr(extensions, "KERNELS", "compiled")
     module = kernels.compiled()
     assert module is not None and module.__name__ == "gridmap_cli.mapping.models._ckernels"
-    monkeypatch.setenv("GRIDMAP_KERNELS", "auto")
+    monkeypatch.setattr(extensions, "KERNELS", "auto")
     assert kernels.compiled() is module
-    monkeypatch.setenv("GRIDMAP_KERNELS", "numpy")
+    monkeypatch.setattr(extensions, "KERNELS", "numpy")
     assert kernels.compiled() is None
 
 
@@ -160,7 +161,7 @@ def test_a_small_batch_on_a_large_grid_moves_only_what_it_touched(
     batches = [_sectors(rng, 5) for _ in range(3)]
     grids = []
     for choice in ("numpy", "compiled"):
-        monkeypatch.setenv("GRIDMAP_KERNELS", choice)
+        monkeypatch.setattr(extensions, "KERNELS", choice)
         grid = LogOddsAccumulator(spec)
         for ev in batches:
             far = dataclasses.replace(ev, x_m=ev.x_m * 8.0, y_m=ev.y_m * 8.0)

@@ -9,7 +9,7 @@ import pytest
 
 from gridmap_cli.readers.ros.bag import bulk as bag_bulk
 from gridmap_cli.readers.ros.bag.log import BagSource, read_bag
-from gridmap_cli.readers.ros.mcap.bulk import DECODE_ENV
+from gridmap_cli.readers.ros.mcap import bulk as mcap_bulk
 from tests.readers.bag_helpers import write_bag
 from tests.readers.test_mcap_bulk import assert_same, busy_log
 
@@ -20,9 +20,9 @@ def test_bulk_equals_message_by_message(tmp_path: Path, monkeypatch: pytest.Monk
     batches, left = BagSource(bag).bulk(topics)
     assert left == []
     assert {b.topic for b in batches} == set(topics)
-    bulk = read_bag(bag).log
-    monkeypatch.setenv(DECODE_ENV, "messages")
-    assert_same(bulk, read_bag(bag).log)
+    in_bulk = read_bag(bag).log
+    monkeypatch.setattr(mcap_bulk, "BULK_DECODE", False)
+    assert_same(in_bulk, read_bag(bag).log)
 
 
 def test_survey_from_the_index_is_rosbags_survey(

@@ -13,8 +13,8 @@ from mcap.writer import Writer
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.readers.ros.bulk import Layout, Raw
+from gridmap_cli.readers.ros.mcap import bulk as mcap_bulk
 from gridmap_cli.readers.ros.mcap import json_bulk
-from gridmap_cli.readers.ros.mcap.bulk import DECODE_ENV
 from gridmap_cli.readers.ros.mcap.log import McapSource, read_mcap
 from tests.readers.mcap_helpers import S
 from tests.readers.test_mcap_bulk import ROOT, assert_same, both
@@ -145,7 +145,7 @@ def test_unusual_messages_same_log_as_message_by_message(
     try:
         bulk_log, one_by_one = both(path, monkeypatch)
     except InputFileError as exc:  # not JSON at all: the message-by-message error, both ways
-        monkeypatch.setenv(DECODE_ENV, "messages")
+        monkeypatch.setattr(mcap_bulk, "BULK_DECODE", False)
         with pytest.raises(InputFileError) as err:
             read_mcap(path)
         assert str(err.value) == str(exc)
@@ -156,8 +156,8 @@ def test_unusual_messages_same_log_as_message_by_message(
 def test_negative_range_same_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     path = busy(tmp_path / "bad.mcap", range41=reading(41, "right", -0.5))
     messages = []
-    for mode in ("bulk", "messages"):
-        monkeypatch.setenv(DECODE_ENV, mode)
+    for in_bulk in (True, False):
+        monkeypatch.setattr(mcap_bulk, "BULK_DECODE", in_bulk)
         with pytest.raises(InputFileError) as err:
             read_mcap(path)
         messages.append(str(err.value))

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from gridmap_cli.errors import InputFileError
-from gridmap_cli.readers.ros.mcap.bulk import DECODE_ENV
+from gridmap_cli.readers.ros.mcap import bulk as mcap_bulk
 from gridmap_cli.readers.ros.mcap.log import McapSource, read_mcap
 from gridmap_cli.records import RangeLog
 from tests.readers.mcap_helpers import Recording, S, drive, odometry, sonar_range, static_tf
@@ -30,9 +30,9 @@ def assert_same(a: RangeLog, b: RangeLog) -> None:
 
 def both(path: Path, monkeypatch: pytest.MonkeyPatch) -> tuple[RangeLog, RangeLog]:
     bulk = read_mcap(path).log
-    monkeypatch.setenv(DECODE_ENV, "messages")
+    monkeypatch.setattr(mcap_bulk, "BULK_DECODE", False)
     one_by_one = read_mcap(path).log
-    monkeypatch.delenv(DECODE_ENV)
+    monkeypatch.setattr(mcap_bulk, "BULK_DECODE", True)
     return bulk, one_by_one
 
 
@@ -92,8 +92,8 @@ def test_bad_limits_same_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, 
             ns = S + k * 1000
             rec.write("/sonar", "sensor_msgs/Range", ns, sonar_range(rec, ns, "s0", 1.0, rmin=rmin))
     messages = []
-    for mode in ("bulk", "messages"):
-        monkeypatch.setenv(DECODE_ENV, mode)
+    for in_bulk in (True, False):
+        monkeypatch.setattr(mcap_bulk, "BULK_DECODE", in_bulk)
         with pytest.raises(InputFileError) as err:
             read_mcap(path)
         messages.append(str(err.value))

@@ -15,6 +15,7 @@ from gridmap_cli.errors import InputFileError
 from gridmap_cli.mapping import pipeline
 from gridmap_cli.readers import read_log
 from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.readers.ros.mcap import bulk as mcap_bulk
 from gridmap_cli.readers.ros.mcap import stream as mcap_stream
 from gridmap_cli.records import RangeReadings
 from tests.helpers import built, run
@@ -59,7 +60,8 @@ def test_a_small_recording_is_held() -> None:
 
 
 def test_the_threshold_variable_lowers_it(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv(mcap_stream.STREAM_ENV, "0")
+    monkeypatch.setattr(mcap_stream, "STREAM_FROM_BYTES", 0)
+    monkeypatch.setattr(mcap_stream, "SCAN_STREAM_FROM_BYTES", 0)
     assert read_log(LOG, None, STREAM).stream is not None
 
 
@@ -148,7 +150,7 @@ def test_several_range_topics_read_held(tmp_path: Path) -> None:
 
 @pytest.mark.usefixtures("streaming")
 def test_message_by_message_decoding_reads_held(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("GRIDMAP_ROS_DECODE", "messages")
+    monkeypatch.setattr(mcap_bulk, "BULK_DECODE", False)
     assert read_log(LOG, None, STREAM).stream is None
 
 
@@ -189,7 +191,8 @@ def test_a_laser_recording_above_the_threshold_maps_as_the_held_one_byte_for_byt
     monkeypatch.setattr(pipeline, "SYNC_CHUNK_READINGS", 5000)
     flags = (str(laser_log), "--range-topic", "/scan")
     held = built(tmp_path, "held", *flags)
-    monkeypatch.setenv(mcap_stream.STREAM_ENV, "0")
+    monkeypatch.setattr(mcap_stream, "STREAM_FROM_BYTES", 0)
+    monkeypatch.setattr(mcap_stream, "SCAN_STREAM_FROM_BYTES", 0)
     calls: list[bool] = []
     read_streamed = mcap_stream.read_streamed
 

@@ -8,6 +8,7 @@ import struct
 import numpy as np
 import pytest
 
+from gridmap_cli import extensions
 from gridmap_cli.errors import DamagedAtError
 from gridmap_cli.readers.ros.bag import integrity as bag_integrity
 from gridmap_cli.readers.ros.mcap import integrity as mcap_integrity
@@ -16,7 +17,7 @@ from gridmap_cli.readers.ros.walk import compiled_walk
 
 @pytest.fixture
 def walk(monkeypatch: pytest.MonkeyPatch) -> object:
-    monkeypatch.setenv("GRIDMAP_KERNELS", "compiled")  # built by the dev install: no skip
+    monkeypatch.setattr(extensions, "KERNELS", "compiled")  # built by the dev install: no skip
     return compiled_walk()
 
 

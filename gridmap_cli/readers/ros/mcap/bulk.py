@@ -17,7 +17,6 @@ the others (and a channel whose bytes are not as expected) are left to the per-m
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,8 +35,9 @@ from gridmap_cli.readers.ros.bulk import Columns, Layout, Raw
 from gridmap_cli.readers.ros.mcap import json_bulk
 from gridmap_cli.readers.ros.mcap.channels import message_type
 
-#: ``GRIDMAP_ROS_DECODE=messages`` turns bulk decoding off (the reference path, for tests).
-DECODE_ENV = "GRIDMAP_ROS_DECODE"
+#: False turns bulk decoding off: every message through its decoder, the reference path that
+#: tests compare the bulk path with.
+BULK_DECODE = True
 
 _MESSAGE_INDEX = 0x07
 _INDEX_ENTRY = np.dtype([("log_time", "<u8"), ("offset", "<u8")])
@@ -45,7 +45,7 @@ _MESSAGE_HEAD = 1 + 8 + 2 + 4 + 8 + 8  # opcode, length, channel id, sequence, l
 
 
 def bulk_enabled() -> bool:
-    return os.environ.get(DECODE_ENV, "bulk") != "messages"
+    return BULK_DECODE
 
 
 @dataclass(frozen=True)

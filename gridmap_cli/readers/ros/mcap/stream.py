@@ -24,7 +24,6 @@ file, an error anywhere (a scan changing its beams among them).
 from __future__ import annotations
 
 import dataclasses
-import os
 from collections.abc import Callable, Iterator
 from functools import partial
 from pathlib import Path
@@ -62,8 +61,6 @@ STREAM_FROM_BYTES = 64 << 20
 #: of a 181-beam laser at 10 Hz, 18 MB, peaked at 445 MiB held, 126 MiB streamed, for no more
 #: CPU), so a recording with a LaserScan channel streams from here.
 SCAN_STREAM_FROM_BYTES = 8 << 20
-#: Tests and the bench lower the threshold through this variable (bytes).
-STREAM_ENV = "GRIDMAP_MCAP_STREAM_FROM"
 RANGE_TYPE = "sensor_msgs/Range"
 SCAN_TYPE = "sensor_msgs/LaserScan"
 
@@ -75,7 +72,7 @@ class _Unusual(Exception):
 def stream_from_bytes(scans: bool = False) -> int:
     """The size from which a recording streams: lower when it holds laser scans."""
     default = SCAN_STREAM_FROM_BYTES if scans else STREAM_FROM_BYTES
-    return int(os.environ.get(STREAM_ENV, default))
+    return default
 
 
 def _has_scans(path: Path) -> bool:
