@@ -11,7 +11,7 @@ Absolute times depend on the machine and on what else runs on it; the ratio colu
 much. They compare CPU seconds (user + system, which other processes on the core do not inflate
 as they do wall time): ``vs CSV`` is the row's over the CSV build of the same log and mode (the
 ROS targets are <= 1.5x), ``vs ref`` over the reference measured in the same run: the 1-hour CSV
-standard build with the numpy reference kernels (``GRIDMAP_KERNELS=numpy``), ``vs std`` an
+standard build with the numpy reference kernels (:data:`NUMPY_KERNELS`), ``vs std`` an
 error-aware row's over the standard build of the same log (issue 19 asks for <= 2x). Rates are
 per CPU second too. Freiburg 079 (``../shared/data/carmen``, when present) is timed in both
 modes, error-aware with the coefficients ``gridmap calibrate`` fits on it.
@@ -60,6 +60,20 @@ sensors:
   - {name: laser1, kind: laser, x_m: 0.16, y_m: 0.0, yaw_deg: 0, first_deg: -90, last_deg: 90,
      samples: 181, max_range_m: 8.0}
 """
+
+
+#: A row's ``extra_env`` that runs the build on the numpy reference kernels (the bench's own
+#: switch: gridmap has none).
+NUMPY_KERNELS = {"BENCH_KERNELS": "numpy"}
+#: ``python -c`` program: gridmap with the numpy reference kernels.
+_NUMPY_GRIDMAP = (
+    "import sys\n"
+    "from gridmap_cli import extensions\n"
+    "extensions.KERNELS = 'numpy'\n"
+    "from gridmap_cli.cli import main\n"
+    "sys.argv[0] = 'gridmap'\n"
+    "main()\n"
+)
 
 
 def gridmap() -> list[str]:
@@ -210,8 +224,11 @@ class Row:
     csv_peer: str | None = None  # the case whose wall time is this row's "vs CSV" base
 
 
-def build_cmd(log: Path, mode: str, out: Path, robot: str | None) -> list[str]:
-    cmd = [*gridmap(), "build", str(log), "-o", str(out), "--force", "--quiet", "--json"]
+def build_cmd(
+    log: Path, mode: str, out: Path, robot: str | None, numpy_kernels: bool = False
+) -> list[str]:
+    program = [sys.executable, "-c", _NUMPY_GRIDMAP] if numpy_kernels else gridmap()
+    cmd = [*program, "build", str(log), "-o", str(out), "--force", "--quiet", "--json"]
     if robot:
         cmd += ["--robot", robot]
     if mode == "error-aware" and log == FREIBURG:
@@ -327,21 +344,21 @@ def main() -> None:
     logs = prepare(args.quick)
     laser_robot = str(CACHE / "lms200-only.yaml")
     rows = [
-        Row("reference: CSV, numpy kernels", "csv", "standard", {"GRIDMAP_KERNELS": "numpy"}),
+        Row("reference: CSV, numpy kernels", "csv", "standard", NUMPY_KERNELS),
     ]
     for mode in ("standard", "error-aware"):
         for fmt in ("csv", "aria", "mcap-json", "mcap-ros2", "bag"):
             if fmt in logs:
                 rows.append(Row(fmt, fmt, mode, None, "csv"))
             if fmt == "csv" and mode == "error-aware":
-                numpy_path = {"GRIDMAP_KERNELS": "numpy"}
+                numpy_path = NUMPY_KERNELS
                 rows.append(Row("csv, numpy kernels", "csv", mode, numpy_path, "csv"))
         if "csv-8h" in logs:
             rows.append(Row("CSV, 8 h", "csv-8h", mode))
     rows += [
         Row("CSV, 100 readings", "small", "standard"),
         Row("laser rays, CSV", "laser", "standard"),
-        Row("laser rays, numpy kernels", "laser", "standard", {"GRIDMAP_KERNELS": "numpy"}),
+        Row("laser rays, numpy kernels", "laser", "standard", NUMPY_KERNELS),
     ]
     if "freiburg" in logs:
         rows += [Row("Freiburg 079 (CARMEN)", "freiburg", m) for m in ("standard", "error-aware")]
@@ -366,7 +383,8 @@ def main() -> None:
             env = dict(row.extra_env or {})
             robot = laser_robot if row.log == "laser" else None
             out = Path(tmp) / f"{row.log}_{row.mode}.png"
-            cmd = build_cmd(logs[row.log], row.mode, out, robot)
+            numpy_kernels = env.pop("BENCH_KERNELS", None) == "numpy"
+            cmd = build_cmd(logs[row.log], row.mode, out, robot, numpy_kernels)
             run = median_run(cmd, args.repeat, env)
             summary = json.loads(run.stdout)
             readings = summary["readings"]["used"]

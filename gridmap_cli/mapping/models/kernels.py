@@ -4,7 +4,7 @@ The compiled kernels are a small C extension (``gridmap_cli/mapping/models/_cker
 ``pip install``). Each repeats its numpy reference operation for operation, so the grids are
 equal bit for bit (tests/models/test_kernels.py), and loading them costs well under a
 millisecond, so they map every batch when they are built. :mod:`gridmap_cli.extensions` says
-how the choice is made and overridden (``GRIDMAP_KERNELS``).
+how the choice is made and overridden (:data:`~gridmap_cli.extensions.KERNELS`).
 """
 
 from __future__ import annotations
