@@ -39,8 +39,8 @@ def known_cells(
     reading touched (level -1, cast once, is on the map's cells). A coarse level's
     cells that were seen are spread onto the map's cells as its log-odds are (linearly,
     :func:`finer`), and a map cell counts as seen where that reaches a half: the edge of what
-    is known is drawn at the map's resolution, where copying the coarse cells drew it in blocks
-    of up to 16 cells (issue 19, the Intel lab), and it stays within a coarse cell of them."""
+    is known is drawn at the map's resolution, where copying the coarse cells would draw it in
+    blocks of up to 16 cells, and it stays within a coarse cell of them."""
     seen = np.zeros((spec.height, spec.width), dtype=bool)
     for level, counts in observed.items():
         if level <= 0:

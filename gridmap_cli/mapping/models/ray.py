@@ -50,9 +50,9 @@ _ROWS_PER_CHUNK = 2_000_000
 
 #: Metres of free space a laser's no-echo reading clears by default (gmapping's maxUrange):
 #: indoors, a beam that came back with nothing went through a door, or met glass or a black
-#: surface (a SICK then writes its error code, 81.91 m). On Freiburg 079 (36,004 such readings
-#: in 1.7 M) 8 m erased the furniture and thinned the walls of the rooms; 2 m keeps them and
-#: still clears the space next to the robot that the beam surely crossed.
+#: surface (a SICK then writes its error code, 81.91 m). Clearing the whole 8 m of such a beam
+#: erases furniture and thins walls that other beams saw; 2 m still clears the space next to the
+#: robot that the beam surely crossed (measurements: docs/sensor-model.md).
 LASER_NO_ECHO_FREE_M = 2.0
 
 

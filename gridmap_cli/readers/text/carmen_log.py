@@ -42,7 +42,8 @@ WEAK_EXTENSIONS = (".log",)
 #: CARMEN's readlog gives FLASER/RLASER messages this maximum range (metres) when no PARAM does.
 DEFAULT_MAX_RANGE_M = 80.0
 
-#: A laser's largest reading, repeated at least this often, is its "no echo" value (ACES: 50 m).
+#: A laser's largest reading, repeated at least this often, is its "no echo" value (some logs
+#: write a fixed 50 m below the laser's stated maximum).
 NO_ECHO_MIN_COUNT = 10
 
 #: Laser number (CARMEN's: 1 front, 2 rear) -> sensor name prefix and the PARAM words for it.
@@ -411,7 +412,7 @@ class _Parser:
             given = self.param(f"robot_{word}_laser_max")
             if given is not None and given > 0:
                 laser.max_range_m, laser.max_from = given, f"PARAM robot_{word}_laser_max"
-        # a no-echo value below the maximum (ACES writes 50) would map as walls 50 m away
+        # a no-echo value below the maximum would map as walls that far away
         if 0 < biggest < laser.max_range_m:
             hits = sum(
                 int(np.count_nonzero(s.ranges == biggest))

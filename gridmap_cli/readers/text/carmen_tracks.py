@@ -1,7 +1,7 @@
 """The pose tracks of a CARMEN log: raw odometry recovered from ODOM increments, the corrected
 (or true) track, and one strictly increasing time line.
 
-The published *corrected* logs (Intel, ACES, Freiburg 079, ...) were rewritten by a SLAM run:
+The published *corrected* logs (the classic SLAM data sets) were rewritten by a SLAM run:
 each laser line's pose fields hold the corrected pose, and the first ``ODOM`` line after a scan
 *restarts* at that pose (its time stamp is junk: 0, 1e-42, 5.36), the following ones adding the
 robot's own odometry increments to it. So
@@ -20,7 +20,7 @@ a log counts as corrected when some restart *moves* the pose (the scan's pose di
 
 Time: CARMEN stamps are the messages' own ``ipc_timestamp``. File order is the order things
 happened (the poses move continuously in it), but the stamps of some logs go backwards by up to
-a second (Intel) or are coarse or constant. Every timed line gets ``max(its stamp, previous + 1
+a second, or are coarse or constant. Every timed line gets ``max(its stamp, previous + 1
 us)``: time then increases strictly in file order, and moves only where the log's own stamps
 disagree with its order. Each scan has a pose on both tracks at its own stamp, so the repair
 never misplaces a scan.

@@ -18,7 +18,7 @@ file at the first damage it finds, naming the byte offset:
 
 A zero CRC means "not computed" (the specification's rule), so files written without CRCs pass.
 
-Why not the ``mcap`` reader's own ``validate_crcs`` (asked again in issue 18, mcap 1.6): it checks
+Why not the ``mcap`` reader's own ``validate_crcs``: it checks
 the chunk CRCs and, in its stream reader only, the data section's CRC, but not the rest of what
 this walk guarantees. ``Attachment.read`` skips the attachment's CRC unread, nothing reads
 ``Footer.summary_crc``, and its ``CRCValidationError`` says "crc validation failed in Chunk,
