@@ -61,6 +61,18 @@ def test_examples_run_as_written(doc: Path, tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "samples"]
 
 
+def test_the_readme_use_block_runs_twice(tmp_path: Path) -> None:
+    """A newcomer runs the Use block, edits a line and runs it again: every line that writes
+    says --force, so the second run overwrites instead of failing."""
+    (tmp_path / "samples").symlink_to(REPO / "samples")
+    commands = examples(REPO / "README.md")
+    for command, _ in commands:
+        assert shell(command, tmp_path).returncode == 0, command
+    for command, _ in commands:
+        done = shell(command, tmp_path)
+        assert done.returncode == 0, f"second run: {command}\n{done.stderr}"
+
+
 OUTPUT_DOCS = [d for d in DOCS if output_blocks(d.read_text(encoding="utf-8"))]
 
 
