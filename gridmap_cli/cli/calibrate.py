@@ -23,6 +23,13 @@ from gridmap_cli.cli.common import (
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.mapping.selection import Selection, apply_selection
+from gridmap_cli.poses.sources import (
+    DEFAULT_SOURCE,
+    SOURCES,
+    PoseSettings,
+    pose_source,
+    source_names,
+)
 from gridmap_cli.readers import STDIN_NAME, format_names
 from gridmap_cli.records import RangeLog
 from gridmap_cli.writers import check_output
@@ -37,8 +44,9 @@ if TYPE_CHECKING:
 JITTER_LADDER = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0)
 OUTLIER_SIGMA = 3.0
 
-#: What calibrate compares the track with (--reference).
-REFERENCES = ("truth", "scan-matched", "slam")
+#: What calibrate compares the track with (--reference): the log's own, or a correction the
+#: laser makes.
+REFERENCES = ("truth", *(s.name for s in SOURCES if s.uses_laser))
 
 
 @click.command()
@@ -75,8 +83,8 @@ REFERENCES = ("truth", "scan-matched", "slam")
 )
 @click.option(
     "--pose",
-    type=click.Choice(("odometry", "scan-matched", "slam")),
-    default="odometry",
+    type=click.Choice(source_names(needs_not="reference")),
+    default=DEFAULT_SOURCE,
     show_default=True,
     help="The track to calibrate against the reference: the odometry, or the odometry corrected "
     "by the laser (its residual drift, for error-aware maps built with --pose scan-matched), or "
@@ -209,16 +217,11 @@ def _no_reference(path: Path, data: RangeLog, robot: str | None) -> None:
 
 def _own_reference(path: Path, data: RangeLog, robot: str | None, reference: str) -> RangeLog:
     """The log with its reference replaced by gridmap's own correction of its odometry."""
-    from gridmap_cli.poses.correction.scan_match import NoLaserError, scan_matched_log
+    from gridmap_cli.poses.correction.scan_match import NoLaserError
 
     description = _robot(path, data, robot)
     try:
-        if reference == "scan-matched":
-            corrected, _ = scan_matched_log(data, description)
-        else:
-            from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
-
-            corrected, _ = slam_corrected_log(data, description)
+        corrected = pose_source(reference).run(data, description).log
     except NoLaserError as exc:
         kinds = sorted({s.kind for s in sensors_for_log(data, description)}) or ["none"]
         raise NoLaserError(
@@ -230,20 +233,15 @@ def _own_reference(path: Path, data: RangeLog, robot: str | None, reference: str
 
 
 def _corrected(path: Path, data: RangeLog, robot: str | None, quiet: bool, pose: str) -> RangeLog:
-    """The log with its odometry replaced by the scan-matched track (one pose per scan) or the
-    pose graph's (``pose`` "slam"), the track whose residual drift against the reference is
-    then calibrated."""
-    from gridmap_cli.poses.correction.scan_match import match_log
-    from gridmap_cli.robot import load_robot, robot_from_log
-
-    description = load_robot(robot) if robot else robot_from_log(path, data.metadata)
+    """The log with its odometry replaced by the corrected track, the track whose residual
+    drift against the reference is then calibrated: the scan matcher's at its scans, the
+    pose graph's at the odometry's stamps."""
+    description = _robot(path, data, robot)
     with StageBars(quiet) as bars:
-        if pose == "scan-matched":
-            track = match_log(data, description, progress=bars).track
-        else:
-            from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
-
-            track = slam_corrected_log(data, description, progress=bars)[0].poses
+        posed = pose_source(pose).run(data, description, PoseSettings(progress=bars))
+    track = posed.log.poses
+    if posed.slam is None and posed.match is not None:
+        track = posed.match.track
     return dataclasses.replace(data, poses=track)
 
 

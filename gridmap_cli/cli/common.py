@@ -8,7 +8,6 @@ import functools
 import json
 import math
 import numbers
-import os
 import re
 import shutil
 import sys
@@ -19,11 +18,13 @@ from typing import TYPE_CHECKING, Any, ParamSpec, TypeVar
 
 import click
 
-from gridmap_cli.errors import GridmapError, InputFileError, UsageError
+from gridmap_cli.errors import GridmapError, UsageError, naming
 from gridmap_cli.mapping.selection import EXCLUDE
 from gridmap_cli.readers import STDIN_NAME, read_bytes, read_logs
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
+from gridmap_cli.runs.settings import STDIO as STDIO
+from gridmap_cli.runs.settings import check_input as check_input
 
 if TYPE_CHECKING:
     from tqdm import tqdm
@@ -54,7 +55,8 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
     @functools.wraps(func)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
         try:
-            return func(*args, **kwargs)
+            with naming("flags"):  # errors name the command line's flags
+                return func(*args, **kwargs)
         except KeyboardInterrupt as exc:
             if debug_enabled():
                 raise
@@ -140,37 +142,6 @@ def progress_bar(total: int, quiet: bool, desc: str) -> tqdm[Any] | _NoBar:
         file=sys.stderr,
         leave=False,
     )
-
-
-#: ``-`` as a file name: standard input for a log, standard output for what is written.
-STDIO = Path("-")
-
-
-def check_input(log: Path, folder_ok: bool = True) -> None:
-    """A log must exist and be readable: a file, or a folder (rosbag2) when ``folder_ok``;
-    ``-`` is standard input. What cannot be read is bad data (exit 1), as a missing file is,
-    never a usage error: click's own readability check is off on every input path."""
-    if log == STDIO:
-        return
-    if not log.exists():
-        if log.is_symlink():
-            raise InputFileError(
-                log, f"a symbolic link to {os.readlink(log)}, which does not exist"
-            )
-        raise InputFileError(log, "no such file")
-    if log.is_dir():
-        if not folder_ok:
-            raise InputFileError(log, "a directory, where a file is expected")
-        if not os.access(log, os.R_OK | os.X_OK):
-            raise InputFileError(log, "cannot read the folder: permission denied")
-        return
-    if not log.is_file():
-        raise InputFileError(log, "not a regular file or folder")
-    try:
-        with open(log, "rb"):
-            pass
-    except OSError as exc:
-        raise InputFileError(log, f"cannot read: {exc.strerror or exc}") from exc
 
 
 def read_input(

@@ -21,7 +21,7 @@ from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
-from gridmap_cli.poses.sync import POSE_SOURCES
+from gridmap_cli.poses.sources import SOURCES, PoseSettings, pose_source, source_names
 from gridmap_cli.readers import format_names, resolve_format
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.writers import check_output
@@ -60,7 +60,7 @@ if TYPE_CHECKING:
 )
 @click.option(
     "--pose",
-    type=click.Choice((*POSE_SOURCES, "slam")),
+    type=click.Choice(source_names()),
     help="The track the map was built with (build's --pose; default odometry): global puts the "
     "map in the world frame; odometry, scan-matched and slam in the odometry frame, placed by "
     "--log. --spread-plot draws that track's pose spread: the odometry error along the "
@@ -136,6 +136,7 @@ def evaluate(
                 f"{given}: {what} must be a map's YAML file (the image is named inside it)"
             )
     pose, frame = _pose_and_frame(pose, frame)
+    own_spread = pose_source(pose).belief  # the pose graph's, not the odometry error's
     if frame == "odometry" and log_path is None:
         raise UsageError(
             "a map in the odometry frame needs --log (its first true pose places the frame in "
@@ -144,14 +145,14 @@ def evaluate(
     selection = Selection.parse(sensor_patterns, start, end)
     if selection and log_path is None:
         raise UsageError("--sensors, --start and --end choose part of --log; give --log")
-    if spread_plot is not None and pose == "slam" and log_path is None:
+    if spread_plot is not None and own_spread and log_path is None:
         raise UsageError("--spread-plot draws the pose spread of the readings of --log: give it")
-    if spread_plot is not None and pose == "slam" and odometry_file is not None:
+    if spread_plot is not None and own_spread and odometry_file is not None:
         raise UsageError(
-            "--pose slam: the pose spread is the pose graph's own; --odometry-error is for "
+            f"--pose {pose}: the pose spread is the pose graph's own; --odometry-error is for "
             "odometry and scan-matched maps"
         )
-    if spread_plot is not None and pose != "slam" and (log_path is None or odometry_file is None):
+    if spread_plot is not None and not own_spread and (log_path is None or odometry_file is None):
         raise UsageError(
             "--spread-plot draws the pose spread of the readings of --log under the odometry "
             "error of --odometry-error FILE: give both"
@@ -264,9 +265,9 @@ def evaluate(
 def _pose_and_frame(pose: str | None, frame: str | None) -> tuple[str, str]:
     """--pose and --frame, each from the other when not given; a usage error when they
     disagree."""
-    if pose is None:
-        pose = "global" if frame == "world" else "odometry"
-    wanted = "world" if pose == "global" else "odometry"
+    if pose is None:  # the first source in that frame: the odometry, or the reference
+        pose = next(s.name for s in SOURCES if s.frame == (frame or "odometry"))
+    wanted = pose_source(pose).frame
     if frame is not None and frame != wanted:
         raise UsageError(
             f"a map built with --pose {pose} is in the {wanted} frame, not --frame {frame}"
@@ -278,22 +279,15 @@ def _pose_spread(
     log: RangeLog, robot: RobotDescription | None, pose: str, odometry: OdometryError | None
 ) -> tuple[RangeLog, PoseUncertainty]:
     """``log`` with the poses the map was built with, and their covariance as build's
-    error-aware mode takes it: the pose graph's (slam), or the odometry error carried along
-    the odometry or the scan-matched track."""
+    error-aware mode takes it: the pose source's own (the pose graph's), or the odometry error
+    carried along its track."""
     from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise, propagate
 
-    if pose == "slam":
-        from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
-        from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
-
-        placed, result = slam_corrected_log(log, robot)
-        return placed, slam_belief(result).uncertainty
-    if pose == "scan-matched":
-        from gridmap_cli.poses.correction.scan_match import scan_matched_log
-
-        log, _ = scan_matched_log(log, robot)
+    posed = pose_source(pose).run(log, robot, PoseSettings(belief_samples=0))
+    if posed.belief is not None:
+        return posed.log, posed.belief.uncertainty
     assert odometry is not None  # the usage checks ask for it
-    return log, propagate(log.poses, StepNoise.of(odometry))
+    return posed.log, propagate(posed.log.poses, StepNoise.of(odometry))
 
 
 def _spread_in_world(
