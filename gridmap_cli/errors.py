@@ -124,11 +124,11 @@ _FLAGS = {"odometry_coefficients": "--odometry-coefficient"}
 def given(name: str, value: str | None = None) -> str:
     """What the caller gave, named for them: ``given("pose", "slam")`` is ``--pose slam`` on the
     command line and ``pose='slam'`` from Python; without a value, the flag or the argument's
-    name alone (``--robot``, ``robot=``)."""
+    name alone (``--robot``, ``robot``)."""
     if _NAMING.get() == "flags":
         flag = _FLAGS.get(name, "--" + name.replace("_", "-"))
         return flag if value is None else f"{flag} {value}"
-    return f"{name}=" if value is None else f"{name}={value!r}"
+    return name if value is None else f"{name}={value!r}"
 
 
 def naming_style() -> str:

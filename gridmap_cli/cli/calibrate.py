@@ -142,7 +142,8 @@ def calibrate(
         raise UsageError(f"--window-turn must be a positive number of degrees, got {window_deg}")
     if not (sonar_error >= 0.0 and math.isfinite(sonar_error)):
         raise UsageError(f"--sonar-error must be a finite number >= 0, got {sonar_error}")
-    if pose != "odometry" and reference != "truth":
+    corrected = "odometry" not in pose_source(pose).needs  # not the robot's own odometry
+    if corrected and reference != "truth":
         raise UsageError(
             f"--pose {pose} --reference {reference}: the corrected track would be compared "
             "with a correction of itself; calibrate the odometry (--pose odometry) against it"
@@ -154,11 +155,11 @@ def calibrate(
         check_output_folder(output)
     with reading(log.name, quiet):
         data = read_input([log], log_format)
-    laser = pose != "odometry" or reference != "truth"
+    laser = corrected or reference != "truth"
     data = apply_selection(data, selection, None, need_readings=laser).log
     if reference == "truth" and data.truth is None:
         _no_reference(log, data, robot)
-    if pose != "odometry":
+    if corrected:
         data = _corrected(log, data, robot, quiet, pose)
     elif reference != "truth":
         data = _own_reference(log, data, robot, reference)
@@ -169,7 +170,7 @@ def calibrate(
             output,
             comments=[
                 f"gridmap {__version__} calibrate {log.name}"
-                + (f" --pose {pose}" if pose != "odometry" else "")
+                + (f" --pose {pose}" if corrected else "")
                 + (f" --reference {reference}" if reference != "truth" else "")
                 + f": {result.windows} windows of "
                 f"{window_m:g} m or {window_deg:g} deg, {result.driven_m:.1f} m driven, "

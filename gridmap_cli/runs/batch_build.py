@@ -25,6 +25,7 @@ from gridmap_cli import __version__
 from gridmap_cli.atomic import atomic_write
 from gridmap_cli.errors import naming, naming_style
 from gridmap_cli.mapping.options import BuildOptions
+from gridmap_cli.poses.sources import DEFAULT_SOURCE
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.runs.content import content_hash
 
@@ -40,7 +41,7 @@ class BatchOptions:
     build: BuildOptions = field(default_factory=BuildOptions)
     robot: str | None = None  # preset name or absolute path; None: each log's own
     log_format: str | None = None
-    pose: str = "odometry"
+    pose: str = DEFAULT_SOURCE
     topics: ReadOptions = field(default_factory=ReadOptions)  # without a robot
     sensors: tuple[str, ...] = ()
     start: str | None = None

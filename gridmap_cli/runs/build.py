@@ -24,7 +24,13 @@ from typing import TYPE_CHECKING
 from gridmap_cli.errors import GridmapError, given
 from gridmap_cli.mapping.options import BuildOptions, BuildResult
 from gridmap_cli.mapping.selection import Selection
-from gridmap_cli.poses.sources import DEFAULT_SOURCE, PosedLog, PoseSettings, pose_source
+from gridmap_cli.poses.sources import (
+    DEFAULT_SOURCE,
+    SOURCES,
+    PosedLog,
+    PoseSettings,
+    pose_source,
+)
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RobotDescription
@@ -262,9 +268,23 @@ def _read_logs(paths: Sequence[Path], log_format: str | None, options: ReadOptio
 
 
 def _reference_note(request: BuildRequest) -> str | None:
-    from gridmap_cli.mapping.pipeline import reference_spread_note
+    """A warning for an error-aware map of a reference track with a nonzero odometry error:
+    the reference carries no odometry drift, so the spread blurs a map that has none. None
+    otherwise."""
+    from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise
 
-    return reference_spread_note(request.pose, request.options)
+    model, source = request.options.odometry_error, pose_source(request.pose)
+    if "reference" not in source.needs or request.options.mode != "error-aware":
+        return None
+    if model is None or StepNoise.of(model).is_zero:
+        return None
+    odometry = next(s.name for s in SOURCES if "odometry" in s.needs)
+    return (
+        f"{given('pose', source.name)} {given('mode', 'error-aware')}: the odometry's error is "
+        "spread over the reference track, which has no odometry drift, so the map is blurred "
+        f"for nothing; map the reference with {given('mode', 'standard')}, or the odometry "
+        f"({given('pose', odometry)}) error-aware"
+    )
 
 
 def _say(hooks: BuildHooks, note: str) -> None:

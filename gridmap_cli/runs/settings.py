@@ -22,7 +22,7 @@ from gridmap_cli.mapping.models.standard import StandardSonarParams
 from gridmap_cli.mapping.options import MAPPING_MODES, MAX_RESOLUTION_M, BuildOptions
 from gridmap_cli.mapping.selection import Selection
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
-from gridmap_cli.poses.sources import DEFAULT_SOURCE, pose_source
+from gridmap_cli.poses.sources import DEFAULT_SOURCE, SOURCES, pose_source
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RobotDescription
@@ -105,10 +105,12 @@ def map_settings(options: MapOptions, fused: bool = False) -> BuildOptions:
         raise UsageError(f"unknown mapping mode '{options.mode}' (known: {MAPPING_MODES})")
     error_aware, odometry_error = error_aware_settings(options)
     correct = options.correct_odometry
-    if correct and (options.pose != "odometry" or fused):
+    own = _own_odometry(options.pose)
+    if correct and (not own or fused):
+        odometry = next(s.name for s in SOURCES if _own_odometry(s.name))
         raise UsageError(
             f"{given('correct_odometry')} corrects the robot's own odometry: it takes "
-            f"{given('pose', 'odometry')} and one log, no {given('fuse')}"
+            f"{given('pose', odometry)} and one log, no {given('fuse')}"
         )
     if correct is None:
         correct = auto_correction(options.mode, options.pose, fused, odometry_error)
@@ -267,9 +269,14 @@ def auto_correction(mode: str, pose: str, fused: bool, model: OdometryError | No
     mode, of the robot's own odometry of one log, with an odometry error that knows the
     biases' signs (version 3). Spreading a known bias as a random error blurs what the track
     can simply be rid of (docs/odometry-error.md)."""
-    if mode != "error-aware" or pose != "odometry" or fused or model is None:
+    if mode != "error-aware" or not _own_odometry(pose) or fused or model is None:
         return False
     return model.has_bias
+
+
+def _own_odometry(pose: str) -> bool:
+    """True for a pose source that maps with the robot's own odometry, as logged."""
+    return "odometry" in pose_source(pose).needs
 
 
 def check_input(log: Path, folder_ok: bool = True) -> None:
