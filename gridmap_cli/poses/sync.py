@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.errors import GridmapError
+from gridmap_cli.errors import GridmapError, given
 from gridmap_cli.geometry import compose, wrap_angle
 from gridmap_cli.poses.odometry_error import travelled_at
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
@@ -96,7 +96,7 @@ def sensors_for_log(log: RangeLog, robot: RobotDescription | None) -> tuple[Rang
         raise GridmapError(
             f"{log.source}: the log does not describe sensor"
             f"{'s' if len(unknown) > 1 else ''} {', '.join(repr(u) for u in unknown[:5])}"
-            f"{' ...' if len(unknown) > 5 else ''}; give --robot "
+            f"{' ...' if len(unknown) > 5 else ''}; give {given('robot')} "
             "(a preset name, a robot YAML file or an ARIA .p file)"
         )
     raise GridmapError(
