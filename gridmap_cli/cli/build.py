@@ -164,14 +164,7 @@ def build(
             "--fuse writes one map file from placed logs: give -o FILE, no --draw-path, and "
             f"--pose {placing}"
         )
-    to_mcap = output.suffix.lower() == ".mcap"
-    if to_mcap:
-        source = click.get_current_context().get_parameter_source("map_mode")
-        if source is not None and source != click.core.ParameterSource.DEFAULT:
-            raise UsageError("--map-mode applies to map images; an MCAP map holds 0..100 and -1")
-    else:  # the name and mode, before any input
-        check_map_outputs(Path(f"map.{image_format}") if to_stdout else output, opts.map_mode,
-                          True)  # fmt: skip
+    to_mcap = _check_map_name(output, image_format, opts.map_mode)
     robot = load_robot(opts.robot) if opts.robot else None
     for log in logs:  # the command line first, then the inputs, then the outputs
         check_input(log)
@@ -187,9 +180,7 @@ def build(
         fuse_jobs = [
             FuseJob(log=log.resolve(), log_format=opts.log_format, read_options=opts.topics,
                     pose=opts.pose, initial_pose=first, selection=selection,
-                    robot_spec=_robot_spec(opts.robot),
-                    options=BuildOptions(resolution_m=opts.resolution, sonar=settings.sonar,
-                                         ray=settings.ray))
+                    robot_spec=_robot_spec(opts.robot), options=_fused_settings(settings))
             for log, first in zip(logs, placed, strict=True)
         ]  # fmt: skip
         if scheduler is not None:
@@ -207,6 +198,22 @@ def build(
     built = _build_one(request, quiet)
     _write_one(built, output, image_format, to_mcap, opts, preview, force, started, quiet,
                as_json)  # fmt: skip
+
+
+def _check_map_name(output: Path, image_format: str | None, map_mode: str) -> bool:
+    """The map's name and mode, before any input; True for an MCAP map."""
+    if output.suffix.lower() == ".mcap":
+        source = click.get_current_context().get_parameter_source("map_mode")
+        if source is not None and source != click.core.ParameterSource.DEFAULT:
+            raise UsageError("--map-mode applies to map images; an MCAP map holds 0..100 and -1")
+        return True
+    check_map_outputs(Path(f"map.{image_format}") if output == STDIO else output, map_mode, True)
+    return False
+
+
+def _fused_settings(settings: BuildOptions) -> BuildOptions:
+    """What a fused log is mapped with: the cell size and the standard models' settings."""
+    return BuildOptions(resolution_m=settings.resolution_m, sonar=settings.sonar, ray=settings.ray)
 
 
 def _build_one(request: BuildRequest, quiet: bool) -> MapBuild:

@@ -246,13 +246,14 @@ def _corrected(path: Path, data: RangeLog, robot: str | None, quiet: bool, pose:
     return dataclasses.replace(data, poses=track)
 
 
-def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
+def _coefficient_rows(c: Calibration) -> list[tuple[str, str, str]]:
+    """Each coefficient: what it is, the odometry's error by it, its key in the file."""
     m = c.model
 
     def maybe(ok: bool, text: str) -> str:
         return text if ok else "not estimated"
 
-    rows = [
+    return [
         (
             "distance scale error",
             maybe(c.distance_estimated, f"{100 * c.scale_error:+.2f} % of distance"),
@@ -290,6 +291,11 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
             "heading_rad_per_sqrt_m",
         ),
     ]
+
+
+def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
+    m = c.model
+    rows = _coefficient_rows(c)
     lines = [
         f"{log}: {c.windows} windows ({c.driving_windows} of {c.window_m:g} m, "
         f"{c.turning_windows} of {math.degrees(c.window_rad):g} deg turning), "
@@ -302,16 +308,7 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
         "systematic: the biases (build --correct-odometry takes them out; the file also holds",
         "their magnitudes, the spread of a bias left in); random: what error-aware maps spread",
     ]
-    if c.halves is not None:
-        lines += [
-            "",
-            "the same fit on each half of the span (by distance driven): do they transfer?",
-            f"{'':30s} {'first half':>11s} {'second half':>11s} {'whole':>11s}",
-        ]
-        for _, _, key in rows:
-            first, second = (getattr(h, key) for h in c.halves)
-            values = (_number(key, v) for v in (first, second, getattr(m, key)))
-            lines.append(f"{key:30s} " + " ".join(f"{v:>11s}" for v in values))
+    lines += _halves_lines(c, [key for _, _, key in rows])
     lines += ["", *_robust_lines(c)]
     if c.jitter_estimated:
         lines += [
@@ -330,6 +327,22 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
         f"wrote {output}" if output is not None else "(give -o FILE to write these)",
     ]
     return "\n".join(lines)
+
+
+def _halves_lines(c: Calibration, keys: list[str]) -> list[str]:
+    """The fit on each half of the span beside the whole's, where it was made."""
+    if c.halves is None:
+        return []
+    lines = [
+        "",
+        "the same fit on each half of the span (by distance driven): do they transfer?",
+        f"{'':30s} {'first half':>11s} {'second half':>11s} {'whole':>11s}",
+    ]
+    for key in keys:
+        first, second = (getattr(h, key) for h in c.halves)
+        values = (_number(key, v) for v in (first, second, getattr(c.model, key)))
+        lines.append(f"{key:30s} " + " ".join(f"{v:>11s}" for v in values))
+    return lines
 
 
 def _check_lines(c: Calibration) -> list[str]:

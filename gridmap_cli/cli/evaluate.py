@@ -30,8 +30,11 @@ if TYPE_CHECKING:
     import numpy.typing as npt
 
     # scipy.ndimage (0.3 s) comes with it: imported when the command runs
-    from gridmap_cli.evaluation.evaluate import Evaluation, ProbabilityMap
+    from gridmap_cli.evaluation.evaluate import Evaluation, ProbabilityMap, Truth
     from gridmap_cli.mapping.grid import GridSpec
+
+    #: The pose spread of the readings on the world grid: position and heading.
+    Spread = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]
     from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty
     from gridmap_cli.records import RangeLog
     from gridmap_cli.robot import RobotDescription
@@ -128,7 +131,6 @@ def evaluate(
     global is in the world frame already: give --pose global (or --frame world).
     """
     from gridmap_cli.evaluation import evaluate as ev
-    from gridmap_cli.poses.sync import sensors_for_log
 
     for given, what in ((map_yaml, "MAP"), (truth_yaml, "--truth")):
         if given.suffix.lower() not in (".yaml", ".yml"):
@@ -136,15 +138,66 @@ def evaluate(
                 f"{given}: {what} must be a map's YAML file (the image is named inside it)"
             )
     pose, frame = _pose_and_frame(pose, frame)
-    own_spread = pose_source(pose).belief  # the pose graph's, not the odometry error's
+    selection = _check_options(pose, frame, log_path, (sensor_patterns, start, end), spread_plot,
+                               odometry_file)  # fmt: skip
+    _check_files(map_yaml, truth_yaml, log_path, odometry_file, plot, spread_plot, force)
+    odometry = load_odometry_error(odometry_file) if odometry_file is not None else None
+    robot_desc = load_robot(robot) if robot else None
+    truth = ev.load_truth(truth_yaml)
+    pmap = ev.load_probability_map(map_yaml)
+    map_to_world, region, log_world, spread = (0.0, 0.0, 0.0), None, None, None
+    if log_path is not None:
+        map_to_world, region, log_world, spread = _log_in_world(
+            log_path, log_format, robot_desc, pose, frame, selection, odometry, truth,
+            str(truth_yaml), pmap, spread_plot is not None,
+        )  # fmt: skip
+    warn(
+        ev.check_comparable(
+            pmap, truth.spec, map_to_world, str(map_yaml), str(truth_yaml), log_world
+        )
+    )
+    result = ev.evaluate_map(pmap, truth.walls, truth.spec, region, map_to_world, truth.known)
+    _draw(plot, spread_plot, result, truth, region, spread, f"{map_yaml.name}",
+          f"{truth_yaml.name}")  # fmt: skip
+    if as_json:
+        doc = {
+            "map": str(map_yaml),
+            "truth": str(truth_yaml),
+            "log": str(log_path) if log_path else None,
+            "pose": pose,
+            "frame": frame,
+            "map_to_world": list(map_to_world),
+            "region": "sensed from the true path" if log_path else "whole world",
+            **result.as_dict(),
+        }
+        click.echo(json_text(doc))
+    elif not quiet:
+        click.echo(_evaluation_table(map_yaml, truth_yaml, log_path, map_to_world, result))
+    if plot is not None and not quiet:
+        click.echo(f"gridmap: plot written to {plot}", err=True)
+    if spread_plot is not None and not quiet:
+        click.echo(f"gridmap: pose-spread plot written to {spread_plot}", err=True)
+
+
+def _check_options(
+    pose: str,
+    frame: str,
+    log_path: Path | None,
+    part: tuple[tuple[str, ...], str | None, str | None],
+    spread_plot: Path | None,
+    odometry_file: Path | None,
+) -> Selection:
+    """Usage checks of the options against each other, before any file is read; the part of
+    --log to use (``part``: --sensors, --start, --end)."""
     if frame == "odometry" and log_path is None:
         raise UsageError(
             "a map in the odometry frame needs --log (its first true pose places the frame in "
             "the world); give --log, or --frame world for a map built with --pose global"
         )
-    selection = Selection.parse(sensor_patterns, start, end)
+    selection = Selection.parse(*part)
     if selection and log_path is None:
         raise UsageError("--sensors, --start and --end choose part of --log; give --log")
+    own_spread = pose_source(pose).belief  # the pose graph's, not the odometry error's
     if spread_plot is not None and own_spread and log_path is None:
         raise UsageError("--spread-plot draws the pose spread of the readings of --log: give it")
     if spread_plot is not None and own_spread and odometry_file is not None:
@@ -164,6 +217,19 @@ def evaluate(
         )
     if odometry_file is not None and spread_plot is None:
         raise UsageError("--odometry-error is for --spread-plot")
+    return selection
+
+
+def _check_files(
+    map_yaml: Path,
+    truth_yaml: Path,
+    log_path: Path | None,
+    odometry_file: Path | None,
+    plot: Path | None,
+    spread_plot: Path | None,
+    force: bool,
+) -> None:
+    """The inputs readable, the plots' names and folders fit to write."""
     if log_path is not None:
         check_input(log_path)
     if odometry_file is not None:
@@ -180,43 +246,65 @@ def evaluate(
             raise UsageError(f"{out}: {flag} writes a PNG; name it .png")
         check_output(out, force)
         check_output_folder(out)
-    odometry = load_odometry_error(odometry_file) if odometry_file is not None else None
-    robot_desc = load_robot(robot) if robot else None
-    truth = ev.load_truth(truth_yaml)
-    pmap = ev.load_probability_map(map_yaml)
+
+
+def _log_in_world(
+    log_path: Path,
+    log_format: str | None,
+    robot_desc: RobotDescription | None,
+    pose: str,
+    frame: str,
+    selection: Selection,
+    odometry: OdometryError | None,
+    truth: Truth,
+    truth_name: str,
+    pmap: ProbabilityMap,
+    with_spread: bool,
+) -> tuple[tuple[float, float, float], npt.NDArray[np.bool_], str | None, Spread | None]:
+    """What --log says of the map: where its frame is in the world, the region its sensors
+    could sense from the true path, the world it names, and the pose spread of its readings
+    on the world grid (``with_spread``)."""
+    from gridmap_cli.evaluation import evaluate as ev
+    from gridmap_cli.poses.sync import sensors_for_log
+
     map_to_world = (0.0, 0.0, 0.0)
-    region = None
-    log_world = None
-    spread: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None = None
-    if log_path is not None:
-        data = resolve_format(log_path, log_format).read(log_path)
-        data.require_truth("evaluate needs the true path")  # before the robot is looked up
-        log_world = data.metadata.get("world")
-        if robot_desc is None:
-            robot_desc = robot_from_log(log_path, data.metadata)
-        if spread_plot is not None:
-            placed, uncertainty = _pose_spread(data, robot_desc, pose, odometry)
-            readings_log = apply_selection(placed, selection, robot_desc).log
-        selected = apply_selection(data, selection, robot_desc)
-        warn(selected.notes)
-        data = selected.log
-        true_path = data.require_truth("evaluate needs the true path")
-        ev.check_path_in_world(truth, true_path, str(log_path), str(truth_yaml))
-        sensors = sensors_for_log(data, robot_desc)
-        if frame == "odometry":
-            map_to_world = ev.odometry_frame_in_world(data)
-        region = ev.sensed_region(truth.world, true_path, sensors)
-        if spread_plot is not None:
-            # robot_desc is None for logs that describe their own sensors (CARMEN)
-            spread = _spread_in_world(
-                readings_log, robot_desc, uncertainty, pmap, truth.spec, map_to_world
-            )
-    warn(
-        ev.check_comparable(
-            pmap, truth.spec, map_to_world, str(map_yaml), str(truth_yaml), log_world
+    spread: Spread | None = None
+    data = resolve_format(log_path, log_format).read(log_path)
+    data.require_truth("evaluate needs the true path")  # before the robot is looked up
+    log_world = data.metadata.get("world")
+    if robot_desc is None:
+        robot_desc = robot_from_log(log_path, data.metadata)
+    if with_spread:
+        placed, uncertainty = _pose_spread(data, robot_desc, pose, odometry)
+        readings_log = apply_selection(placed, selection, robot_desc).log
+    selected = apply_selection(data, selection, robot_desc)
+    warn(selected.notes)
+    data = selected.log
+    true_path = data.require_truth("evaluate needs the true path")
+    ev.check_path_in_world(truth, true_path, str(log_path), truth_name)
+    sensors = sensors_for_log(data, robot_desc)
+    if frame == "odometry":
+        map_to_world = ev.odometry_frame_in_world(data)
+    region = ev.sensed_region(truth.world, true_path, sensors)
+    if with_spread:
+        # robot_desc is None for logs that describe their own sensors (CARMEN)
+        spread = _spread_in_world(
+            readings_log, robot_desc, uncertainty, pmap, truth.spec, map_to_world
         )
-    )
-    result = ev.evaluate_map(pmap, truth.walls, truth.spec, region, map_to_world, truth.known)
+    return map_to_world, region, log_world, spread
+
+
+def _draw(
+    plot: Path | None,
+    spread_plot: Path | None,
+    result: Evaluation,
+    truth: Truth,
+    region: npt.NDArray[np.bool_] | None,
+    spread: Spread | None,
+    map_name: str,
+    truth_name: str,
+) -> None:
+    """The plots asked for: the scores, and where the map's uncertainty comes from."""
     if plot is not None:
         from gridmap_cli.evaluation.plot import plot_evaluation
 
@@ -226,7 +314,7 @@ def evaluate(
             truth.walls,
             region if region is not None else np.ones(truth.spec.shape, dtype=bool),
             truth.spec,
-            title=f"{map_yaml.name} vs {truth_yaml.name}",
+            title=f"{map_name} vs {truth_name}",
         )
     if spread_plot is not None and spread is not None:
         from gridmap_cli.evaluation.plot import plot_pose_spread
@@ -239,27 +327,9 @@ def evaluate(
             spread[1],
             truth.walls,
             truth.spec,
-            title=f"{map_yaml.name}: where its uncertainty comes from",
+            title=f"{map_name}: where its uncertainty comes from",
             max_heading_deg=limit if math.isfinite(limit) else None,
         )
-    if as_json:
-        doc = {
-            "map": str(map_yaml),
-            "truth": str(truth_yaml),
-            "log": str(log_path) if log_path else None,
-            "pose": pose,
-            "frame": frame,
-            "map_to_world": list(map_to_world),
-            "region": "sensed from the true path" if log_path else "whole world",
-            **result.as_dict(),
-        }
-        click.echo(json_text(doc))
-    elif not quiet:
-        click.echo(_evaluation_table(map_yaml, truth_yaml, log_path, map_to_world, result))
-    if plot is not None and not quiet:
-        click.echo(f"gridmap: plot written to {plot}", err=True)
-    if spread_plot is not None and not quiet:
-        click.echo(f"gridmap: pose-spread plot written to {spread_plot}", err=True)
 
 
 def _pose_and_frame(pose: str | None, frame: str | None) -> tuple[str, str]:

@@ -24,6 +24,16 @@ from gridmap_cli.writers.convert import output_writer, write_log, writer_names
 from gridmap_cli.writers.mcap_log import ENCODINGS
 
 
+def _check_numbers(rate: float, drift: float, duration: float | None) -> None:
+    """--rate, --drift and --duration: finite, and positive where zero means nothing."""
+    if not (rate > 0.0 and math.isfinite(rate)):
+        raise UsageError(f"--rate must be a positive number of Hz, got {rate}")
+    if not (drift >= 0.0 and math.isfinite(drift)):
+        raise UsageError(f"--drift must be a finite number >= 0, got {drift}")
+    if duration is not None and not (duration > 0.0 and math.isfinite(duration)):
+        raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
+
+
 @click.command()
 @click.argument("world", type=click.Path(path_type=Path, readable=False))
 @click.argument("path_file", metavar="PATH", type=click.Path(path_type=Path, readable=False))
@@ -84,12 +94,7 @@ def simulate(
     from gridmap_cli.sim.simulate import simulate as run_simulation
     from gridmap_cli.sim.world import World
 
-    if not (rate > 0.0 and math.isfinite(rate)):
-        raise UsageError(f"--rate must be a positive number of Hz, got {rate}")
-    if not (drift >= 0.0 and math.isfinite(drift)):
-        raise UsageError(f"--drift must be a finite number >= 0, got {drift}")
-    if duration is not None and not (duration > 0.0 and math.isfinite(duration)):
-        raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
+    _check_numbers(rate, drift, duration)
     check_not_folder(output)
     writer = output_writer(output, log_format, encoding)
     if output == STDIO and as_json:

@@ -25,6 +25,7 @@ from gridmap_cli.evaluation.relations import read_relations, reordered_on_logged
 from gridmap_cli.poses.correction.scan_match import STATUS_NAMES
 from gridmap_cli.poses.sources import (
     DEFAULT_SOURCE,
+    PosedLog,
     PoseSettings,
     pose_help,
     pose_source,
@@ -32,6 +33,7 @@ from gridmap_cli.poses.sources import (
 )
 from gridmap_cli.readers import format_names, read_logs
 from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.records import PoseTrack
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.trajectory import covariance_path, trajectory_format, write_trajectory
@@ -128,20 +130,9 @@ def trajectory(
     with StageBars(quiet) as bars:
         posed = source.run(data, robot_desc, PoseSettings(progress=bars))
     summary: dict[str, object] = {"output": str(output), "pose": pose, **posed.summary}
-    track, scored = posed.log.poses, posed.log.poses
-    status: list[str] | None = None
-    covariance: tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_]] | None = None
-    if posed.match is not None:  # one pose per scan, with how each scan was placed
-        track = posed.match.track
-        matched = posed.slam.scan_matched if posed.slam is not None else posed.match
-        status = [STATUS_NAMES[int(s)] for s in matched.status]
-    if posed.slam is not None:
-        from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
-
-        # the graph's own noise: the benchmark's relations check it (docs/scan-matching.md)
-        belief = slam_belief(posed.slam, calibrate=False)
-        keyframe = np.isin(track.stamp_ns, belief.stamp_ns)
-        covariance = (belief.marginals_at(track.stamp_ns), keyframe)
+    track, status, covariance = _written_track(posed)
+    scored = posed.log.poses
+    if covariance is not None:
         summary["covariance"] = str(cov_path)
     summary["poses"] = len(track)
     if relations is not None:
@@ -167,30 +158,56 @@ def trajectory(
     if as_json:
         click.echo(json.dumps(summary, indent=2))
     if not quiet:
-        line = f"gridmap: {len(track):,} {pose} poses -> {output}"
-        if "scan_match" in summary:
-            sm = posed.summary["scan_match"]
-            line += (
-                f" ({sm['fallbacks']:,} scans fell back to odometry, {sm['degenerate']:,} "
-                "degenerate)"
-            )
-        if "slam" in summary:
-            sl = posed.summary["slam"]
-            line += (
-                f" ({sl['closures_accepted']:,} loop closures accepted, "
-                f"{sl['closures_rejected']:,} rejected; {sl['fallbacks']:,} scans fell back "
-                "to odometry)"
-            )
-        click.echo(line + f" in {summary['seconds']:.1f} s", err=True)
-        if cov_path is not None:
-            click.echo(f"gridmap: each pose's covariance -> {cov_path}", err=True)
-        if posed.slam is not None and posed.slam.warning:
-            click.echo(f"gridmap: warning: {posed.slam.warning}", err=True)
-        if relations is not None:
-            r = score.summary()
-            click.echo(
-                f"gridmap: relations {r['relations']:,} (skipped {r['skipped']:,}): "
-                f"translation {r['trans_mean_m']:.3f} +/- {r['trans_std_m']:.3f} m, "
-                f"rotation {r['rot_mean_deg']:.2f} +/- {r['rot_std_deg']:.2f} deg",
-                err=True,
-            )
+        _report(summary, posed, len(track), cov_path)
+
+
+Covariance = tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_]]
+
+
+def _written_track(posed: PosedLog) -> tuple[PoseTrack, list[str] | None, Covariance | None]:
+    """The track to write: the source's at the odometry's stamps, or one pose per scan with
+    how each scan was placed; with the pose graph's covariance of each pose where it has one."""
+    if posed.match is None:
+        return posed.log.poses, None, None
+    track = posed.match.track
+    matched = posed.slam.scan_matched if posed.slam is not None else posed.match
+    status = [STATUS_NAMES[int(s)] for s in matched.status]
+    if posed.slam is None:
+        return track, status, None
+    from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
+
+    # the graph's own noise: the benchmark's relations check it (docs/scan-matching.md)
+    belief = slam_belief(posed.slam, calibrate=False)
+    keyframe = np.isin(track.stamp_ns, belief.stamp_ns)
+    return track, status, (belief.marginals_at(track.stamp_ns), keyframe)
+
+
+def _report(summary: dict[str, object], posed: PosedLog, poses: int, cov_path: Path | None) -> None:
+    """The lines on stderr: what was written, how the scans were placed, the score."""
+    line = f"gridmap: {poses:,} {summary['pose']} poses -> {summary['output']}"
+    if "scan_match" in summary:
+        sm = posed.summary["scan_match"]
+        line += (
+            f" ({sm['fallbacks']:,} scans fell back to odometry, {sm['degenerate']:,} degenerate)"
+        )
+    if "slam" in summary:
+        sl = posed.summary["slam"]
+        line += (
+            f" ({sl['closures_accepted']:,} loop closures accepted, "
+            f"{sl['closures_rejected']:,} rejected; {sl['fallbacks']:,} scans fell back "
+            "to odometry)"
+        )
+    click.echo(line + f" in {summary['seconds']:.1f} s", err=True)
+    if cov_path is not None:
+        click.echo(f"gridmap: each pose's covariance -> {cov_path}", err=True)
+    if posed.slam is not None and posed.slam.warning:
+        click.echo(f"gridmap: warning: {posed.slam.warning}", err=True)
+    relations = summary.get("relations")
+    if isinstance(relations, dict):
+        r = relations
+        click.echo(
+            f"gridmap: relations {r['relations']:,} (skipped {r['skipped']:,}): "
+            f"translation {r['trans_mean_m']:.3f} +/- {r['trans_std_m']:.3f} m, "
+            f"rotation {r['rot_mean_deg']:.2f} +/- {r['rot_std_deg']:.2f} deg",
+            err=True,
+        )
