@@ -11,7 +11,7 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from gridmap_cli.cli.common import Interrupted, handle_errors
+from gridmap_cli.cli.common import Interrupted, handle_errors, quiet_option
 from gridmap_cli.cli.map_options import (
     error_samples_option,
     image_format_option,
@@ -79,7 +79,7 @@ NAMED_IN_INTERRUPT = 10
     type=click.Path(path_type=Path, dir_okay=False),
     help=f"JSON-lines report, one line per log [default: OUTDIR/{REPORT_NAME}].",
 )
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
+@quiet_option("No progress bar and no summary on stderr.")
 @handle_errors
 def batch(
     inputs: tuple[str, ...],

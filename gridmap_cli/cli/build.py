@@ -26,8 +26,11 @@ from gridmap_cli.cli.common import (
     check_input,
     check_not_folder,
     check_output_folder,
+    force_option,
     handle_errors,
+    json_option,
     progress_bar,
+    quiet_option,
     read_input,
     stdout_file,
     warn,
@@ -119,9 +122,9 @@ if TYPE_CHECKING:
               "the compiled kernels are built), or with --fuse and the local executor, the "
               "logs.")  # fmt: skip
 @error_samples_option
-@click.option("--force", is_flag=True, help="Overwrite existing outputs.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
-@click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
+@force_option("Overwrite existing outputs.")
+@quiet_option("No progress bar and no summary on stderr.")
+@json_option("Print a JSON summary on stdout.")
 @handle_errors
 def build(
     logs: tuple[Path, ...],

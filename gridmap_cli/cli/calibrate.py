@@ -15,8 +15,12 @@ from gridmap_cli.cli.common import (
     STDIO,
     check_input,
     check_output_folder,
+    force_option,
+    format_option,
     handle_errors,
+    json_option,
     json_text,
+    quiet_option,
     read_input,
     selection_options,
 )
@@ -30,7 +34,7 @@ from gridmap_cli.poses.sources import (
     pose_source,
     source_names,
 )
-from gridmap_cli.readers import STDIN_NAME, format_names
+from gridmap_cli.readers import STDIN_NAME
 from gridmap_cli.records import RangeLog
 from gridmap_cli.writers import check_output
 
@@ -57,7 +61,7 @@ REFERENCES = ("truth", *(s.name for s in SOURCES if s.uses_laser))
     type=click.Path(path_type=Path, readable=False),
     help="Odometry-error YAML to write (what build takes); default: print only.",
 )
-@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@format_option
 @click.option(
     "--window",
     "window_m",
@@ -106,9 +110,9 @@ REFERENCES = ("truth", *(s.name for s in SOURCES if s.uses_laser))
     "with the laser's mounting; default: the log's own.",
 )
 @selection_options(sensors=False)
-@click.option("--force", is_flag=True, help="Overwrite an existing output.")
-@click.option("--json", "as_json", is_flag=True, help="Print the figures as JSON on stdout.")
-@click.option("-q", "--quiet", is_flag=True, help="No table on stdout (with -o: just write).")
+@force_option("Overwrite an existing output.")
+@json_option("Print the figures as JSON on stdout.")
+@quiet_option("No table on stdout (with -o: just write).")
 @handle_errors
 def calibrate(
     log: Path,

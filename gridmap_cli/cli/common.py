@@ -20,7 +20,7 @@ import click
 
 from gridmap_cli.errors import GridmapError, UsageError, naming
 from gridmap_cli.mapping.selection import EXCLUDE
-from gridmap_cli.readers import STDIN_NAME, read_bytes, read_logs
+from gridmap_cli.readers import STDIN_NAME, format_names, read_bytes, read_logs
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
 from gridmap_cli.runs.settings import STDIO as STDIO
@@ -31,6 +31,7 @@ if TYPE_CHECKING:
 
 P = ParamSpec("P")
 R = TypeVar("R")
+F = TypeVar("F", bound=Callable[..., object])
 
 
 class UsageFailure(click.ClickException):
@@ -229,6 +230,28 @@ def topic_options(func: Callable[..., R]) -> Callable[..., R]:
     for option in reversed(options):
         gathered = option(gathered)
     return gathered
+
+
+def force_option(help_text: str) -> Callable[[F], F]:
+    """``--force``: what it lets the command overwrite."""
+    return click.option("--force", is_flag=True, help=help_text)
+
+
+def quiet_option(help_text: str) -> Callable[[F], F]:
+    """``-q``/``--quiet``: what the command then leaves out."""
+    return click.option("-q", "--quiet", is_flag=True, help=help_text)
+
+
+def json_option(help_text: str) -> Callable[[F], F]:
+    """``--json`` (the parameter ``as_json``): what the command prints as JSON."""
+    return click.option("--json", "as_json", is_flag=True, help=help_text)
+
+
+def format_option(func: F) -> F:
+    """``--format`` (the parameter ``log_format``): the reader to use, by name."""
+    return click.option(
+        "--format", "log_format", type=click.Choice(format_names()), help="Log format."
+    )(func)
 
 
 def selection_options(sensors: bool = True) -> Callable[[Callable[P, R]], Callable[P, R]]:

@@ -12,8 +12,12 @@ import numpy as np
 from gridmap_cli.cli.common import (
     check_input,
     check_output_folder,
+    force_option,
+    format_option,
     handle_errors,
+    json_option,
     json_text,
+    quiet_option,
     selection_options,
     warn,
 )
@@ -22,7 +26,7 @@ from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.poses.sources import SOURCES, PoseSettings, pose_source, source_names
-from gridmap_cli.readers import format_names, resolve_format
+from gridmap_cli.readers import resolve_format
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.writers import check_output
 
@@ -56,7 +60,7 @@ if TYPE_CHECKING:
     help="The log the map was built from (with ground truth): places the odometry frame in the "
     "world and limits the scores to the cells its sensors could have sensed.",
 )
-@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@format_option
 @click.option(
     "--robot",
     help="Robot preset, YAML or ARIA .p file for the sensors of --log; default: its '# robot:'.",
@@ -77,8 +81,8 @@ if TYPE_CHECKING:
     "global)  [default: from --pose, else odometry]",
 )
 @selection_options()
-@click.option("--json", "as_json", is_flag=True, help="Print the scores as JSON on stdout.")
-@click.option("-q", "--quiet", is_flag=True, help="No table on stdout (with --plot: just draw).")
+@json_option("Print the scores as JSON on stdout.")
+@quiet_option("No table on stdout (with --plot: just draw).")
 @click.option(
     "--plot",
     type=click.Path(path_type=Path, readable=False),
@@ -98,7 +102,7 @@ if TYPE_CHECKING:
     type=click.Path(path_type=Path, readable=False),
     help="--spread-plot: the odometry-error file the map was built with (gridmap calibrate).",
 )
-@click.option("--force", is_flag=True, help="Overwrite existing --plot / --spread-plot outputs.")
+@force_option("Overwrite existing --plot / --spread-plot outputs.")
 @handle_errors
 def evaluate(
     map_yaml: Path,

@@ -18,13 +18,12 @@ from typing import Any, TypeVar
 
 import click
 
-from gridmap_cli.cli.common import selection_options, topic_options
+from gridmap_cli.cli.common import format_option, selection_options, topic_options
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.models.ray import LASER_NO_ECHO_FREE_M
 from gridmap_cli.mapping.models.standard import StandardSonarParams
 from gridmap_cli.mapping.options import MAPPING_MODES, BuildOptions
 from gridmap_cli.poses.sources import DEFAULT_SOURCE, pose_help, source_names
-from gridmap_cli.readers import format_names
 from gridmap_cli.runs.settings import MapOptions
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, MAP_MODES
 
@@ -34,9 +33,6 @@ robot_option = click.option(
     "--robot",
     help="Robot preset (p3at, p3dx), robot YAML file or ARIA .p file; default: the log's own "
     "'# robot:' line.",
-)
-format_option = click.option(
-    "--format", "log_format", type=click.Choice(format_names()), help="Log format."
 )
 
 

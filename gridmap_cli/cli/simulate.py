@@ -13,8 +13,11 @@ from gridmap_cli.cli.common import (
     check_input,
     check_not_folder,
     check_output_folder,
+    force_option,
     handle_errors,
+    json_option,
     json_text,
+    quiet_option,
     stdout_file,
 )
 from gridmap_cli.errors import UsageError
@@ -66,9 +69,9 @@ def _check_numbers(rate: float, drift: float, duration: float | None) -> None:
     help="Odometry error level: 0 perfect, 1 typical, 2 poor (scales every error term).",
 )
 @click.option("--duration", type=float, help="Repeat laps until this many seconds have passed.")
-@click.option("--force", is_flag=True, help="Overwrite an existing output.")
-@click.option("-q", "--quiet", is_flag=True, help="No summary on stderr.")
-@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
+@force_option("Overwrite an existing output.")
+@quiet_option("No summary on stderr.")
+@json_option("Print the summary as JSON on stdout.")
 @handle_errors
 def simulate(
     world: Path,

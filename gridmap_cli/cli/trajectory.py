@@ -16,7 +16,11 @@ import numpy.typing as npt
 from gridmap_cli.cli.common import (
     check_input,
     check_output_folder,
+    force_option,
+    format_option,
     handle_errors,
+    json_option,
+    quiet_option,
     topic_options,
 )
 from gridmap_cli.cli.progress import StageBars, reading
@@ -31,7 +35,7 @@ from gridmap_cli.poses.sources import (
     pose_source,
     source_names,
 )
-from gridmap_cli.readers import format_names, read_logs
+from gridmap_cli.readers import read_logs
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import PoseTrack
 from gridmap_cli.robot import load_robot, robot_from_log
@@ -83,11 +87,11 @@ from gridmap_cli.writers.trajectory import covariance_path, trajectory_format, w
     help="Seconds to add to the track's stamps to reach the relations' clock (for a log "
     "republished with times from its start).",
 )
-@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@format_option
 @topic_options
-@click.option("--force", is_flag=True, help="Overwrite an existing output.")
-@click.option("-q", "--quiet", is_flag=True, help="No summary on stderr.")
-@click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
+@force_option("Overwrite an existing output.")
+@quiet_option("No summary on stderr.")
+@json_option("Print a JSON summary on stdout.")
 @handle_errors
 def trajectory(
     logs: tuple[Path, ...],

@@ -102,17 +102,17 @@ class PoseSource:
 
 
 SOURCES: tuple[PoseSource, ...] = (
-    PoseSource("odometry", frozenset({"odometry"}), "odometry", "the odometry",
+    PoseSource("odometry", frozenset({"odometry"}), "odometry", "the robot's wheel odometry",
                "gridmap_cli.poses.sources:odometry_poses"),
     PoseSource("global", frozenset({"reference"}), "world",
-               "the log's global pose (ARIA robotGlobal, CSV true_*, CARMEN's corrected poses or "
-               "TRUEPOS, a ROS recording's TF map -> base or --pose-topic)",
+               "the log's reference track: ARIA robotGlobal, CSV true_*, CARMEN's corrected poses "
+               "or TRUEPOS, a ROS recording's TF map -> base or --pose-topic",
                "gridmap_cli.poses.sources:global_poses"),
     PoseSource("scan-matched", frozenset({"laser"}), "odometry",
                "the odometry corrected by matching the laser scans",
                "gridmap_cli.poses.sources:scan_matched_poses"),
     PoseSource("slam", frozenset({"laser"}), "odometry",
-               "that with loop closures on a pose graph",
+               "the scan-matched track with loop closures on a pose graph",
                "gridmap_cli.poses.sources:slam_poses", belief=True),
 )  # fmt: skip
 #: The source a build uses when none is named.
@@ -196,6 +196,6 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
 
 
 def pose_help(intro: str) -> str:
-    """``intro`` and each source's help phrase, for a command's ``--pose``."""
-    phrases = [f"{s.help} ({s.name})" for s in SOURCES]
+    """``intro`` and each source's name and help phrase, for a command's ``--pose``."""
+    phrases = [f"{s.name} ({s.help})" for s in SOURCES]
     return f"{intro} {', '.join(phrases[:-1])}, or {phrases[-1]}."
