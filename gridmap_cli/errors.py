@@ -86,7 +86,7 @@ class OutputExistsError(GridmapError):
 
     def __init__(self, path: str | Path) -> None:
         self.path = str(path)
-        super().__init__(f"{self.path} exists (use --force to overwrite)")
+        super().__init__(f"{self.path} exists (use {given('force', 'True')} to overwrite)")
 
 
 class MapSizeError(GridmapError):
@@ -124,10 +124,13 @@ _FLAGS = {"odometry_coefficients": "--odometry-coefficient"}
 def given(name: str, value: str | None = None) -> str:
     """What the caller gave, named for them: ``given("pose", "slam")`` is ``--pose slam`` on the
     command line and ``pose='slam'`` from Python; without a value, the flag or the argument's
-    name alone (``--robot``, ``robot``)."""
+    name alone (``--robot``, ``robot``); the value ``"True"`` is a flag alone (``--force``,
+    ``force=True``)."""
     if _NAMING.get() == "flags":
         flag = _FLAGS.get(name, "--" + name.replace("_", "-"))
-        return flag if value is None else f"{flag} {value}"
+        return flag if value in (None, "True") else f"{flag} {value}"
+    if value == "True":
+        return f"{name}=True"
     return name if value is None else f"{name}={value!r}"
 
 

@@ -75,6 +75,19 @@ def test_errors_name_arguments_not_flags() -> None:
     assert "--" not in str(no_laser.value)
 
 
+def test_an_existing_map_is_kept_unless_force_is_given(tmp_path: Path) -> None:
+    built = gridmap.build(gridmap.MapOptions(resolution=0.2).request(inputs=CSV))
+    image, _ = gridmap.write_map(tmp_path / "m.pgm", built.map)
+    first = image.read_bytes()
+    wider = gridmap.build(gridmap.MapOptions(resolution=0.4).request(inputs=CSV))
+    with pytest.raises(gridmap.GridmapError) as exists:
+        gridmap.write_map(tmp_path / "m.pgm", wider.map)
+    assert str(exists.value) == f"{tmp_path / 'm.pgm'} exists (use force=True to overwrite)"
+    assert image.read_bytes() == first
+    gridmap.write_map(tmp_path / "m.pgm", wider.map, force=True)
+    assert image.read_bytes() != first
+
+
 def test_the_logs_robot_line_is_applied(tmp_path: Path) -> None:
     text = CSV.read_text(encoding="utf-8")
     plain = tmp_path / "plain.csv"

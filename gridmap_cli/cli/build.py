@@ -273,7 +273,7 @@ def _write_one(
     if preview is not None and built.placed.read is not None:
         from gridmap_cli.writers.preview import write_preview  # only --draw-path draws
 
-        tracks = _tracks(built.placed.read, built.log, opts.pose)
+        tracks = _tracks(built.placed.read, built.log, built.placed.posed.source)
         write_preview(preview, built.map, tracks)
     elapsed = time.perf_counter() - started
     summary = build_summary(built.stats, image_path, yaml_path, elapsed, occupied, free)

@@ -76,7 +76,9 @@ class PoseSource:
     where the odometry does) or "world" (the reference's frame); ``help``: a phrase for the
     commands' help (what the track is); ``runner``: ``module:function`` of its
     :data:`Runner`; ``belief``: the source knows its own uncertainty (a pose graph's), so an
-    error-aware map of it needs no odometry-error model."""
+    error-aware map of it needs no odometry-error model; ``scans``: the source may read the
+    laser's scans, so the log's readings are held for it (None: when it needs a laser; a
+    source that chooses by the log, falling back where there is no laser, sets True)."""
 
     name: str
     needs: frozenset[str]
@@ -84,11 +86,12 @@ class PoseSource:
     help: str
     runner: str
     belief: bool = False
+    scans: bool | None = None
 
     @property
     def uses_laser(self) -> bool:
-        """True when the source reads the laser: the log's readings are held for it."""
-        return "laser" in self.needs
+        """True when the source may read the laser: the log's readings are held for it."""
+        return "laser" in self.needs if self.scans is None else self.scans
 
     def run(
         self, log: RangeLog, robot: RobotDescription | None, settings: PoseSettings | None = None

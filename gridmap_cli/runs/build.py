@@ -51,7 +51,7 @@ class BuildRequest:
     ``inputs``: logs to read as one (several ROS recordings are merged by time), or ``log``: a
     log already read (one of the two). ``robot``: a description, or a preset name or file to
     load; None takes the log's own ``# robot:`` line. ``options``: the map options, checked
-    (:func:`gridmap_cli.mapping.options.map_settings`). ``pose``: a pose source's name
+    (:func:`gridmap_cli.runs.settings.map_settings`). ``pose``: a pose source's name
     (:data:`gridmap_cli.poses.sources.SOURCES`). ``selection``: the sensors and time window to
     map. ``initial_pose``: where the track's first pose is in a common frame (x_m, y_m, yaw_rad),
     for logs mapped together. ``keep_tracks``: keep the log's reference track beside the
