@@ -69,8 +69,9 @@ def test_errors_name_arguments_not_flags() -> None:
     request = gridmap.MapOptions(pose="scan-matched").request(log=log)
     with pytest.raises(gridmap.GridmapError) as no_laser:
         gridmap.build(request)
-    assert "pose='scan-matched' matches laser scans, and the log has no laser" in str(
-        no_laser.value
+    assert str(no_laser.value).endswith(
+        "pose='scan-matched' matches laser scans, and the log has no laser (its range sensors: "
+        "sonar); use pose='odometry' or pose='global'"
     )
     assert "--" not in str(no_laser.value)
 

@@ -19,7 +19,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from gridmap_cli.errors import InputFileError, UsageError, given
+from gridmap_cli.errors import InputFileError, UsageError, given, naming_style
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RobotDescription
 
@@ -150,10 +150,14 @@ def check_needs(source: PoseSource, log: RangeLog, robot: RobotDescription | Non
 
         kinds = sorted({s.kind for s in sensors_for_log(log, robot)}) or ["none"]
         if "laser" not in kinds:
-            others = " or ".join(source_names(needs_not="laser"))
+            others = source_names(needs_not="laser")
+            if naming_style() == "flags":
+                use = given("pose", " or ".join(others))
+            else:
+                use = " or ".join(given("pose", name) for name in others)
             raise NoLaserError(
                 f"{log.source}: {given('pose', source.name)} matches laser scans, and the log "
-                f"has no laser (its range sensors: {', '.join(kinds)}); use {given('pose', others)}"
+                f"has no laser (its range sensors: {', '.join(kinds)}); use {use}"
             )
 
 
