@@ -7,6 +7,9 @@ everything else is bad data or a runtime failure (exit 1).
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+from collections.abc import Iterator
 from pathlib import Path
 
 
@@ -83,7 +86,7 @@ class OutputExistsError(GridmapError):
 
     def __init__(self, path: str | Path) -> None:
         self.path = str(path)
-        super().__init__(f"{self.path} exists (use --force to overwrite)")
+        super().__init__(f"{self.path} exists (use {given('force', 'True')} to overwrite)")
 
 
 class MapSizeError(GridmapError):
@@ -96,3 +99,42 @@ class SimulationSizeError(GridmapError):
 
 class NoDataError(GridmapError):
     """The log holds nothing that can be mapped."""
+
+
+#: How an error names what the caller gave: "arguments" (a Python caller) or "flags" (the
+#: command line, which sets it for the time of a command; :func:`naming`).
+_NAMING: contextvars.ContextVar[str] = contextvars.ContextVar("gridmap_naming", default="arguments")
+
+
+@contextlib.contextmanager
+def naming(style: str) -> Iterator[None]:
+    """Errors raised inside name what the caller gave as ``style`` says: "flags" (``--pose
+    slam``) or "arguments" (``pose='slam'``)."""
+    token = _NAMING.set(style)
+    try:
+        yield
+    finally:
+        _NAMING.reset(token)
+
+
+#: Flags not spelt as their argument's name with dashes.
+_FLAGS = {"odometry_coefficients": "--odometry-coefficient"}
+
+
+def given(name: str, value: str | None = None) -> str:
+    """What the caller gave, named for them: ``given("pose", "slam")`` is ``--pose slam`` on the
+    command line and ``pose='slam'`` from Python; without a value, the flag or the argument's
+    name alone (``--robot``, ``robot``); the value ``"True"`` is a flag alone (``--force``,
+    ``force=True``)."""
+    if _NAMING.get() == "flags":
+        flag = _FLAGS.get(name, "--" + name.replace("_", "-"))
+        return flag if value in (None, "True") else f"{flag} {value}"
+    if value == "True":
+        return f"{name}=True"
+    return name if value is None else f"{name}={value!r}"
+
+
+def naming_style() -> str:
+    """The style errors name what the caller gave in here ("flags" or "arguments"): a job run
+    in another process takes it along."""
+    return _NAMING.get()

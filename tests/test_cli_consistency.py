@@ -83,12 +83,12 @@ def test_format_names_the_input_everywhere_and_to_the_output(tmp_path: Path) -> 
 def test_ctrl_c_exits_130_with_one_line_and_no_output(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    build_cli = importlib.import_module("gridmap_cli.cli.build")  # the module, not the command
+    pipeline = importlib.import_module("gridmap_cli.mapping.pipeline")  # the build's mapping
 
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(build_cli, "build_map", interrupted)
+    monkeypatch.setattr(pipeline, "build_map", interrupted)
     code, _, err = run("build", str(CSV), "-o", str(tmp_path / "m.png"))
     assert code == 130
     assert err == "Error: interrupted (Ctrl-C); no output was written or changed\n"

@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 
 from gridmap_cli.mapping.grid import GridSpec
 from gridmap_cli.records import PoseTrack
-from gridmap_cli.runs.fuse import Partial, combine, place, reduce_tree, tree_pairs, union_spec
+from gridmap_cli.runs.build import move_track as place
+from gridmap_cli.runs.fuse import Partial, combine, reduce_tree, tree_pairs, union_spec
 from tests.helpers import run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"

@@ -148,13 +148,13 @@ DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 @pytest.mark.skipif(not (DATA / "slam-benchmark" / "aces.relations").exists(), reason="no data")
 def test_aces_odometry_scores_the_published_figure() -> None:
-    from gridmap_cli.poses.sync import select_poses
+    from gridmap_cli.poses.sources import pose_source
     from gridmap_cli.readers import read_logs
     from gridmap_cli.readers.options import ReadOptions
 
     data = read_logs((DATA / "carmen" / "aces-corrected.log.gz",), None, ReadOptions())
     relations = read_relations(DATA / "slam-benchmark" / "aces.relations")
-    odometry = select_poses(data, "odometry").poses
+    odometry = pose_source("odometry").run(data, None).log.poses
     score = score_track(odometry, relations, data.poses, offset_s=70.185)
     # the measurement: 0.549 m for the odometry
     assert score.count == len(relations) and score.trans_mean_m == pytest.approx(0.549, abs=0.01)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from gridmap_cli.errors import GridmapError
+from gridmap_cli.errors import GridmapError, naming
 from gridmap_cli.geometry import compose
 from gridmap_cli.poses.odometry_error import travelled_at
 from gridmap_cli.poses.sync import interpolate_pose, stamp_groups, synchronise
@@ -74,8 +74,10 @@ def test_unknown_sensor_names_are_an_error() -> None:
         synchronise(make_log(("a", "sonar9")), ROBOT)
 
 
-def test_missing_robot_is_an_error() -> None:
-    with pytest.raises(GridmapError, match="give --robot"):
+def test_missing_robot_is_an_error_naming_the_argument_or_the_flag() -> None:
+    with pytest.raises(GridmapError, match="give robot "):
+        synchronise(make_log(), None)
+    with naming("flags"), pytest.raises(GridmapError, match="give --robot "):
         synchronise(make_log(), None)
 
 

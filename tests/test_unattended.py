@@ -187,17 +187,15 @@ def test_evaluate_of_the_right_world_says_nothing(corridor_maps: Path) -> None:
 def test_unexpected_exceptions_are_one_line_without_debug(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import sys
-
-    build_cli = sys.modules["gridmap_cli.cli.build"]  # the package's `build` is the command
+    from gridmap_cli.mapping import pipeline  # the build's mapping
 
     def boom(*args: object, **kwargs: object) -> None:
         raise MemoryError
 
-    monkeypatch.setattr(build_cli, "build_map", boom)
+    monkeypatch.setattr(pipeline, "build_map", boom)
     code, _, err = run("build", str(CSV), "-o", str(tmp_path / "m.png"))
     assert code == 1 and "out of memory" in one_error_line(err)
-    monkeypatch.setattr(build_cli, "build_map", lambda *a, **k: [][1])
+    monkeypatch.setattr(pipeline, "build_map", lambda *a, **k: [][1])
     code, _, err = run("build", str(CSV), "-o", str(tmp_path / "m.png"))
     assert code == 1 and "internal error (IndexError" in one_error_line(err)
     assert os.listdir(tmp_path) == []

@@ -11,16 +11,13 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from gridmap_cli.cli.common import Interrupted, handle_errors
+from gridmap_cli.cli.common import Interrupted, handle_errors, quiet_option
 from gridmap_cli.cli.map_options import (
-    build_settings,
     error_samples_option,
     image_format_option,
     map_options,
 )
 from gridmap_cli.errors import GridmapError, UsageError
-from gridmap_cli.mapping.selection import Selection
-from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot, preset_names
 from gridmap_cli.runs.batch import (
     OVERVIEW_NAME,
@@ -42,6 +39,7 @@ from gridmap_cli.runs.executors import (
     dask_cluster,
     local_processes,
 )
+from gridmap_cli.runs.settings import MapOptions, map_settings
 from gridmap_cli.writers.map_image import check_map_outputs
 
 #: Maps named in the Ctrl-C line; more are counted.
@@ -81,32 +79,13 @@ NAMED_IN_INTERRUPT = 10
     type=click.Path(path_type=Path, dir_okay=False),
     help=f"JSON-lines report, one line per log [default: OUTDIR/{REPORT_NAME}].",
 )
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
+@quiet_option("No progress bar and no summary on stderr.")
 @handle_errors
 def batch(
     inputs: tuple[str, ...],
     outdir: Path,
     image_format: str | None,
-    robot: str | None,
-    log_format: str | None,
-    resolution: float,
-    mode: str,
-    map_mode: str,
-    occupied: float,
-    free: float,
-    no_echo_free: float | None,
-    max_range: float | None,
-    pose: str,
-    topics: ReadOptions,
-    sensor_patterns: tuple[str, ...],
-    start: str | None,
-    end: str | None,
-    odometry_file: Path | None,
-    coefficients: tuple[str, ...],
-    trust_length: float,
-    max_spread_deg: float,
-    error_samples: int | None,
-    correct_odometry: bool | None,
+    map_options: MapOptions,
     jobs: int,
     executor: str,
     scheduler: str | None,
@@ -124,11 +103,7 @@ def batch(
     exit 1. A refused run writes nothing, not even OUTDIR.
     """
     started = time.perf_counter()
-    options = _batch_options(image_format or "png", robot, log_format, resolution, mode,
-                             map_mode, occupied, free, no_echo_free, max_range, pose, topics,
-                             sensor_patterns, start, end, odometry_file, coefficients,
-                             trust_length, max_spread_deg, error_samples,
-                             correct_odometry)  # fmt: skip
+    options = _batch_options(image_format or "png", map_options)
     if executor == "dask":
         if scheduler is None:
             raise UsageError("--executor dask needs --scheduler ADDRESS (tcp://host:8786)")
@@ -176,42 +151,19 @@ def batch(
         sys.exit(1)
 
 
-def _batch_options(
-    image_format: str,
-    robot: str | None,
-    log_format: str | None,
-    resolution: float,
-    mode: str,
-    map_mode: str,
-    occupied: float,
-    free: float,
-    no_echo_free: float | None,
-    max_range: float | None,
-    pose: str,
-    topics: ReadOptions,
-    sensor_patterns: tuple[str, ...],
-    start: str | None,
-    end: str | None,
-    odometry_file: Path | None,
-    coefficients: tuple[str, ...],
-    trust_length: float,
-    max_spread_deg: float,
-    error_samples: int | None,
-    correct_odometry: bool | None,
-) -> BatchOptions:
+def _batch_options(image_format: str, opts: MapOptions) -> BatchOptions:
     """Build's usage checks of the map options, and the options as every job takes them."""
-    build = build_settings(resolution, mode, occupied, free, no_echo_free, max_range, pose,
-                           odometry_file, coefficients, trust_length, max_spread_deg,
-                           error_samples, correct_odometry)  # fmt: skip
-    check_map_outputs(Path(f"map.{image_format}"), map_mode, True)  # scale needs a PNG
-    Selection.parse(sensor_patterns, start, end)  # bad patterns and times before any work
+    build = map_settings(opts)
+    check_map_outputs(Path(f"map.{image_format}"), opts.map_mode, True)  # scale needs a PNG
+    opts.selection()  # bad patterns and times before any work
+    robot = opts.robot
     if robot is not None:
         load_robot(robot)  # a bad robot is a usage error before any log is read
         if robot not in preset_names():
             robot = str(Path(robot).resolve())
-    return BatchOptions(build=build, robot=robot, log_format=log_format, pose=pose,
-                        topics=topics, sensors=sensor_patterns, start=start, end=end,
-                        map_mode=map_mode, occupied=occupied, free=free,
+    return BatchOptions(build=build, robot=robot, log_format=opts.log_format, pose=opts.pose,
+                        topics=opts.topics, sensors=opts.sensors, start=opts.start, end=opts.end,
+                        map_mode=opts.map_mode, occupied=opts.occupied, free=opts.free,
                         image_format=image_format)  # fmt: skip
 
 

@@ -26,14 +26,16 @@ from gridmap_cli.cli.common import (
     check_input,
     check_not_folder,
     check_output_folder,
+    force_option,
     handle_errors,
+    json_option,
     progress_bar,
+    quiet_option,
     read_input,
     stdout_file,
     warn,
 )
 from gridmap_cli.cli.map_options import (
-    build_settings,
     error_samples_option,
     image_format_option,
     map_options,
@@ -41,24 +43,22 @@ from gridmap_cli.cli.map_options import (
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import MixedLogsError, NotRecordingFolderError, UsageError
 from gridmap_cli.heap import TRIM_EVERY_BATCHES, TrimEvery, keep_scratch_memory, release_free_memory
-from gridmap_cli.mapping.pipeline import BuildOptions, build_map, reference_spread_note
-from gridmap_cli.mapping.selection import Selection, apply_selection
-from gridmap_cli.poses.sync import select_poses
+from gridmap_cli.mapping.options import BuildOptions
+from gridmap_cli.poses.sources import pose_source, source_names
 from gridmap_cli.readers.options import ReadOptions
-from gridmap_cli.records import RangeLog
-from gridmap_cli.robot import load_robot, preset_names, robot_from_log
+from gridmap_cli.records import PoseTrack, RangeLog
+from gridmap_cli.robot import load_robot, preset_names
+from gridmap_cli.runs.build import BuildHooks, BuildRequest, MapBuild, map_stage, pose_stage
 from gridmap_cli.runs.executors import EXECUTORS, check_dask, fuse_dask, fuse_local
 from gridmap_cli.runs.fuse import FuseJob, Partial, fused_map, parse_initial_pose
+from gridmap_cli.runs.settings import MapOptions, map_settings
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, check_map_outputs, write_map
 
 if TYPE_CHECKING:
-    from gridmap_cli.poses.correction.scan_match import ScanMatch
-    from gridmap_cli.poses.uncertainty.pose_belief import PoseBelief
-    from gridmap_cli.writers.preview import DrawnTrack
+    from collections.abc import Sequence
 
-#: --pose values whose track the laser makes: the readings are held, and --fuse refuses them
-LASER_POSES = ("scan-matched", "slam")
+    from gridmap_cli.writers.preview import DrawnTrack
 
 
 @click.command()
@@ -122,41 +122,22 @@ LASER_POSES = ("scan-matched", "slam")
               "the compiled kernels are built), or with --fuse and the local executor, the "
               "logs.")  # fmt: skip
 @error_samples_option
-@click.option("--force", is_flag=True, help="Overwrite existing outputs.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
-@click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
+@force_option("Overwrite existing outputs.")
+@quiet_option("No progress bar and no summary on stderr.")
+@json_option("Print a JSON summary on stdout.")
 @handle_errors
 def build(
     logs: tuple[Path, ...],
     output: Path | None,
     basename: Path | None,
     image_format: str | None,
-    robot: str | None,
-    log_format: str | None,
-    resolution: float,
-    mode: str,
-    map_mode: str,
-    occupied: float,
-    free: float,
-    no_echo_free: float | None,
-    pose: str,
-    topics: ReadOptions,
-    sensor_patterns: tuple[str, ...],
-    start: str | None,
-    end: str | None,
-    odometry_file: Path | None,
-    coefficients: tuple[str, ...],
-    trust_length: float,
-    max_spread_deg: float,
+    map_options: MapOptions,
     draw_path: bool,
     fuse: bool,
     initial_poses: tuple[str, ...],
     executor: str,
     scheduler: str | None,
     jobs: int,
-    error_samples: int | None,
-    max_range: float | None,
-    correct_odometry: bool | None,
     force: bool,
     quiet: bool,
     as_json: bool,
@@ -171,47 +152,38 @@ def build(
     added (README: "Several runs of one place").
     """
     started = time.perf_counter()
+    opts = map_options
     output = map_output(output, basename, image_format)
-    settings = build_settings(resolution, mode, occupied, free, no_echo_free, max_range, pose,
-                              odometry_file, coefficients, trust_length, max_spread_deg,
-                              error_samples, correct_odometry, fuse)  # fmt: skip
-    selection = Selection.parse(sensor_patterns, start, end)
+    settings = map_settings(opts, fuse)
+    selection = opts.selection()
     to_stdout = output == STDIO
     if to_stdout:
         _check_stdout(image_format, as_json, draw_path)
-    placed = _fuse_options(fuse, logs, initial_poses, pose, mode, executor, scheduler, jobs)
-    if fuse and (to_stdout or draw_path or pose in LASER_POSES):
+    placed = _fuse_options(fuse, logs, initial_poses, opts.pose, opts.mode, executor, scheduler,
+                           jobs)  # fmt: skip
+    if fuse and (to_stdout or draw_path or pose_source(opts.pose).uses_laser):
+        placing = " or ".join(sorted(source_names(needs_not="laser")))
         raise UsageError(
             "--fuse writes one map file from placed logs: give -o FILE, no --draw-path, and "
-            "--pose global or odometry"
+            f"--pose {placing}"
         )
-    to_mcap = output.suffix.lower() == ".mcap"
-    if to_mcap:
-        source = click.get_current_context().get_parameter_source("map_mode")
-        if source is not None and source != click.core.ParameterSource.DEFAULT:
-            raise UsageError("--map-mode applies to map images; an MCAP map holds 0..100 and -1")
-    else:  # the name and mode, before any input
-        check_map_outputs(Path(f"map.{image_format}") if to_stdout else output, map_mode, True)
-    robot_desc = load_robot(robot) if robot else None
+    to_mcap = _check_map_name(output, image_format, opts.map_mode)
+    robot = load_robot(opts.robot) if opts.robot else None
     for log in logs:  # the command line first, then the inputs, then the outputs
         check_input(log)
     if to_mcap:
         check_output(output, force)
     elif not to_stdout:
-        check_map_outputs(output, map_mode, force)
+        check_map_outputs(output, opts.map_mode, force)
     check_output_folder(output)
     preview = output.with_name(f"{output.stem}_path.png") if draw_path else None
     if preview is not None:
         check_output(preview, force)
-    read_options = dataclasses.replace(topics, robot=robot_desc)
     if fuse:
         fuse_jobs = [
-            FuseJob(log=log.resolve(), log_format=log_format,
-                    read_options=dataclasses.replace(read_options, robot=None), pose=pose,
-                    initial_pose=first, selection=selection,
-                    robot_spec=_robot_spec(robot), options=BuildOptions(resolution_m=resolution,
-                                                                         sonar=settings.sonar,
-                                                                         ray=settings.ray))
+            FuseJob(log=log.resolve(), log_format=opts.log_format, read_options=opts.topics,
+                    pose=opts.pose, initial_pose=first, selection=selection,
+                    robot_spec=_robot_spec(opts.robot), options=_fused_settings(settings))
             for log, first in zip(logs, placed, strict=True)
         ]  # fmt: skip
         if scheduler is not None:
@@ -219,102 +191,104 @@ def build(
         else:
             total = fuse_local(fuse_jobs, jobs)
         warn(total.notes, quiet)
-        _write_fused(total, output, to_mcap, map_mode, occupied, free, force, started, quiet,
-                     as_json, len(logs))  # fmt: skip
+        _write_fused(total, output, to_mcap, opts, force, started, quiet, as_json, len(logs))
         return
+    request = BuildRequest(
+        inputs=logs, robot=robot, options=dataclasses.replace(settings, jobs=jobs),
+        pose=opts.pose, selection=selection, log_format=opts.log_format,
+        read_options=opts.topics, keep_tracks=preview is not None,
+    )  # fmt: skip
+    built = _build_one(request, quiet)
+    _write_one(built, output, image_format, to_mcap, opts, preview, force, started, quiet,
+               as_json)  # fmt: skip
+
+
+def _check_map_name(output: Path, image_format: str | None, map_mode: str) -> bool:
+    """The map's name and mode, before any input; True for an MCAP map."""
+    if output.suffix.lower() == ".mcap":
+        source = click.get_current_context().get_parameter_source("map_mode")
+        if source is not None and source != click.core.ParameterSource.DEFAULT:
+            raise UsageError("--map-mode applies to map images; an MCAP map holds 0..100 and -1")
+        return True
+    check_map_outputs(Path(f"map.{image_format}") if output == STDIO else output, map_mode, True)
+    return False
+
+
+def _fused_settings(settings: BuildOptions) -> BuildOptions:
+    """What a fused log is mapped with: the cell size and the standard models' settings."""
+    return BuildOptions(resolution_m=settings.resolution_m, sonar=settings.sonar, ray=settings.ray)
+
+
+def _build_one(request: BuildRequest, quiet: bool) -> MapBuild:
+    """The map of ``request``, with progress on a terminal and warnings as they arise."""
     keep_scratch_memory()  # every check passed: from here on, the build's own process
-    # a long log's readings stay in its file, read again for each pass, unless scan matching
-    # or a time window needs them held
-    stream = pose not in LASER_POSES and selection.start is None and selection.end is None
-    with reading(_names(logs), quiet):
-        whole = _read_logs(logs, log_format, dataclasses.replace(read_options, stream=stream))
-    data = whole
-    if robot_desc is None:
-        robot_desc = robot_from_log(logs[0], data.metadata)
-    match: ScanMatch | None = None
-    slam_summary: dict[str, object] | None = None
-    belief: PoseBelief | None = None
-    if pose == "scan-matched":
-        from gridmap_cli.poses.correction.scan_match import (
-            scan_matched_log,
-        )  # scipy, small_gicp: only here
-
-        with StageBars(quiet) as bars:
-            data, match = scan_matched_log(data, robot_desc, progress=bars)
-    elif pose == "slam":
-        from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
-
-        with StageBars(quiet) as bars:
-            data, slam = slam_corrected_log(data, robot_desc, progress=bars)
-        slam_summary = slam.summary()
-        if mode == "error-aware":  # the graph's marginals and draws, not the odometry's
-            from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
-
-            belief = slam_belief(slam, settings.error_samples, settings.error_seed)
-            slam_summary["belief_noise_scale"] = [round(f, 3) for f in belief.scale]
-        if slam.warning:
-            warn((f"--pose slam: {slam.warning}",), quiet)
-    else:
-        data = select_poses(data, pose)
-    note = reference_spread_note(pose, settings)
-    if note is not None:
-        warn((note,), quiet)
-    if preview is None:  # the other tracks are drawn only; let them go (56 bytes a row)
-        whole = data = dataclasses.replace(data, truth=None)
-    selected = apply_selection(data, selection, robot_desc)
-    warn(selected.notes, quiet)
-    data = selected.log
-    options = dataclasses.replace(settings, jobs=jobs, pose_belief=belief)
-    with progress_bar(data.reading_count, quiet, "mapping") as bar:
+    hooks = BuildHooks(
+        read=_read_logs, reading=lambda: reading(_names(request.inputs), quiet),
+        warn=lambda note: warn((note,), quiet), between_passes=release_free_memory,
+    )  # fmt: skip
+    with StageBars(quiet) as bars:
+        placed = pose_stage(request, dataclasses.replace(hooks, stages=bars))
+    with progress_bar(placed.log.reading_count, quiet, "mapping") as bar:
         trim = TrimEvery(TRIM_EVERY_BATCHES)
 
         def mapped(readings: int) -> None:
             bar.update(readings)
             trim()
 
-        result = build_map(data, robot_desc, options, mapped, release_free_memory)
-    if mode == "error-aware" and map_mode == "trinary" and not to_mcap:
-        warn(undecided_note(result.map.prob, occupied, free), quiet)
-    yaml_path: Path | None
+        return map_stage(request, placed, dataclasses.replace(hooks, mapped=mapped))
+
+
+def _write_one(
+    built: MapBuild,
+    output: Path,
+    image_format: str | None,
+    to_mcap: bool,
+    opts: MapOptions,
+    preview: Path | None,
+    force: bool,
+    started: float,
+    quiet: bool,
+    as_json: bool,
+) -> None:
+    """Write the map (and its preview) where the command line says, and report it."""
+    occupied, free, map_mode = opts.occupied, opts.free, opts.map_mode
+    if opts.mode == "error-aware" and map_mode == "trinary" and not to_mcap:
+        warn(undecided_note(built.map.prob, occupied, free), quiet)
+    yaml_path: Path | None = None
     if to_mcap:
         # stamped at the last reading: the map is what the robot knew then
-        stamp = data.reading_span()[1] if data.reading_count else 0
+        stamp = built.log.reading_span()[1] if built.log.reading_count else 0
         from gridmap_cli.writers.map_mcap import write_map_mcap  # the MCAP writer only when asked
 
-        image_path = write_map_mcap(output, result.map, stamp_ns=stamp, force=force)
-        yaml_path = None
-    elif to_stdout:
+        image_path = write_map_mcap(output, built.map, stamp_ns=stamp, force=force)
+    elif output == STDIO:
         with stdout_file(f"map.{image_format}") as image:
-            write_map(image, result.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free)
-        image_path, yaml_path = STDIO, None
+            write_map(image, built.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free)
+        image_path = STDIO
     else:
         image_path, yaml_path = write_map(
-            output, result.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free,
+            output, built.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free,
             force=force,
         )  # fmt: skip
-    if preview is not None:
+    if preview is not None and built.placed.read is not None:
         from gridmap_cli.writers.preview import write_preview  # only --draw-path draws
 
-        write_preview(preview, result.map, _tracks(whole, data, pose))
+        tracks = _tracks(built.placed.read, built.log, built.placed.posed.source)
+        write_preview(preview, built.map, tracks)
     elapsed = time.perf_counter() - started
-    summary = build_summary(result, image_path, yaml_path, elapsed, occupied, free)
+    summary = build_summary(built.stats, image_path, yaml_path, elapsed, occupied, free)
     if preview is not None:
         summary["preview"] = str(preview)
-    if match is not None:
-        summary["scan_match"] = match.summary()
-    if slam_summary is not None:
-        summary["slam"] = slam_summary
-    if settings.correct_odometry:
-        summary["odometry_corrected"] = True
+    summary.update(built.summary)
     report(summary, summary_line(summary), as_json, quiet)
 
 
-def _names(logs: tuple[Path, ...]) -> str:
+def _names(logs: Sequence[Path]) -> str:
     """The logs as the reading stage names them."""
     return logs[0].name if len(logs) == 1 else f"{len(logs)} logs"
 
 
-def _read_logs(logs: tuple[Path, ...], log_format: str | None, options: ReadOptions) -> RangeLog:
+def _read_logs(logs: Sequence[Path], log_format: str | None, options: ReadOptions) -> RangeLog:
     """The log(s) to map; a folder of logs or several text logs are pointed to batch (one map
     per log) and --fuse (one map of several runs)."""
     try:
@@ -340,13 +314,15 @@ def _tracks(whole: RangeLog, mapped: RangeLog, pose: str) -> list[DrawnTrack]:
         placed_at,
     )
 
-    if pose == "odometry":
-        others = [(whole.truth, REFERENCE_RGB)]
-        colour = ODOMETRY_RGB
-    elif pose == "global":
+    source = pose_source(pose)
+    others: list[tuple[PoseTrack | None, tuple[int, int, int]]]
+    if "reference" in source.needs:  # the reference itself
         others = [(whole.poses, ODOMETRY_RGB)]
         colour = REFERENCE_RGB
-    else:
+    elif "odometry" in source.needs:  # the robot's own odometry
+        others = [(whole.truth, REFERENCE_RGB)]
+        colour = ODOMETRY_RGB
+    else:  # a correction of the odometry
         others = [(whole.poses, ODOMETRY_RGB), (whole.truth, REFERENCE_RGB)]
         colour = SCAN_MATCHED_RGB
     placed = [placed_at(track, mapped.poses, rgb) for track, rgb in others if track is not None]
@@ -408,9 +384,10 @@ def _fuse_options(
         return [None] * len(logs)
     if mode != "standard":
         raise UsageError("--fuse adds log-odds evidence: it takes --mode standard only")
-    if initial_poses and pose == "global":
-        raise UsageError("--initial-pose places odometry; with --pose global the logs are placed")
-    if pose != "global" and len(initial_poses) != len(logs):
+    in_world = pose_source(pose).frame == "world"  # the reference's frame: placed already
+    if initial_poses and in_world:
+        raise UsageError(f"--initial-pose places odometry; with --pose {pose} the logs are placed")
+    if not in_world and len(initial_poses) != len(logs):
         raise UsageError(
             f"--fuse needs the logs in one frame: --pose global, or one --initial-pose per log "
             f"(got {len(initial_poses)} for {len(logs)} logs)"
@@ -421,7 +398,7 @@ def _fuse_options(
         check_dask()
     elif scheduler is not None:
         raise UsageError("--scheduler applies to --executor dask")
-    if pose == "global":
+    if in_world:
         return [None] * len(logs)
     return [parse_initial_pose(text) for text in initial_poses]
 
@@ -437,9 +414,7 @@ def _write_fused(
     total: Partial,
     output: Path,
     to_mcap: bool,
-    map_mode: str,
-    occupied: float,
-    free: float,
+    opts: MapOptions,
     force: bool,
     started: float,
     quiet: bool,
@@ -453,10 +428,10 @@ def _write_fused(
 
         image_path = write_map_mcap(output, omap, stamp_ns=0, force=force)
     else:
-        image_path, yaml_path = write_map(
-            output, omap, mode=map_mode, occupied_thresh=occupied, free_thresh=free, force=force
-        )
+        image_path, yaml_path = write_map(output, omap, mode=opts.map_mode,
+                                          occupied_thresh=opts.occupied, free_thresh=opts.free,
+                                          force=force)  # fmt: skip
     seconds = time.perf_counter() - started
     summary = fused_summary(omap, total.readings, image_path, yaml_path, n_logs, seconds,
-                            occupied, free)  # fmt: skip
+                            opts.occupied, opts.free)  # fmt: skip
     report(summary, fused_line(summary), as_json, quiet)

@@ -15,15 +15,26 @@ from gridmap_cli.cli.common import (
     STDIO,
     check_input,
     check_output_folder,
+    force_option,
+    format_option,
     handle_errors,
+    json_option,
     json_text,
+    quiet_option,
     read_input,
     selection_options,
 )
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.mapping.selection import Selection, apply_selection
-from gridmap_cli.readers import STDIN_NAME, format_names
+from gridmap_cli.poses.sources import (
+    DEFAULT_SOURCE,
+    SOURCES,
+    PoseSettings,
+    pose_source,
+    source_names,
+)
+from gridmap_cli.readers import STDIN_NAME
 from gridmap_cli.records import RangeLog
 from gridmap_cli.writers import check_output
 
@@ -37,8 +48,9 @@ if TYPE_CHECKING:
 JITTER_LADDER = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0)
 OUTLIER_SIGMA = 3.0
 
-#: What calibrate compares the track with (--reference).
-REFERENCES = ("truth", "scan-matched", "slam")
+#: What calibrate compares the track with (--reference): the log's own, or a correction the
+#: laser makes.
+REFERENCES = ("truth", *(s.name for s in SOURCES if s.uses_laser))
 
 
 @click.command()
@@ -49,7 +61,7 @@ REFERENCES = ("truth", "scan-matched", "slam")
     type=click.Path(path_type=Path, readable=False),
     help="Odometry-error YAML to write (what build takes); default: print only.",
 )
-@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@format_option
 @click.option(
     "--window",
     "window_m",
@@ -75,8 +87,8 @@ REFERENCES = ("truth", "scan-matched", "slam")
 )
 @click.option(
     "--pose",
-    type=click.Choice(("odometry", "scan-matched", "slam")),
-    default="odometry",
+    type=click.Choice(source_names(needs_not="reference")),
+    default=DEFAULT_SOURCE,
     show_default=True,
     help="The track to calibrate against the reference: the odometry, or the odometry corrected "
     "by the laser (its residual drift, for error-aware maps built with --pose scan-matched), or "
@@ -98,9 +110,9 @@ REFERENCES = ("truth", "scan-matched", "slam")
     "with the laser's mounting; default: the log's own.",
 )
 @selection_options(sensors=False)
-@click.option("--force", is_flag=True, help="Overwrite an existing output.")
-@click.option("--json", "as_json", is_flag=True, help="Print the figures as JSON on stdout.")
-@click.option("-q", "--quiet", is_flag=True, help="No table on stdout (with -o: just write).")
+@force_option("Overwrite an existing output.")
+@json_option("Print the figures as JSON on stdout.")
+@quiet_option("No table on stdout (with -o: just write).")
 @handle_errors
 def calibrate(
     log: Path,
@@ -134,7 +146,8 @@ def calibrate(
         raise UsageError(f"--window-turn must be a positive number of degrees, got {window_deg}")
     if not (sonar_error >= 0.0 and math.isfinite(sonar_error)):
         raise UsageError(f"--sonar-error must be a finite number >= 0, got {sonar_error}")
-    if pose != "odometry" and reference != "truth":
+    corrected = "odometry" not in pose_source(pose).needs  # not the robot's own odometry
+    if corrected and reference != "truth":
         raise UsageError(
             f"--pose {pose} --reference {reference}: the corrected track would be compared "
             "with a correction of itself; calibrate the odometry (--pose odometry) against it"
@@ -146,11 +159,11 @@ def calibrate(
         check_output_folder(output)
     with reading(log.name, quiet):
         data = read_input([log], log_format)
-    laser = pose != "odometry" or reference != "truth"
+    laser = corrected or reference != "truth"
     data = apply_selection(data, selection, None, need_readings=laser).log
     if reference == "truth" and data.truth is None:
         _no_reference(log, data, robot)
-    if pose != "odometry":
+    if corrected:
         data = _corrected(log, data, robot, quiet, pose)
     elif reference != "truth":
         data = _own_reference(log, data, robot, reference)
@@ -161,7 +174,7 @@ def calibrate(
             output,
             comments=[
                 f"gridmap {__version__} calibrate {log.name}"
-                + (f" --pose {pose}" if pose != "odometry" else "")
+                + (f" --pose {pose}" if corrected else "")
                 + (f" --reference {reference}" if reference != "truth" else "")
                 + f": {result.windows} windows of "
                 f"{window_m:g} m or {window_deg:g} deg, {result.driven_m:.1f} m driven, "
@@ -209,16 +222,11 @@ def _no_reference(path: Path, data: RangeLog, robot: str | None) -> None:
 
 def _own_reference(path: Path, data: RangeLog, robot: str | None, reference: str) -> RangeLog:
     """The log with its reference replaced by gridmap's own correction of its odometry."""
-    from gridmap_cli.poses.correction.scan_match import NoLaserError, scan_matched_log
+    from gridmap_cli.poses.correction.scan_match import NoLaserError
 
     description = _robot(path, data, robot)
     try:
-        if reference == "scan-matched":
-            corrected, _ = scan_matched_log(data, description)
-        else:
-            from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
-
-            corrected, _ = slam_corrected_log(data, description)
+        corrected = pose_source(reference).run(data, description).log
     except NoLaserError as exc:
         kinds = sorted({s.kind for s in sensors_for_log(data, description)}) or ["none"]
         raise NoLaserError(
@@ -230,30 +238,26 @@ def _own_reference(path: Path, data: RangeLog, robot: str | None, reference: str
 
 
 def _corrected(path: Path, data: RangeLog, robot: str | None, quiet: bool, pose: str) -> RangeLog:
-    """The log with its odometry replaced by the scan-matched track (one pose per scan) or the
-    pose graph's (``pose`` "slam"), the track whose residual drift against the reference is
-    then calibrated."""
-    from gridmap_cli.poses.correction.scan_match import match_log
-    from gridmap_cli.robot import load_robot, robot_from_log
-
-    description = load_robot(robot) if robot else robot_from_log(path, data.metadata)
+    """The log with its odometry replaced by the corrected track, the track whose residual
+    drift against the reference is then calibrated: the scan matcher's at its scans, the
+    pose graph's at the odometry's stamps."""
+    description = _robot(path, data, robot)
     with StageBars(quiet) as bars:
-        if pose == "scan-matched":
-            track = match_log(data, description, progress=bars).track
-        else:
-            from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
-
-            track = slam_corrected_log(data, description, progress=bars)[0].poses
+        posed = pose_source(pose).run(data, description, PoseSettings(progress=bars))
+    track = posed.log.poses
+    if posed.slam is None and posed.match is not None:
+        track = posed.match.track
     return dataclasses.replace(data, poses=track)
 
 
-def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
+def _coefficient_rows(c: Calibration) -> list[tuple[str, str, str]]:
+    """Each coefficient: what it is, the odometry's error by it, its key in the file."""
     m = c.model
 
     def maybe(ok: bool, text: str) -> str:
         return text if ok else "not estimated"
 
-    rows = [
+    return [
         (
             "distance scale error",
             maybe(c.distance_estimated, f"{100 * c.scale_error:+.2f} % of distance"),
@@ -291,6 +295,11 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
             "heading_rad_per_sqrt_m",
         ),
     ]
+
+
+def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
+    m = c.model
+    rows = _coefficient_rows(c)
     lines = [
         f"{log}: {c.windows} windows ({c.driving_windows} of {c.window_m:g} m, "
         f"{c.turning_windows} of {math.degrees(c.window_rad):g} deg turning), "
@@ -303,16 +312,7 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
         "systematic: the biases (build --correct-odometry takes them out; the file also holds",
         "their magnitudes, the spread of a bias left in); random: what error-aware maps spread",
     ]
-    if c.halves is not None:
-        lines += [
-            "",
-            "the same fit on each half of the span (by distance driven): do they transfer?",
-            f"{'':30s} {'first half':>11s} {'second half':>11s} {'whole':>11s}",
-        ]
-        for _, _, key in rows:
-            first, second = (getattr(h, key) for h in c.halves)
-            values = (_number(key, v) for v in (first, second, getattr(m, key)))
-            lines.append(f"{key:30s} " + " ".join(f"{v:>11s}" for v in values))
+    lines += _halves_lines(c, [key for _, _, key in rows])
     lines += ["", *_robust_lines(c)]
     if c.jitter_estimated:
         lines += [
@@ -331,6 +331,22 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
         f"wrote {output}" if output is not None else "(give -o FILE to write these)",
     ]
     return "\n".join(lines)
+
+
+def _halves_lines(c: Calibration, keys: list[str]) -> list[str]:
+    """The fit on each half of the span beside the whole's, where it was made."""
+    if c.halves is None:
+        return []
+    lines = [
+        "",
+        "the same fit on each half of the span (by distance driven): do they transfer?",
+        f"{'':30s} {'first half':>11s} {'second half':>11s} {'whole':>11s}",
+    ]
+    for key in keys:
+        first, second = (getattr(h, key) for h in c.halves)
+        values = (_number(key, v) for v in (first, second, getattr(c.model, key)))
+        lines.append(f"{key:30s} " + " ".join(f"{v:>11s}" for v in values))
+    return lines
 
 
 def _check_lines(c: Calibration) -> list[str]:

@@ -8,7 +8,6 @@ import functools
 import json
 import math
 import numbers
-import os
 import re
 import shutil
 import sys
@@ -19,17 +18,20 @@ from typing import TYPE_CHECKING, Any, ParamSpec, TypeVar
 
 import click
 
-from gridmap_cli.errors import GridmapError, InputFileError, UsageError
+from gridmap_cli.errors import GridmapError, UsageError, naming
 from gridmap_cli.mapping.selection import EXCLUDE
-from gridmap_cli.readers import STDIN_NAME, read_bytes, read_logs
+from gridmap_cli.readers import STDIN_NAME, format_names, read_bytes, read_logs
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
+from gridmap_cli.runs.settings import STDIO as STDIO
+from gridmap_cli.runs.settings import check_input as check_input
 
 if TYPE_CHECKING:
     from tqdm import tqdm
 
 P = ParamSpec("P")
 R = TypeVar("R")
+F = TypeVar("F", bound=Callable[..., object])
 
 
 class UsageFailure(click.ClickException):
@@ -54,7 +56,8 @@ def handle_errors(func: Callable[P, R]) -> Callable[P, R]:
     @functools.wraps(func)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
         try:
-            return func(*args, **kwargs)
+            with naming("flags"):  # errors name the command line's flags
+                return func(*args, **kwargs)
         except KeyboardInterrupt as exc:
             if debug_enabled():
                 raise
@@ -142,37 +145,6 @@ def progress_bar(total: int, quiet: bool, desc: str) -> tqdm[Any] | _NoBar:
     )
 
 
-#: ``-`` as a file name: standard input for a log, standard output for what is written.
-STDIO = Path("-")
-
-
-def check_input(log: Path, folder_ok: bool = True) -> None:
-    """A log must exist and be readable: a file, or a folder (rosbag2) when ``folder_ok``;
-    ``-`` is standard input. What cannot be read is bad data (exit 1), as a missing file is,
-    never a usage error: click's own readability check is off on every input path."""
-    if log == STDIO:
-        return
-    if not log.exists():
-        if log.is_symlink():
-            raise InputFileError(
-                log, f"a symbolic link to {os.readlink(log)}, which does not exist"
-            )
-        raise InputFileError(log, "no such file")
-    if log.is_dir():
-        if not folder_ok:
-            raise InputFileError(log, "a directory, where a file is expected")
-        if not os.access(log, os.R_OK | os.X_OK):
-            raise InputFileError(log, "cannot read the folder: permission denied")
-        return
-    if not log.is_file():
-        raise InputFileError(log, "not a regular file or folder")
-    try:
-        with open(log, "rb"):
-            pass
-    except OSError as exc:
-        raise InputFileError(log, f"cannot read: {exc.strerror or exc}") from exc
-
-
 def read_input(
     logs: Sequence[Path], log_format: str | None, options: ReadOptions | None = None
 ) -> RangeLog:
@@ -258,6 +230,28 @@ def topic_options(func: Callable[..., R]) -> Callable[..., R]:
     for option in reversed(options):
         gathered = option(gathered)
     return gathered
+
+
+def force_option(help_text: str) -> Callable[[F], F]:
+    """``--force``: what it lets the command overwrite."""
+    return click.option("--force", is_flag=True, help=help_text)
+
+
+def quiet_option(help_text: str) -> Callable[[F], F]:
+    """``-q``/``--quiet``: what the command then leaves out."""
+    return click.option("-q", "--quiet", is_flag=True, help=help_text)
+
+
+def json_option(help_text: str) -> Callable[[F], F]:
+    """``--json`` (the parameter ``as_json``): what the command prints as JSON."""
+    return click.option("--json", "as_json", is_flag=True, help=help_text)
+
+
+def format_option(func: F) -> F:
+    """``--format`` (the parameter ``log_format``): the reader to use, by name."""
+    return click.option(
+        "--format", "log_format", type=click.Choice(format_names()), help="Log format."
+    )(func)
 
 
 def selection_options(sensors: bool = True) -> Callable[[Callable[P, R]], Callable[P, R]]:

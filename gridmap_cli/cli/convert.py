@@ -11,8 +11,11 @@ from gridmap_cli.cli.common import (
     check_input,
     check_not_folder,
     check_output_folder,
+    force_option,
     handle_errors,
+    json_option,
     json_text,
+    quiet_option,
     read_input,
     stdout_file,
 )
@@ -50,9 +53,9 @@ from gridmap_cli.writers.mcap_log import ENCODINGS
     help="Robot preset, robot YAML or ARIA .p file for sensor geometry the log lacks "
     "(.2d and MCAP outputs need it); default: the log's own robot.",
 )
-@click.option("--force", is_flag=True, help="Overwrite an existing output.")
-@click.option("-q", "--quiet", is_flag=True, help="No summary on stderr.")
-@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
+@force_option("Overwrite an existing output.")
+@quiet_option("No summary on stderr.")
+@json_option("Print the summary as JSON on stdout.")
 @handle_errors
 def convert(
     log: Path,

@@ -12,8 +12,12 @@ import numpy as np
 from gridmap_cli.cli.common import (
     check_input,
     check_output_folder,
+    force_option,
+    format_option,
     handle_errors,
+    json_option,
     json_text,
+    quiet_option,
     selection_options,
     warn,
 )
@@ -21,8 +25,8 @@ from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
-from gridmap_cli.poses.sync import POSE_SOURCES
-from gridmap_cli.readers import format_names, resolve_format
+from gridmap_cli.poses.sources import SOURCES, PoseSettings, pose_source, source_names
+from gridmap_cli.readers import resolve_format
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.writers import check_output
 
@@ -30,8 +34,11 @@ if TYPE_CHECKING:
     import numpy.typing as npt
 
     # scipy.ndimage (0.3 s) comes with it: imported when the command runs
-    from gridmap_cli.evaluation.evaluate import Evaluation, ProbabilityMap
+    from gridmap_cli.evaluation.evaluate import Evaluation, ProbabilityMap, Truth
     from gridmap_cli.mapping.grid import GridSpec
+
+    #: The pose spread of the readings on the world grid: position and heading.
+    Spread = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]
     from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty
     from gridmap_cli.records import RangeLog
     from gridmap_cli.robot import RobotDescription
@@ -53,14 +60,14 @@ if TYPE_CHECKING:
     help="The log the map was built from (with ground truth): places the odometry frame in the "
     "world and limits the scores to the cells its sensors could have sensed.",
 )
-@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@format_option
 @click.option(
     "--robot",
     help="Robot preset, YAML or ARIA .p file for the sensors of --log; default: its '# robot:'.",
 )
 @click.option(
     "--pose",
-    type=click.Choice((*POSE_SOURCES, "slam")),
+    type=click.Choice(source_names()),
     help="The track the map was built with (build's --pose; default odometry): global puts the "
     "map in the world frame; odometry, scan-matched and slam in the odometry frame, placed by "
     "--log. --spread-plot draws that track's pose spread: the odometry error along the "
@@ -74,8 +81,8 @@ if TYPE_CHECKING:
     "global)  [default: from --pose, else odometry]",
 )
 @selection_options()
-@click.option("--json", "as_json", is_flag=True, help="Print the scores as JSON on stdout.")
-@click.option("-q", "--quiet", is_flag=True, help="No table on stdout (with --plot: just draw).")
+@json_option("Print the scores as JSON on stdout.")
+@quiet_option("No table on stdout (with --plot: just draw).")
 @click.option(
     "--plot",
     type=click.Path(path_type=Path, readable=False),
@@ -95,7 +102,7 @@ if TYPE_CHECKING:
     type=click.Path(path_type=Path, readable=False),
     help="--spread-plot: the odometry-error file the map was built with (gridmap calibrate).",
 )
-@click.option("--force", is_flag=True, help="Overwrite existing --plot / --spread-plot outputs.")
+@force_option("Overwrite existing --plot / --spread-plot outputs.")
 @handle_errors
 def evaluate(
     map_yaml: Path,
@@ -128,7 +135,6 @@ def evaluate(
     global is in the world frame already: give --pose global (or --frame world).
     """
     from gridmap_cli.evaluation import evaluate as ev
-    from gridmap_cli.poses.sync import sensors_for_log
 
     for given, what in ((map_yaml, "MAP"), (truth_yaml, "--truth")):
         if given.suffix.lower() not in (".yaml", ".yml"):
@@ -136,111 +142,27 @@ def evaluate(
                 f"{given}: {what} must be a map's YAML file (the image is named inside it)"
             )
     pose, frame = _pose_and_frame(pose, frame)
-    if frame == "odometry" and log_path is None:
-        raise UsageError(
-            "a map in the odometry frame needs --log (its first true pose places the frame in "
-            "the world); give --log, or --frame world for a map built with --pose global"
-        )
-    selection = Selection.parse(sensor_patterns, start, end)
-    if selection and log_path is None:
-        raise UsageError("--sensors, --start and --end choose part of --log; give --log")
-    if spread_plot is not None and pose == "slam" and log_path is None:
-        raise UsageError("--spread-plot draws the pose spread of the readings of --log: give it")
-    if spread_plot is not None and pose == "slam" and odometry_file is not None:
-        raise UsageError(
-            "--pose slam: the pose spread is the pose graph's own; --odometry-error is for "
-            "odometry and scan-matched maps"
-        )
-    if spread_plot is not None and pose != "slam" and (log_path is None or odometry_file is None):
-        raise UsageError(
-            "--spread-plot draws the pose spread of the readings of --log under the odometry "
-            "error of --odometry-error FILE: give both"
-        )
-    if spread_plot is not None and frame != "odometry":
-        raise UsageError(
-            "--spread-plot is for maps built from odometry (--frame odometry): a map built with "
-            "--pose global has no odometry spread"
-        )
-    if odometry_file is not None and spread_plot is None:
-        raise UsageError("--odometry-error is for --spread-plot")
-    if log_path is not None:
-        check_input(log_path)
-    if odometry_file is not None:
-        check_input(odometry_file, folder_ok=False)
-    for given in (map_yaml, truth_yaml):
-        check_input(given, folder_ok=False)
-    for out, flag in ((plot, "--plot"), (spread_plot, "--spread-plot")):
-        if out is None:
-            continue
-        from gridmap_cli.evaluation.plot import check_plotting
-
-        check_plotting(flag)
-        if out.suffix.lower() != ".png":
-            raise UsageError(f"{out}: {flag} writes a PNG; name it .png")
-        check_output(out, force)
-        check_output_folder(out)
+    selection = _check_options(pose, frame, log_path, (sensor_patterns, start, end), spread_plot,
+                               odometry_file)  # fmt: skip
+    _check_files(map_yaml, truth_yaml, log_path, odometry_file, plot, spread_plot, force)
     odometry = load_odometry_error(odometry_file) if odometry_file is not None else None
     robot_desc = load_robot(robot) if robot else None
     truth = ev.load_truth(truth_yaml)
     pmap = ev.load_probability_map(map_yaml)
-    map_to_world = (0.0, 0.0, 0.0)
-    region = None
-    log_world = None
-    spread: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None = None
+    map_to_world, region, log_world, spread = (0.0, 0.0, 0.0), None, None, None
     if log_path is not None:
-        data = resolve_format(log_path, log_format).read(log_path)
-        data.require_truth("evaluate needs the true path")  # before the robot is looked up
-        log_world = data.metadata.get("world")
-        if robot_desc is None:
-            robot_desc = robot_from_log(log_path, data.metadata)
-        if spread_plot is not None:
-            placed, uncertainty = _pose_spread(data, robot_desc, pose, odometry)
-            readings_log = apply_selection(placed, selection, robot_desc).log
-        selected = apply_selection(data, selection, robot_desc)
-        warn(selected.notes)
-        data = selected.log
-        true_path = data.require_truth("evaluate needs the true path")
-        ev.check_path_in_world(truth, true_path, str(log_path), str(truth_yaml))
-        sensors = sensors_for_log(data, robot_desc)
-        if frame == "odometry":
-            map_to_world = ev.odometry_frame_in_world(data)
-        region = ev.sensed_region(truth.world, true_path, sensors)
-        if spread_plot is not None:
-            # robot_desc is None for logs that describe their own sensors (CARMEN)
-            spread = _spread_in_world(
-                readings_log, robot_desc, uncertainty, pmap, truth.spec, map_to_world
-            )
+        map_to_world, region, log_world, spread = _log_in_world(
+            log_path, log_format, robot_desc, pose, frame, selection, odometry, truth,
+            str(truth_yaml), pmap, spread_plot is not None,
+        )  # fmt: skip
     warn(
         ev.check_comparable(
             pmap, truth.spec, map_to_world, str(map_yaml), str(truth_yaml), log_world
         )
     )
     result = ev.evaluate_map(pmap, truth.walls, truth.spec, region, map_to_world, truth.known)
-    if plot is not None:
-        from gridmap_cli.evaluation.plot import plot_evaluation
-
-        plot_evaluation(
-            plot,
-            result,
-            truth.walls,
-            region if region is not None else np.ones(truth.spec.shape, dtype=bool),
-            truth.spec,
-            title=f"{map_yaml.name} vs {truth_yaml.name}",
-        )
-    if spread_plot is not None and spread is not None:
-        from gridmap_cli.evaluation.plot import plot_pose_spread
-
-        limit = math.degrees(ErrorAwareParams.max_heading_spread_rad)
-        plot_pose_spread(
-            spread_plot,
-            result.p_world,
-            spread[0],
-            spread[1],
-            truth.walls,
-            truth.spec,
-            title=f"{map_yaml.name}: where its uncertainty comes from",
-            max_heading_deg=limit if math.isfinite(limit) else None,
-        )
+    _draw(plot, spread_plot, result, truth, region, spread, f"{map_yaml.name}",
+          f"{truth_yaml.name}")  # fmt: skip
     if as_json:
         doc = {
             "map": str(map_yaml),
@@ -261,12 +183,165 @@ def evaluate(
         click.echo(f"gridmap: pose-spread plot written to {spread_plot}", err=True)
 
 
+def _check_options(
+    pose: str,
+    frame: str,
+    log_path: Path | None,
+    part: tuple[tuple[str, ...], str | None, str | None],
+    spread_plot: Path | None,
+    odometry_file: Path | None,
+) -> Selection:
+    """Usage checks of the options against each other, before any file is read; the part of
+    --log to use (``part``: --sensors, --start, --end)."""
+    if frame == "odometry" and log_path is None:
+        raise UsageError(
+            "a map in the odometry frame needs --log (its first true pose places the frame in "
+            "the world); give --log, or --frame world for a map built with --pose global"
+        )
+    selection = Selection.parse(*part)
+    if selection and log_path is None:
+        raise UsageError("--sensors, --start and --end choose part of --log; give --log")
+    own_spread = pose_source(pose).belief  # the pose graph's, not the odometry error's
+    if spread_plot is not None and own_spread and log_path is None:
+        raise UsageError("--spread-plot draws the pose spread of the readings of --log: give it")
+    if spread_plot is not None and own_spread and odometry_file is not None:
+        raise UsageError(
+            f"--pose {pose}: the pose spread is the pose graph's own; --odometry-error is for "
+            "odometry and scan-matched maps"
+        )
+    if spread_plot is not None and not own_spread and (log_path is None or odometry_file is None):
+        raise UsageError(
+            "--spread-plot draws the pose spread of the readings of --log under the odometry "
+            "error of --odometry-error FILE: give both"
+        )
+    if spread_plot is not None and frame != "odometry":
+        raise UsageError(
+            "--spread-plot is for maps built from odometry (--frame odometry): a map built with "
+            "--pose global has no odometry spread"
+        )
+    if odometry_file is not None and spread_plot is None:
+        raise UsageError("--odometry-error is for --spread-plot")
+    return selection
+
+
+def _check_files(
+    map_yaml: Path,
+    truth_yaml: Path,
+    log_path: Path | None,
+    odometry_file: Path | None,
+    plot: Path | None,
+    spread_plot: Path | None,
+    force: bool,
+) -> None:
+    """The inputs readable, the plots' names and folders fit to write."""
+    if log_path is not None:
+        check_input(log_path)
+    if odometry_file is not None:
+        check_input(odometry_file, folder_ok=False)
+    for given in (map_yaml, truth_yaml):
+        check_input(given, folder_ok=False)
+    for out, flag in ((plot, "--plot"), (spread_plot, "--spread-plot")):
+        if out is None:
+            continue
+        from gridmap_cli.evaluation.plot import check_plotting
+
+        check_plotting(flag)
+        if out.suffix.lower() != ".png":
+            raise UsageError(f"{out}: {flag} writes a PNG; name it .png")
+        check_output(out, force)
+        check_output_folder(out)
+
+
+def _log_in_world(
+    log_path: Path,
+    log_format: str | None,
+    robot_desc: RobotDescription | None,
+    pose: str,
+    frame: str,
+    selection: Selection,
+    odometry: OdometryError | None,
+    truth: Truth,
+    truth_name: str,
+    pmap: ProbabilityMap,
+    with_spread: bool,
+) -> tuple[tuple[float, float, float], npt.NDArray[np.bool_], str | None, Spread | None]:
+    """What --log says of the map: where its frame is in the world, the region its sensors
+    could sense from the true path, the world it names, and the pose spread of its readings
+    on the world grid (``with_spread``)."""
+    from gridmap_cli.evaluation import evaluate as ev
+    from gridmap_cli.poses.sync import sensors_for_log
+
+    map_to_world = (0.0, 0.0, 0.0)
+    spread: Spread | None = None
+    data = resolve_format(log_path, log_format).read(log_path)
+    data.require_truth("evaluate needs the true path")  # before the robot is looked up
+    log_world = data.metadata.get("world")
+    if robot_desc is None:
+        robot_desc = robot_from_log(log_path, data.metadata)
+    if with_spread:
+        placed, uncertainty = _pose_spread(data, robot_desc, pose, odometry)
+        readings_log = apply_selection(placed, selection, robot_desc).log
+    selected = apply_selection(data, selection, robot_desc)
+    warn(selected.notes)
+    data = selected.log
+    true_path = data.require_truth("evaluate needs the true path")
+    ev.check_path_in_world(truth, true_path, str(log_path), truth_name)
+    sensors = sensors_for_log(data, robot_desc)
+    if frame == "odometry":
+        map_to_world = ev.odometry_frame_in_world(data)
+    region = ev.sensed_region(truth.world, true_path, sensors)
+    if with_spread:
+        # robot_desc is None for logs that describe their own sensors (CARMEN)
+        spread = _spread_in_world(
+            readings_log, robot_desc, uncertainty, pmap, truth.spec, map_to_world
+        )
+    return map_to_world, region, log_world, spread
+
+
+def _draw(
+    plot: Path | None,
+    spread_plot: Path | None,
+    result: Evaluation,
+    truth: Truth,
+    region: npt.NDArray[np.bool_] | None,
+    spread: Spread | None,
+    map_name: str,
+    truth_name: str,
+) -> None:
+    """The plots asked for: the scores, and where the map's uncertainty comes from."""
+    if plot is not None:
+        from gridmap_cli.evaluation.plot import plot_evaluation
+
+        plot_evaluation(
+            plot,
+            result,
+            truth.walls,
+            region if region is not None else np.ones(truth.spec.shape, dtype=bool),
+            truth.spec,
+            title=f"{map_name} vs {truth_name}",
+        )
+    if spread_plot is not None and spread is not None:
+        from gridmap_cli.evaluation.plot import plot_pose_spread
+
+        limit = math.degrees(ErrorAwareParams.max_heading_spread_rad)
+        plot_pose_spread(
+            spread_plot,
+            result.p_world,
+            spread[0],
+            spread[1],
+            truth.walls,
+            truth.spec,
+            title=f"{map_name}: where its uncertainty comes from",
+            max_heading_deg=limit if math.isfinite(limit) else None,
+        )
+
+
 def _pose_and_frame(pose: str | None, frame: str | None) -> tuple[str, str]:
     """--pose and --frame, each from the other when not given; a usage error when they
     disagree."""
-    if pose is None:
-        pose = "global" if frame == "world" else "odometry"
-    wanted = "world" if pose == "global" else "odometry"
+    if pose is None:  # the first source in that frame: the odometry, or the reference
+        pose = next(s.name for s in SOURCES if s.frame == (frame or "odometry"))
+    wanted = pose_source(pose).frame
     if frame is not None and frame != wanted:
         raise UsageError(
             f"a map built with --pose {pose} is in the {wanted} frame, not --frame {frame}"
@@ -278,22 +353,15 @@ def _pose_spread(
     log: RangeLog, robot: RobotDescription | None, pose: str, odometry: OdometryError | None
 ) -> tuple[RangeLog, PoseUncertainty]:
     """``log`` with the poses the map was built with, and their covariance as build's
-    error-aware mode takes it: the pose graph's (slam), or the odometry error carried along
-    the odometry or the scan-matched track."""
+    error-aware mode takes it: the pose source's own (the pose graph's), or the odometry error
+    carried along its track."""
     from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise, propagate
 
-    if pose == "slam":
-        from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
-        from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
-
-        placed, result = slam_corrected_log(log, robot)
-        return placed, slam_belief(result).uncertainty
-    if pose == "scan-matched":
-        from gridmap_cli.poses.correction.scan_match import scan_matched_log
-
-        log, _ = scan_matched_log(log, robot)
+    posed = pose_source(pose).run(log, robot, PoseSettings(belief_samples=0))
+    if posed.belief is not None:
+        return posed.log, posed.belief.uncertainty
     assert odometry is not None  # the usage checks ask for it
-    return log, propagate(log.poses, StepNoise.of(odometry))
+    return posed.log, propagate(posed.log.poses, StepNoise.of(odometry))
 
 
 def _spread_in_world(

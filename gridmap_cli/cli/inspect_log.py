@@ -12,7 +12,9 @@ import click
 from gridmap_cli.cli.common import (
     STDIO,
     check_input,
+    format_option,
     handle_errors,
+    json_option,
     json_text,
     one_line,
     plain_numbers,
@@ -22,7 +24,7 @@ from gridmap_cli.cli.common import (
 from gridmap_cli.cli.progress import reading
 from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.selection import Selection
-from gridmap_cli.readers import STDIN_NAME, format_names, held_text, resolve_format
+from gridmap_cli.readers import STDIN_NAME, held_text, resolve_format
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot
 
@@ -36,10 +38,10 @@ from gridmap_cli.robot import load_robot
     type=click.Path(path_type=Path, readable=False),
 )
 @click.option("--robot", help="Robot preset, robot YAML file or ARIA .p file.")
-@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@format_option
 @topic_options
 @selection_options()
-@click.option("--json", "as_json", is_flag=True, help="Print the description as JSON.")
+@json_option("Print the description as JSON.")
 @handle_errors
 def inspect(
     logs: tuple[Path, ...],

@@ -1,15 +1,16 @@
 """The map options of ``gridmap build``: what to map and how (robot, log format, resolution,
 mapping mode, map mode, thresholds, pose source, ROS topics, part of the log, the error-aware
-model), as click decorators, with the usage checks that belong to them.
+model), as click decorators.
 
-:func:`map_options` adds them all, in the order ``gridmap build --help`` lists them; each
-option is also its own decorator, so another command (``batch``, issue 22) can take the same
-set, defined once, instead of its own copies.
+:func:`map_options` adds them all, in the order ``gridmap build --help`` lists them,
+and hands the command one :class:`~gridmap_cli.runs.settings.MapOptions`: ``build`` and
+``batch`` take the same set, defined once; :func:`~gridmap_cli.runs.settings.map_settings`
+checks them. Each option is also its own decorator, for a command that takes one of them.
 """
 
 from __future__ import annotations
 
-import dataclasses
+import functools
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -17,15 +18,13 @@ from typing import Any, TypeVar
 
 import click
 
-from gridmap_cli.cli.common import check_input, selection_options, topic_options
-from gridmap_cli.errors import UsageError
+from gridmap_cli.cli.common import format_option, selection_options, topic_options
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
-from gridmap_cli.mapping.models.ray import LASER_NO_ECHO_FREE_M, RayParams
+from gridmap_cli.mapping.models.ray import LASER_NO_ECHO_FREE_M
 from gridmap_cli.mapping.models.standard import StandardSonarParams
-from gridmap_cli.mapping.pipeline import MAPPING_MODES, MAX_RESOLUTION_M, BuildOptions
-from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
-from gridmap_cli.poses.sync import POSE_SOURCES
-from gridmap_cli.readers import format_names
+from gridmap_cli.mapping.options import MAPPING_MODES, BuildOptions
+from gridmap_cli.poses.sources import DEFAULT_SOURCE, pose_help, source_names
+from gridmap_cli.runs.settings import MapOptions
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, MAP_MODES
 
 F = TypeVar("F", bound=Callable[..., object])
@@ -34,9 +33,6 @@ robot_option = click.option(
     "--robot",
     help="Robot preset (p3at, p3dx), robot YAML file or ARIA .p file; default: the log's own "
     "'# robot:' line.",
-)
-format_option = click.option(
-    "--format", "log_format", type=click.Choice(format_names()), help="Log format."
 )
 
 
@@ -115,12 +111,10 @@ max_range_option = click.option(
 )
 pose_option = click.option(
     "--pose",
-    type=click.Choice((*POSE_SOURCES, "slam")),
-    default="odometry",
+    type=click.Choice(source_names()),
+    default=DEFAULT_SOURCE,
     show_default=True,
-    help="Map with the odometry, with the log's global pose (ARIA robotGlobal, CSV true_*, "
-    "CARMEN's corrected poses or TRUEPOS), with the odometry corrected by matching the laser "
-    "scans (scan-matched), or with that and loop closures on a pose graph (slam).",
+    help=pose_help("Map with"),
 )
 
 #: The error-aware model's options; :func:`error_aware_settings` checks them.
@@ -170,13 +164,6 @@ error_samples_option = click.option(
 )
 
 
-def error_samples_setting(mode: str, error_samples: int | None) -> int:
-    """--error-samples, checked: it belongs to --mode error-aware."""
-    if error_samples is not None and mode != "error-aware":
-        raise UsageError("--error-samples applies to --mode error-aware")
-    return BuildOptions.error_samples if error_samples is None else error_samples
-
-
 correct_odometry_option = click.option(
     "--correct-odometry/--no-correct-odometry",
     default=None,
@@ -188,9 +175,7 @@ correct_odometry_option = click.option(
 )
 
 
-#: Every map option, in help order: the command receives robot, log_format, resolution, mode,
-#: map_mode, occupied, free, no_echo_free, max_range, pose, topics (a ReadOptions), sensor_patterns,
-#: start, end, odometry_file, coefficients, trust_length, max_spread_deg and correct_odometry.
+#: Every map option, in help order (:func:`map_options` makes them one value).
 MAP_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
     robot_option,
     format_option,
@@ -210,188 +195,36 @@ MAP_OPTIONS: tuple[Callable[[Callable[..., Any]], Callable[..., Any]], ...] = (
 
 
 def map_options(func: F) -> F:
-    """Add :data:`MAP_OPTIONS` to a command, listed in that order."""
-    decorated: Callable[..., Any] = func
+    """Add :data:`MAP_OPTIONS` to a command, listed in that order; the command receives them
+    (with ``--error-samples``, which it declares where its help lists it) as one value,
+    ``map_options``, a :class:`MapOptions`."""
+
+    @functools.wraps(func)
+    def gathered(*args: Any, **kwargs: Any) -> Any:
+        ctx = click.get_current_context()
+
+        def chosen(name: str) -> Any:  # None where the default stands: the library's own
+            value = kwargs.pop(name)
+            default = ctx.get_parameter_source(name) == click.core.ParameterSource.DEFAULT
+            return None if default else value
+
+        options = MapOptions(
+            robot=kwargs.pop("robot"), log_format=kwargs.pop("log_format"),
+            resolution=kwargs.pop("resolution"), mode=kwargs.pop("mode"),
+            map_mode=kwargs.pop("map_mode"), occupied=kwargs.pop("occupied"),
+            free=kwargs.pop("free"), no_echo_free=kwargs.pop("no_echo_free"),
+            max_range=kwargs.pop("max_range"), pose=kwargs.pop("pose"),
+            topics=kwargs.pop("topics"), sensors=tuple(kwargs.pop("sensor_patterns")),
+            start=kwargs.pop("start"), end=kwargs.pop("end"),
+            odometry_error=kwargs.pop("odometry_file"),
+            odometry_coefficients=tuple(kwargs.pop("coefficients")),
+            trust_length=chosen("trust_length"), max_heading_spread=chosen("max_spread_deg"),
+            error_samples=kwargs.pop("error_samples"),
+            correct_odometry=kwargs.pop("correct_odometry"),
+        )  # fmt: skip
+        return func(*args, map_options=options, **kwargs)
+
+    decorated: Callable[..., Any] = gathered
     for option in reversed(MAP_OPTIONS):
         decorated = option(decorated)
     return decorated  # type: ignore[return-value]
-
-
-def check_thresholds(occupied: float, free: float) -> None:
-    """--occupied and --free: probabilities with free below occupied."""
-    if not (0.0 <= free < occupied <= 1.0):
-        raise UsageError(f"need 0 <= --free < --occupied <= 1, got {free} and {occupied}")
-
-
-def check_resolution(resolution: float) -> None:
-    """--resolution: a positive cell size no larger than :data:`MAX_RESOLUTION_M`."""
-    if not (resolution > 0.0 and math.isfinite(resolution)):
-        raise UsageError(f"--resolution must be a positive number of metres, got {resolution}")
-    if resolution > MAX_RESOLUTION_M:
-        raise UsageError(
-            f"--resolution {resolution:g} m: cells larger than {MAX_RESOLUTION_M:g} m hold whole "
-            "rooms, and the map would be a few cells of nothing (cell size is in metres: 0.05 "
-            "is 5 cm)"
-        )
-
-
-def sonar_params(no_echo_free: float | None) -> StandardSonarParams:
-    """The standard model's settings from --no-echo-free (None: the model's default)."""
-    try:
-        return StandardSonarParams(
-            no_echo_free_m=StandardSonarParams.no_echo_free_m if no_echo_free is None
-            else no_echo_free
-        )  # fmt: skip
-    except ValueError as exc:
-        raise UsageError(f"--no-echo-free: {exc}") from exc
-
-
-def ray_params(no_echo_free: float | None, max_range: float | None) -> RayParams:
-    """The ray (laser) model's settings from --no-echo-free and --max-range (None: defaults)."""
-    if max_range is not None and not (max_range > 0.0 and math.isfinite(max_range)):
-        raise UsageError(f"--max-range must be a positive number of metres, got {max_range}")
-    try:
-        return RayParams(
-            no_echo_free_m=LASER_NO_ECHO_FREE_M if no_echo_free is None else no_echo_free,
-            max_range_m=math.inf if max_range is None else max_range,
-        )
-    except ValueError as exc:
-        raise UsageError(f"--no-echo-free: {exc}") from exc
-
-
-def error_aware_settings(
-    mode: str,
-    odometry_file: Path | None,
-    coefficients: tuple[str, ...],
-    trust_length: float,
-    max_spread_deg: float = math.degrees(ErrorAwareParams.max_heading_spread_rad),
-    graph_uncertainty: bool = False,
-    correct_odometry: bool = False,
-) -> tuple[ErrorAwareParams, OdometryError | None]:
-    """The error-aware model's settings from :data:`ERROR_AWARE_OPTIONS` (usage errors before
-    any reading). ``graph_uncertainty``: the pose uncertainty comes from a pose graph
-    (``--pose slam``), so the odometry error is optional (only its sonar range error is used).
-    ``correct_odometry`` (build's --correct-odometry): the odometry error is read in standard
-    mode too, and must hold the signs of its systematic errors."""
-    ctx = click.get_current_context()
-    trust_given = any(
-        ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT
-        for name in ("trust_length", "max_spread_deg")
-    )
-    given = odometry_file is not None or bool(coefficients)
-    if correct_odometry:
-        if odometry_file is None:
-            raise UsageError(
-                "--correct-odometry needs the odometry's biases: --odometry-error FILE "
-                "(gridmap calibrate writes one)"
-            )
-        if mode != "error-aware" and (coefficients or trust_given):
-            raise UsageError(
-                "--odometry-coefficient, --trust-length and --max-heading-spread apply to "
-                "--mode error-aware"
-            )
-    elif mode != "error-aware":
-        if given or trust_given:
-            raise UsageError(
-                "--odometry-error, --odometry-coefficient, --trust-length and "
-                "--max-heading-spread apply to --mode error-aware"
-            )
-        return ErrorAwareParams(), None
-    if mode == "error-aware" and not given and not graph_uncertainty:
-        raise UsageError(
-            "--mode error-aware needs the odometry error: --odometry-error FILE (gridmap "
-            "calibrate writes one) or --odometry-coefficient NAME=VALUE"
-        )
-    try:
-        params = ErrorAwareParams(trust_length_m=trust_length)
-    except ValueError as exc:
-        raise UsageError(f"--trust-length: {exc}") from exc
-    if not max_spread_deg > 0:
-        raise UsageError(f"--max-heading-spread must be a positive angle, got {max_spread_deg}")
-    params = dataclasses.replace(params, max_heading_spread_rad=math.radians(max_spread_deg))
-    names = [f.name for f in dataclasses.fields(OdometryError)]
-    overrides: dict[str, float] = {}
-    for item in coefficients:
-        name, sep, text = item.partition("=")
-        name = name.strip()
-        if not sep or name not in names:
-            raise UsageError(
-                f"--odometry-coefficient {item!r}: expected NAME=VALUE, NAME one of "
-                f"{', '.join(names)}"
-            )
-        try:
-            overrides[name] = float(text)
-        except ValueError:
-            raise UsageError(f"--odometry-coefficient {item!r}: {text!r} is not a number") from None
-    if odometry_file is not None:
-        check_input(odometry_file, folder_ok=False)
-    model = load_odometry_error(odometry_file) if odometry_file is not None else OdometryError()
-    try:
-        model = dataclasses.replace(model, **overrides)
-    except ValueError as exc:
-        raise UsageError(f"--odometry-coefficient: {exc}") from exc
-    unsigned = (model.range_m_per_m, model.bearing_rad_per_rad, model.heading_drift_rad_per_m)
-    if correct_odometry and not model.has_bias and any(unsigned):
-        raise UsageError(
-            f"--correct-odometry: {odometry_file} holds systematic errors without their signs "
-            "(a file older than version 3): run gridmap calibrate again"
-        )
-    return params, model
-
-
-def build_settings(
-    resolution: float,
-    mode: str,
-    occupied: float,
-    free: float,
-    no_echo_free: float | None,
-    max_range: float | None,
-    pose: str,
-    odometry_file: Path | None,
-    coefficients: tuple[str, ...],
-    trust_length: float,
-    max_spread_deg: float,
-    error_samples: int | None,
-    correct_odometry: bool | None,
-    fused: bool = False,
-) -> BuildOptions:
-    """The map options as the mapping pipeline takes them, every usage check made (build and
-    batch alike, before any reading). ``correct_odometry`` None (neither --correct-odometry nor
-    --no-correct-odometry) corrects the biases of the odometry error when the map is
-    error-aware, of the robot's own odometry (``pose`` odometry, not ``fused``), and the file
-    holds signed biases: :func:`auto_correction`."""
-    check_thresholds(occupied, free)
-    check_resolution(resolution)
-    error_aware, odometry_error = error_aware_settings(
-        mode, odometry_file, coefficients, trust_length, max_spread_deg, pose == "slam",
-        correct_odometry=bool(correct_odometry),
-    )  # fmt: skip
-    if correct_odometry and (pose != "odometry" or fused):
-        raise UsageError(
-            "--correct-odometry corrects the robot's own odometry: it takes --pose odometry "
-            "and one log, no --fuse"
-        )
-    if correct_odometry is None:
-        correct_odometry = auto_correction(mode, pose, fused, odometry_error)
-    return BuildOptions(
-        resolution_m=resolution,
-        mode=mode,
-        sonar=sonar_params(no_echo_free),
-        ray=ray_params(no_echo_free, max_range),
-        error_aware=error_aware,
-        odometry_error=odometry_error,
-        error_samples=error_samples_setting(mode, error_samples),
-        correct_odometry=correct_odometry,
-    )
-
-
-def auto_correction(mode: str, pose: str, fused: bool, model: OdometryError | None) -> bool:
-    """Whether a build given neither --correct-odometry nor --no-correct-odometry corrects the
-    odometry's biases: in error-aware mode, of the robot's own odometry of one log, with an
-    odometry error that knows the biases' signs (version 3). Spreading a known bias as a
-    random error blurs what the track can simply be rid of (issue 19: on the Intel lab the
-    uncorrected error-aware map scored 1.17x the corrected standard map, the corrected one
-    0.81x)."""
-    if mode != "error-aware" or pose != "odometry" or fused or model is None:
-        return False
-    return model.has_bias

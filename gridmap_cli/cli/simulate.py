@@ -13,8 +13,11 @@ from gridmap_cli.cli.common import (
     check_input,
     check_not_folder,
     check_output_folder,
+    force_option,
     handle_errors,
+    json_option,
     json_text,
+    quiet_option,
     stdout_file,
 )
 from gridmap_cli.errors import UsageError
@@ -22,6 +25,16 @@ from gridmap_cli.robot import load_robot
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.convert import output_writer, write_log, writer_names
 from gridmap_cli.writers.mcap_log import ENCODINGS
+
+
+def _check_numbers(rate: float, drift: float, duration: float | None) -> None:
+    """--rate, --drift and --duration: finite, and positive where zero means nothing."""
+    if not (rate > 0.0 and math.isfinite(rate)):
+        raise UsageError(f"--rate must be a positive number of Hz, got {rate}")
+    if not (drift >= 0.0 and math.isfinite(drift)):
+        raise UsageError(f"--drift must be a finite number >= 0, got {drift}")
+    if duration is not None and not (duration > 0.0 and math.isfinite(duration)):
+        raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
 
 
 @click.command()
@@ -56,9 +69,9 @@ from gridmap_cli.writers.mcap_log import ENCODINGS
     help="Odometry error level: 0 perfect, 1 typical, 2 poor (scales every error term).",
 )
 @click.option("--duration", type=float, help="Repeat laps until this many seconds have passed.")
-@click.option("--force", is_flag=True, help="Overwrite an existing output.")
-@click.option("-q", "--quiet", is_flag=True, help="No summary on stderr.")
-@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON on stdout.")
+@force_option("Overwrite an existing output.")
+@quiet_option("No summary on stderr.")
+@json_option("Print the summary as JSON on stdout.")
 @handle_errors
 def simulate(
     world: Path,
@@ -84,12 +97,7 @@ def simulate(
     from gridmap_cli.sim.simulate import simulate as run_simulation
     from gridmap_cli.sim.world import World
 
-    if not (rate > 0.0 and math.isfinite(rate)):
-        raise UsageError(f"--rate must be a positive number of Hz, got {rate}")
-    if not (drift >= 0.0 and math.isfinite(drift)):
-        raise UsageError(f"--drift must be a finite number >= 0, got {drift}")
-    if duration is not None and not (duration > 0.0 and math.isfinite(duration)):
-        raise UsageError(f"--duration must be a positive number of seconds, got {duration}")
+    _check_numbers(rate, drift, duration)
     check_not_folder(output)
     writer = output_writer(output, log_format, encoding)
     if output == STDIO and as_json:

@@ -16,16 +16,28 @@ import numpy.typing as npt
 from gridmap_cli.cli.common import (
     check_input,
     check_output_folder,
+    force_option,
+    format_option,
     handle_errors,
+    json_option,
+    quiet_option,
     topic_options,
 )
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.evaluation.relations import read_relations, reordered_on_logged_clock, score_track
-from gridmap_cli.poses.correction.scan_match import STATUS_NAMES, corrected_track, match_log
-from gridmap_cli.poses.sync import POSE_SOURCES, select_poses
-from gridmap_cli.readers import format_names, read_logs
+from gridmap_cli.poses.correction.scan_match import STATUS_NAMES
+from gridmap_cli.poses.sources import (
+    DEFAULT_SOURCE,
+    PosedLog,
+    PoseSettings,
+    pose_help,
+    pose_source,
+    source_names,
+)
+from gridmap_cli.readers import read_logs
 from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.records import PoseTrack
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.trajectory import covariance_path, trajectory_format, write_trajectory
@@ -50,14 +62,11 @@ from gridmap_cli.writers.trajectory import covariance_path, trajectory_format, w
 )
 @click.option(
     "--pose",
-    type=click.Choice((*POSE_SOURCES, "slam")),
-    default="odometry",
+    type=click.Choice(source_names()),
+    default=DEFAULT_SOURCE,
     show_default=True,
-    help="Which track (build's default too): the odometry, the log's reference (global: ARIA "
-    "robotGlobal, CSV true_*, a ROS recording's TF map -> base or --pose-topic, e.g. "
-    "/amcl_pose), the odometry corrected by the laser (scan-matched, one pose per scan) or "
-    "that with loop closures on a pose graph (slam, one pose per scan). odometry and global "
-    "need no range readings.",
+    help=pose_help("Which track (build's default too):")
+    + " A track the laser makes has one pose per scan; the others need no range readings.",
 )
 @click.option(
     "--robot",
@@ -78,11 +87,11 @@ from gridmap_cli.writers.trajectory import covariance_path, trajectory_format, w
     help="Seconds to add to the track's stamps to reach the relations' clock (for a log "
     "republished with times from its start).",
 )
-@click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
+@format_option
 @topic_options
-@click.option("--force", is_flag=True, help="Overwrite an existing output.")
-@click.option("-q", "--quiet", is_flag=True, help="No summary on stderr.")
-@click.option("--json", "as_json", is_flag=True, help="Print a JSON summary on stdout.")
+@force_option("Overwrite an existing output.")
+@quiet_option("No summary on stderr.")
+@json_option("Print a JSON summary on stdout.")
 @handle_errors
 def trajectory(
     logs: tuple[Path, ...],
@@ -105,7 +114,7 @@ def trajectory(
     started = time.perf_counter()
     trajectory_format(output)
     check_output(output, force)
-    cov_path = covariance_path(output) if pose == "slam" else None
+    cov_path = covariance_path(output) if pose_source(pose).belief else None
     if cov_path is not None:
         check_output(cov_path, force)
     check_output_folder(output)
@@ -115,45 +124,20 @@ def trajectory(
     if relations is not None:
         check_input(relations, folder_ok=False)
         truth = read_relations(relations)
+    source = pose_source(pose)
     # the odometry and the reference need no range readings (a ROS recording of /odom and TF)
-    read_options = dataclasses.replace(
-        topics, robot=robot_desc, poses_only=pose in ("odometry", "global")
-    )
+    read_options = dataclasses.replace(topics, robot=robot_desc, poses_only=not source.uses_laser)
     with reading(logs[0].name if len(logs) == 1 else f"{len(logs)} logs", quiet):
         data = read_logs(logs, log_format, read_options)
-    summary: dict[str, object] = {"output": str(output), "pose": pose}
-    status: list[str] | None = None
-    covariance: tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_]] | None = None
-    if pose == "scan-matched":
-        if robot_desc is None:
-            robot_desc = robot_from_log(logs[0], data.metadata)
-        with StageBars(quiet) as bars:
-            match = match_log(data, robot_desc, progress=bars)
-        track = match.track
-        scored = corrected_track(data.poses, match)
-        status = [STATUS_NAMES[int(s)] for s in match.status]
-        summary["scan_match"] = match.summary()
-    elif pose == "slam":
-        from gridmap_cli.poses.correction.slam import slam_log  # gtsam: only here
-
-        if robot_desc is None:
-            robot_desc = robot_from_log(logs[0], data.metadata)
-        from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
-
-        with StageBars(quiet) as bars:
-            result = slam_log(data, robot_desc, progress=bars)
-        track = result.track
-        scored = corrected_track(data.poses, result.match)
-        status = [STATUS_NAMES[int(s)] for s in result.scan_matched.status]
-        summary["slam"] = result.summary()
-        # the graph's own noise: the benchmark's relations check it (docs/scan-matching.md)
-        belief = slam_belief(result, calibrate=False)
-        keyframe = np.isin(track.stamp_ns, belief.stamp_ns)
-        covariance = (belief.marginals_at(track.stamp_ns), keyframe)
+    if source.uses_laser and robot_desc is None:
+        robot_desc = robot_from_log(logs[0], data.metadata)
+    with StageBars(quiet) as bars:
+        posed = source.run(data, robot_desc, PoseSettings(progress=bars))
+    summary: dict[str, object] = {"output": str(output), "pose": pose, **posed.summary}
+    track, status, covariance = _written_track(posed)
+    scored = posed.log.poses
+    if covariance is not None:
         summary["covariance"] = str(cov_path)
-    else:
-        track = select_poses(data, pose).poses
-        scored = track
     summary["poses"] = len(track)
     if relations is not None:
         # a corrected track is scored at every odometry stamp too (the track `build` maps
@@ -178,30 +162,56 @@ def trajectory(
     if as_json:
         click.echo(json.dumps(summary, indent=2))
     if not quiet:
-        line = f"gridmap: {len(track):,} {pose} poses -> {output}"
-        if "scan_match" in summary:
-            sm = match.summary()
-            line += (
-                f" ({sm['fallbacks']:,} scans fell back to odometry, {sm['degenerate']:,} "
-                "degenerate)"
-            )
-        if "slam" in summary:
-            sl = result.summary()
-            line += (
-                f" ({sl['closures_accepted']:,} loop closures accepted, "
-                f"{sl['closures_rejected']:,} rejected; {sl['fallbacks']:,} scans fell back "
-                "to odometry)"
-            )
-        click.echo(line + f" in {summary['seconds']:.1f} s", err=True)
-        if cov_path is not None:
-            click.echo(f"gridmap: each pose's covariance -> {cov_path}", err=True)
-        if "slam" in summary and result.warning:
-            click.echo(f"gridmap: warning: {result.warning}", err=True)
-        if relations is not None:
-            r = score.summary()
-            click.echo(
-                f"gridmap: relations {r['relations']:,} (skipped {r['skipped']:,}): "
-                f"translation {r['trans_mean_m']:.3f} +/- {r['trans_std_m']:.3f} m, "
-                f"rotation {r['rot_mean_deg']:.2f} +/- {r['rot_std_deg']:.2f} deg",
-                err=True,
-            )
+        _report(summary, posed, len(track), cov_path)
+
+
+Covariance = tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_]]
+
+
+def _written_track(posed: PosedLog) -> tuple[PoseTrack, list[str] | None, Covariance | None]:
+    """The track to write: the source's at the odometry's stamps, or one pose per scan with
+    how each scan was placed; with the pose graph's covariance of each pose where it has one."""
+    if posed.match is None:
+        return posed.log.poses, None, None
+    track = posed.match.track
+    matched = posed.slam.scan_matched if posed.slam is not None else posed.match
+    status = [STATUS_NAMES[int(s)] for s in matched.status]
+    if posed.slam is None:
+        return track, status, None
+    from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
+
+    # the graph's own noise: the benchmark's relations check it (docs/scan-matching.md)
+    belief = slam_belief(posed.slam, calibrate=False)
+    keyframe = np.isin(track.stamp_ns, belief.stamp_ns)
+    return track, status, (belief.marginals_at(track.stamp_ns), keyframe)
+
+
+def _report(summary: dict[str, object], posed: PosedLog, poses: int, cov_path: Path | None) -> None:
+    """The lines on stderr: what was written, how the scans were placed, the score."""
+    line = f"gridmap: {poses:,} {summary['pose']} poses -> {summary['output']}"
+    if "scan_match" in summary:
+        sm = posed.summary["scan_match"]
+        line += (
+            f" ({sm['fallbacks']:,} scans fell back to odometry, {sm['degenerate']:,} degenerate)"
+        )
+    if "slam" in summary:
+        sl = posed.summary["slam"]
+        line += (
+            f" ({sl['closures_accepted']:,} loop closures accepted, "
+            f"{sl['closures_rejected']:,} rejected; {sl['fallbacks']:,} scans fell back "
+            "to odometry)"
+        )
+    click.echo(line + f" in {summary['seconds']:.1f} s", err=True)
+    if cov_path is not None:
+        click.echo(f"gridmap: each pose's covariance -> {cov_path}", err=True)
+    if posed.slam is not None and posed.slam.warning:
+        click.echo(f"gridmap: warning: {posed.slam.warning}", err=True)
+    relations = summary.get("relations")
+    if isinstance(relations, dict):
+        r = relations
+        click.echo(
+            f"gridmap: relations {r['relations']:,} (skipped {r['skipped']:,}): "
+            f"translation {r['trans_mean_m']:.3f} +/- {r['trans_std_m']:.3f} m, "
+            f"rotation {r['rot_mean_deg']:.2f} +/- {r['rot_std_deg']:.2f} deg",
+            err=True,
+        )

@@ -18,7 +18,7 @@ from gridmap_cli.describe.sensors import laser_text, lasers_part
 from gridmap_cli.describe.text import ends, some
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.mapping.pipeline import BuildOptions, plan_build
-from gridmap_cli.poses.sync import select_poses
+from gridmap_cli.poses.sources import DEFAULT_SOURCE, check_needs, pose_source
 from gridmap_cli.readers import LogFormat
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros.recording import RecordingRead
@@ -46,7 +46,7 @@ def build_problem(log: RangeLog, robot: RobotDescription | None) -> str | None:
     sensors' mounting, readings left after sync, the size of the map.
     """
     try:
-        select_poses(log, "odometry")  # build's default --pose
+        check_needs(pose_source(DEFAULT_SOURCE), log, robot)  # build's default --pose
         plan_build(log, robot, BuildOptions())
     except GridmapError as exc:
         return str(exc)

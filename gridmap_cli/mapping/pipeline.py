@@ -165,22 +165,6 @@ def _steady_plan(plan: BuildPlan, uncertainty: PoseUncertainty, limit_rad: float
     return dataclasses.replace(plan, models=models)
 
 
-def reference_spread_note(pose: str, options: BuildOptions) -> str | None:
-    """A warning for an error-aware map of a reference track (``--pose global``) with a nonzero
-    odometry error: the reference carries no odometry drift, so the spread blurs a map that
-    has none (Intel's 16-sample map became a grey blur). None otherwise."""
-    model = options.odometry_error
-    if pose != "global" or options.mode != "error-aware" or model is None:
-        return None
-    if StepNoise.of(model).is_zero:
-        return None
-    return (
-        "--pose global --mode error-aware: the odometry's error is spread over the reference "
-        "track, which has no odometry drift, so the map is blurred for nothing; map the "
-        "reference with --mode standard, or the odometry (--pose odometry) error-aware"
-    )
-
-
 def corrected_for_build(log: RangeLog, options: BuildOptions) -> tuple[RangeLog, BuildOptions]:
     """``options.correct_odometry``: the log with the odometry's known biases taken out of its
     track (:func:`~gridmap_cli.poses.odometry_error.correct_track`), and options whose

@@ -12,5 +12,8 @@ Four jobs, one place each:
 - pose correction: :mod:`.correction` registers laser scans (scan matching) and closes loops on a
   pose graph (gtsam).
 
+:mod:`.sources` names the pose sources a map is built with (odometry, the reference, the
+corrections) in one table: the one place a source is chosen by name.
+
 May import: the core and :mod:`gridmap_cli.robot`; nothing of mapping, readers or writers.
 """

@@ -10,13 +10,12 @@ note for the user (:func:`gridmap_cli.mapping.selection.ignore_other_columns`).
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.errors import GridmapError, InputFileError
+from gridmap_cli.errors import GridmapError, given
 from gridmap_cli.geometry import compose, wrap_angle
 from gridmap_cli.poses.odometry_error import travelled_at
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
@@ -82,33 +81,6 @@ class SyncStats:
     below_min_range: int
 
 
-#: ``scan-matched`` is the odometry corrected by the laser: it needs the sensors' mounting, so
-#: :func:`gridmap_cli.poses.correction.scan_match.scan_matched_log` makes it, not
-#: :func:`select_poses`.
-POSE_SOURCES = ("odometry", "global", "scan-matched")
-
-
-def select_poses(log: RangeLog, source: str) -> RangeLog:
-    """The log with the pose track to map with: its odometry, or its global pose.
-
-    The global pose is the log's reference track: ARIA's ``robotGlobal:`` (a corrected pose),
-    a CSV's ``true_*`` columns (ground truth) or a CARMEN log's corrected poses or TRUEPOS.
-    Mapping with it shows what the map would be with the robot's pose known; mapping with
-    odometry shows what the robot's own data gives.
-    """
-    if source == "odometry":
-        if log.odometry_missing is not None:
-            raise InputFileError(log.source, f"--pose odometry: odometry {log.odometry_missing}")
-        return log
-    if source == "scan-matched":
-        raise GridmapError(
-            "scan-matched poses come from gridmap_cli.poses.correction.scan_match.scan_matched_log"
-        )
-    if source != "global":
-        raise GridmapError(f"unknown pose source '{source}' (known: {', '.join(POSE_SOURCES)})")
-    return dataclasses.replace(log, poses=log.require_truth("--pose global maps with it"))
-
-
 def sensors_for_log(log: RangeLog, robot: RobotDescription | None) -> tuple[RangeSensor, ...]:
     """Mounting geometry for each of the log's sensor names.
 
@@ -124,7 +96,7 @@ def sensors_for_log(log: RangeLog, robot: RobotDescription | None) -> tuple[Rang
         raise GridmapError(
             f"{log.source}: the log does not describe sensor"
             f"{'s' if len(unknown) > 1 else ''} {', '.join(repr(u) for u in unknown[:5])}"
-            f"{' ...' if len(unknown) > 5 else ''}; give --robot "
+            f"{' ...' if len(unknown) > 5 else ''}; give {given('robot')} "
             "(a preset name, a robot YAML file or an ARIA .p file)"
         )
     raise GridmapError(

@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
 
-from gridmap_cli.errors import InputFileError, RobotDescriptionError, UnknownRobotError
+from gridmap_cli.errors import InputFileError, RobotDescriptionError, UnknownRobotError, given
 from gridmap_cli.limits import read_settings_text
 from gridmap_cli.robot.description import SENSOR_KINDS as SENSOR_KINDS
 from gridmap_cli.robot.description import RangeSensor as RangeSensor
@@ -70,5 +70,5 @@ def robot_from_log(log: Path, metadata: Mapping[str, str]) -> RobotDescription |
         raise InputFileError(
             log,
             f"'# robot: {name}' is neither a preset ({', '.join(preset_names())}) nor a file "
-            "beside the log; give --robot",
+            f"beside the log; give {given('robot')}",
         ) from exc

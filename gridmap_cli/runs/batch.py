@@ -31,69 +31,21 @@ from collections import Counter
 from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import IO
 
 from gridmap_cli import __version__
 from gridmap_cli.atomic import atomic_write
 from gridmap_cli.errors import GridmapError, UsageError
-from gridmap_cli.mapping.pipeline import BuildOptions
-from gridmap_cli.readers.options import ReadOptions
+from gridmap_cli.runs.batch_build import SIDECAR_SUFFIX as SIDECAR_SUFFIX
+from gridmap_cli.runs.batch_build import BatchOptions as BatchOptions
+from gridmap_cli.runs.batch_build import Job as Job
 from gridmap_cli.runs.batch_build import build_job, sidecar_thumbnail, up_to_date
 from gridmap_cli.runs.content import build_key, content_hash
 
-#: The sidecar beside each map, holding the key of what it was built from.
-SIDECAR_SUFFIX = ".batch.json"
 LOCK_NAME = ".gridmap-batch.lock"
 REPORT_NAME = "batch-report.jsonl"
 OVERVIEW_NAME = "index.html"
 _GLOB_CHARS = "*?["
-
-
-@dataclass(frozen=True)
-class BatchOptions:
-    """How every map of a batch is built: ``gridmap build``'s map options, resolved (a robot
-    file as an absolute path, the error-aware model's settings as values in ``build``)."""
-
-    build: BuildOptions = field(default_factory=BuildOptions)
-    robot: str | None = None  # preset name or absolute path; None: each log's own
-    log_format: str | None = None
-    pose: str = "odometry"
-    topics: ReadOptions = field(default_factory=ReadOptions)  # without a robot
-    sensors: tuple[str, ...] = ()
-    start: str | None = None
-    end: str | None = None
-    map_mode: str = "trinary"
-    occupied: float = 0.65
-    free: float = 0.25
-    image_format: str = "png"
-
-    @property
-    def resolution_m(self) -> float:
-        return self.build.resolution_m
-
-    def as_dict(self) -> dict[str, Any]:
-        """Every option as plain values: what the key of a map holds (processes mapping one
-        log are left out: the map is the same bytes for any number)."""
-        values = dataclasses.asdict(self)
-        del values["build"]["jobs"]
-        return values
-
-
-@dataclass(frozen=True)
-class Job:
-    """One log and the map to build from it."""
-
-    log: Path
-    output: Path  # the map image; its YAML and sidecar go beside it
-    options: BatchOptions
-
-    @property
-    def sidecar(self) -> Path:
-        return self.output.with_name(f".{self.output.stem}{SIDECAR_SUFFIX}")
-
-    @property
-    def yaml(self) -> Path:
-        return self.output.with_suffix(".yaml")
 
 
 @dataclass(frozen=True)

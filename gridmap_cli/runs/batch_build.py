@@ -1,5 +1,6 @@
-"""One batch map: a log read, its poses chosen, mapped and written as ``gridmap build`` does
-with the same options (the same bytes), and the sidecar saying what it was built from.
+"""One batch map: a job (:class:`Job`, a log and :class:`BatchOptions`) built by
+:func:`gridmap_cli.runs.build.build` as ``gridmap build`` builds it with the same options (the
+same bytes), written, and the sidecar saying what it was built from.
 
 The sidecar (``.<map>.batch.json``) holds the key (:func:`gridmap_cli.runs.content.build_key`),
 the robot file the map used with its SHA-256 (an edited robot file rebuilds the map, even one a
@@ -13,21 +14,72 @@ import base64
 import dataclasses
 import json
 import time
+from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from gridmap_cli import __version__
 from gridmap_cli.atomic import atomic_write
+from gridmap_cli.errors import naming, naming_style
+from gridmap_cli.mapping.options import BuildOptions
+from gridmap_cli.poses.sources import DEFAULT_SOURCE
+from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.runs.content import content_hash
 
-if TYPE_CHECKING:
-    from gridmap_cli.runs.batch import Job
+#: The sidecar beside each map, holding the key of what it was built from.
+SIDECAR_SUFFIX = ".batch.json"
 
-#: --pose values whose track the laser makes (the readings are held for it)
-LASER_POSES = ("scan-matched", "slam")
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """How every map of a batch is built: ``gridmap build``'s map options, resolved (a robot
+    file as an absolute path, the error-aware model's settings as values in ``build``)."""
+
+    build: BuildOptions = field(default_factory=BuildOptions)
+    robot: str | None = None  # preset name or absolute path; None: each log's own
+    log_format: str | None = None
+    pose: str = DEFAULT_SOURCE
+    topics: ReadOptions = field(default_factory=ReadOptions)  # without a robot
+    sensors: tuple[str, ...] = ()
+    start: str | None = None
+    end: str | None = None
+    map_mode: str = "trinary"
+    occupied: float = 0.65
+    free: float = 0.25
+    image_format: str = "png"
+
+    @property
+    def resolution_m(self) -> float:
+        return self.build.resolution_m
+
+    def as_dict(self) -> dict[str, Any]:
+        """Every option as plain values: what the key of a map holds (processes mapping one
+        log are left out: the map is the same bytes for any number)."""
+        values = dataclasses.asdict(self)
+        del values["build"]["jobs"]
+        return values
+
+
+@dataclass(frozen=True)
+class Job:
+    """One log and the map to build from it."""
+
+    log: Path
+    output: Path  # the map image; its YAML and sidecar go beside it
+    options: BatchOptions
+    #: how its errors name what was given (the command line's flags, from a worker process)
+    naming: str = field(default_factory=naming_style)
+
+    @property
+    def sidecar(self) -> Path:
+        return self.output.with_name(f".{self.output.stem}{SIDECAR_SUFFIX}")
+
+    @property
+    def yaml(self) -> Path:
+        return self.output.with_suffix(".yaml")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -89,55 +141,21 @@ def up_to_date(job: Job, key: str) -> dict[str, Any] | None:
 
 def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
     """Build ``job``'s map, its YAML and sidecar (``seconds`` gets read, map and write times)."""
-    from gridmap_cli.mapping.pipeline import build_map, reference_spread_note
-    from gridmap_cli.mapping.selection import Selection, apply_selection
-    from gridmap_cli.poses.sync import select_poses
-    from gridmap_cli.readers import read_logs
-    from gridmap_cli.robot import load_robot, robot_from_log
+    from gridmap_cli.mapping.selection import Selection
+    from gridmap_cli.runs.build import BuildRequest, build
     from gridmap_cli.writers.map_image import write_map
     from gridmap_cli.writers.thumbnail import thumbnail_png
 
-    mark = time.perf_counter()
     options = job.options
-    robot = load_robot(options.robot) if options.robot else None
-    selection = Selection.parse(options.sensors, options.start, options.end)
-    # a long log's readings stay in its file unless scan matching or a time window needs them
-    stream = options.pose not in LASER_POSES and selection.start is None and selection.end is None
-    read_options = dataclasses.replace(options.topics, robot=robot, stream=stream)
-    data = read_logs([job.log], options.log_format, read_options)
-    used_robot_file = robot_file(job, data.metadata)
-    if robot is None:
-        robot = robot_from_log(job.log, data.metadata)
-    warnings: list[str] = []
-    build = options.build
-    if options.pose == "scan-matched":
-        from gridmap_cli.poses.correction.scan_match import (
-            scan_matched_log,
-        )  # scipy, small_gicp: only here
-
-        data, _ = scan_matched_log(data, robot)
-    elif options.pose == "slam":
-        from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
-
-        data, slam = slam_corrected_log(data, robot)
-        if slam.warning:
-            warnings.append(f"--pose slam: {slam.warning}")
-        if build.mode == "error-aware":  # the graph's marginals and draws, as build maps them
-            from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
-
-            belief = slam_belief(slam, build.error_samples, build.error_seed)
-            build = dataclasses.replace(build, pose_belief=belief)
-    else:
-        data = select_poses(data, options.pose)
-        note = reference_spread_note(options.pose, build)
-        if note is not None:
-            warnings.append(note)
-    selected = apply_selection(dataclasses.replace(data, truth=None), selection, robot)
-    warnings.extend(selected.notes)
-    seconds["read"] = time.perf_counter() - mark
-    mark = time.perf_counter()
-    result = build_map(selected.log, robot, build)
-    seconds["map"] = time.perf_counter() - mark
+    request = BuildRequest(
+        inputs=(job.log,), robot=options.robot, options=options.build, pose=options.pose,
+        selection=Selection.parse(options.sensors, options.start, options.end),
+        log_format=options.log_format, read_options=options.topics,
+    )  # fmt: skip
+    with naming(job.naming):
+        result = build(request)
+    used_robot_file = robot_file(job, result.log.metadata)
+    seconds.update(result.seconds)
     mark = time.perf_counter()
     write_map(job.output, result.map, mode=options.map_mode, occupied_thresh=options.occupied,
               free_thresh=options.free, force=True)  # fmt: skip
@@ -151,8 +169,8 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
             "occupied": int((prob[known] >= options.occupied).sum()),
             "free": int((prob[known] <= options.free).sum()),
         },
-        readings=result.sync.used,
-        warnings=tuple(warnings),
+        readings=result.stats.sync.used,
+        warnings=result.warnings,
         built_at=datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
     )
     thumbnail = thumbnail_png(prob, options.occupied, options.free)

@@ -18,17 +18,15 @@ or a Dask cluster reducing the tree on its workers), gives the same map.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.errors import GridmapError, MapSizeError, UsageError
-from gridmap_cli.geometry import compose, inverse
+from gridmap_cli.errors import GridmapError, MapSizeError, UsageError, naming, naming_style
 from gridmap_cli.mapping.grid import (
     DEFAULT_CLAMP_P,
     DEFAULT_MAX_CELLS,
@@ -40,7 +38,8 @@ from gridmap_cli.mapping.grid import (
 from gridmap_cli.mapping.pipeline import BuildOptions, accumulate, plan_build
 from gridmap_cli.mapping.selection import Selection
 from gridmap_cli.readers.options import ReadOptions
-from gridmap_cli.records import PoseTrack, RangeLog
+from gridmap_cli.records import RangeLog
+from gridmap_cli.runs.build import BuildHooks
 from gridmap_cli.runs.content import content_hash
 
 
@@ -56,6 +55,8 @@ class FuseJob:
     selection: Selection
     robot_spec: str | None
     options: BuildOptions
+    #: how its errors name what was given (the command line's flags, from a worker process)
+    naming: str = field(default_factory=naming_style)
 
 
 @dataclass(frozen=True)
@@ -88,17 +89,6 @@ def parse_initial_pose(text: str) -> tuple[float, float, float]:
     return x, y, math.radians(yaw)
 
 
-def place(track: PoseTrack, first: tuple[float, float, float]) -> PoseTrack:
-    """``track`` moved rigidly so that its first pose is ``first`` (x_m, y_m, yaw_rad)."""
-    if len(track) == 0:
-        return track
-    ix, iy, ith = inverse(track.x_m[:1], track.y_m[:1], track.theta_rad[:1])
-    x0, y0, th0 = (np.array([v]) for v in first)
-    tx, ty, tth = compose(x0, y0, th0, ix, iy, ith)
-    x, y, th = compose(tx, ty, tth, track.x_m, track.y_m, track.theta_rad)
-    return PoseTrack(stamp_ns=track.stamp_ns, x_m=x, y_m=y, theta_rad=th)
-
-
 def content_key(log: Path) -> str:
     """SHA-256 of a log's content (a rosbag2 folder: its files' names and contents)."""
     return content_hash(log)[0]
@@ -106,26 +96,28 @@ def content_key(log: Path) -> str:
 
 def partial_of(job: FuseJob) -> Partial:
     """Read and map one log into its own partial grid (runs wherever the executor puts it)."""
-    from gridmap_cli.mapping.selection import apply_selection
-    from gridmap_cli.poses.sync import select_poses
-    from gridmap_cli.readers import read_log
-    from gridmap_cli.robot import load_robot, robot_from_log
+    from gridmap_cli.runs.build import BuildRequest, pose_stage
 
-    robot = load_robot(job.robot_spec) if job.robot_spec else None
-    options = dataclasses.replace(job.read_options, robot=robot)
-    data = select_poses(read_log(job.log, job.log_format, options), job.pose)
-    if job.initial_pose is not None:
-        data = dataclasses.replace(data, poses=place(data.poses, job.initial_pose))
-    if robot is None:
-        robot = robot_from_log(job.log, data.metadata)
-    selected = apply_selection(data, job.selection, robot)
-    log: RangeLog = selected.log
-    plan = plan_build(log, robot, job.options)
+    request = BuildRequest(
+        inputs=(job.log,), robot=job.robot_spec, options=job.options, pose=job.pose,
+        selection=job.selection, log_format=job.log_format, read_options=job.read_options,
+        initial_pose=job.initial_pose, stream=False,
+    )  # fmt: skip
+    with naming(job.naming):
+        placed = pose_stage(request, BuildHooks(read=_read_one))
+    plan = plan_build(placed.log, placed.robot, job.options)
     grid = LogOddsAccumulator(plan.spec, plan.sync.used)
     accumulate(plan, grid, job.options)
-    notes = tuple(f"{job.log}: {note}" for note in selected.notes)
+    notes = tuple(f"{job.log}: {note}" for note in placed.warnings)
     return Partial(plan.spec, grid.log_odds(), grid.observations(), (content_key(job.log),),
                    plan.sync.used, notes)  # fmt: skip
+
+
+def _read_one(paths: Sequence[Path], log_format: str | None, options: ReadOptions) -> RangeLog:
+    """One log, read by its own reader (never merged as a recording)."""
+    from gridmap_cli.readers import read_log
+
+    return read_log(paths[0], log_format, options)
 
 
 def union_spec(a: GridSpec, b: GridSpec, max_cells: int = DEFAULT_MAX_CELLS) -> GridSpec:

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridmap_cli.errors import GridmapError, OutputExistsError, UsageError
+from gridmap_cli.errors import GridmapError, OutputExistsError, UsageError, naming
 from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
 from gridmap_cli.robot import RangeSensor
@@ -26,7 +26,9 @@ def test_check_output_refuses_an_existing_file_without_force(tmp_path: Path) -> 
     target = tmp_path / "out.csv"
     check_output(target, force=False)  # nothing there yet
     target.write_text("old")
-    with pytest.raises(OutputExistsError, match=r"out\.csv exists \(use --force to overwrite\)"):
+    with pytest.raises(OutputExistsError, match=r"out\.csv exists \(use force=True to overwrite"):
+        check_output(target, force=False)
+    with naming("flags"), pytest.raises(OutputExistsError, match=r"\(use --force to overwrite\)"):
         check_output(target, force=False)
     check_output(target, force=True)
     assert target.read_text() == "old"

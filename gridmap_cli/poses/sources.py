@@ -1,0 +1,208 @@
+"""The pose sources a map can be built with, in one table: :data:`SOURCES`.
+
+Each source says what it needs of a log (odometry, a laser, a reference track), in which frame
+its track lies, its help text, and where its function is (``module:function``, imported only
+when the source is used: the pose graph pulls in gtsam). The function takes the log, the robot
+and :class:`PoseSettings` and returns a :class:`PosedLog`: the log with the chosen poses and what
+the source learnt on the way (the scan match, the pose graph, its belief, summary fields,
+warnings). The commands' ``--pose`` choices, help texts and "this log cannot do that" errors
+read the table; nothing else compares a source's name.
+
+A new source is one module holding its function and one :class:`PoseSource` line below.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from gridmap_cli.errors import InputFileError, UsageError, given, naming_style
+from gridmap_cli.records import RangeLog
+from gridmap_cli.robot import RobotDescription
+
+if TYPE_CHECKING:
+    from gridmap_cli.poses.correction.scan_match import ScanMatch
+    from gridmap_cli.poses.correction.slam import SlamResult
+    from gridmap_cli.poses.uncertainty.pose_belief import PoseBelief
+
+#: What a source may need of a log: the robot's own odometry (a log whose pose track is not
+#: one, such as a corrected CARMEN log's, cannot be mapped by it), laser scans, a reference.
+NEEDS = ("odometry", "laser", "reference")
+#: Called with a stage's name, its done and total counts (the CLI's progress bars).
+Progress = Callable[[str, int, int], object]
+
+
+@dataclass(frozen=True)
+class PoseSettings:
+    """How a source is run: ``progress`` for the long stages; ``belief_samples`` not None asks
+    a source that knows its uncertainty (the pose graph) for its belief with that many draws,
+    seeded by ``belief_seed``."""
+
+    progress: Progress | None = None
+    belief_samples: int | None = None
+    belief_seed: int = 0
+
+
+@dataclass(frozen=True)
+class PosedLog:
+    """A log placed by a pose source, and what the source learnt.
+
+    ``log``: the log with its poses replaced by the source's track (at the odometry's stamps);
+    ``match``: the scan match (scan-matched, and slam's optimised one); ``slam``: the pose
+    graph's result; ``belief``: the pose graph's belief when asked; ``summary``: fields for a
+    report, by section (``{"slam": {...}}``); ``warnings``: what the user should read.
+    """
+
+    log: RangeLog
+    source: str
+    match: ScanMatch | None = None
+    slam: SlamResult | None = None
+    belief: PoseBelief | None = None
+    summary: Mapping[str, Mapping[str, object]] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
+
+
+Runner = Callable[[RangeLog, RobotDescription | None, PoseSettings], PosedLog]
+
+
+@dataclass(frozen=True)
+class PoseSource:
+    """One way to place a log's readings.
+
+    ``needs``: what of :data:`NEEDS` the log must hold; ``frame``: "odometry" (the track starts
+    where the odometry does) or "world" (the reference's frame); ``help``: a phrase for the
+    commands' help (what the track is); ``runner``: ``module:function`` of its
+    :data:`Runner`; ``belief``: the source knows its own uncertainty (a pose graph's), so an
+    error-aware map of it needs no odometry-error model; ``scans``: the source may read the
+    laser's scans, so the log's readings are held for it (None: when it needs a laser; a
+    source that chooses by the log, falling back where there is no laser, sets True)."""
+
+    name: str
+    needs: frozenset[str]
+    frame: str
+    help: str
+    runner: str
+    belief: bool = False
+    scans: bool | None = None
+
+    @property
+    def uses_laser(self) -> bool:
+        """True when the source may read the laser: the log's readings are held for it."""
+        return "laser" in self.needs if self.scans is None else self.scans
+
+    def run(
+        self, log: RangeLog, robot: RobotDescription | None, settings: PoseSettings | None = None
+    ) -> PosedLog:
+        """``log`` placed by this source; raises :class:`GridmapError` when the log lacks what
+        the source needs."""
+        check_needs(self, log, robot)
+        module, _, function = self.runner.partition(":")
+        run: Runner = getattr(importlib.import_module(module), function)
+        return run(log, robot, settings or PoseSettings())
+
+
+SOURCES: tuple[PoseSource, ...] = (
+    PoseSource("odometry", frozenset({"odometry"}), "odometry", "the robot's wheel odometry",
+               "gridmap_cli.poses.sources:odometry_poses"),
+    PoseSource("global", frozenset({"reference"}), "world",
+               "the log's reference track: ARIA robotGlobal, CSV true_*, CARMEN's corrected poses "
+               "or TRUEPOS, a ROS recording's TF map -> base or --pose-topic",
+               "gridmap_cli.poses.sources:global_poses"),
+    PoseSource("scan-matched", frozenset({"laser"}), "odometry",
+               "the odometry corrected by matching the laser scans",
+               "gridmap_cli.poses.sources:scan_matched_poses"),
+    PoseSource("slam", frozenset({"laser"}), "odometry",
+               "the scan-matched track with loop closures on a pose graph",
+               "gridmap_cli.poses.sources:slam_poses", belief=True),
+)  # fmt: skip
+#: The source a build uses when none is named.
+DEFAULT_SOURCE = "odometry"
+
+
+def source_names(needs_not: str | None = None) -> tuple[str, ...]:
+    """The sources' names, in the table's order; ``needs_not``: only those that do not need
+    that (``source_names(needs_not="laser")``)."""
+    return tuple(s.name for s in SOURCES if needs_not is None or needs_not not in s.needs)
+
+
+def pose_source(name: str) -> PoseSource:
+    """The source called ``name``; :class:`UsageError` naming the known ones otherwise."""
+    for source in SOURCES:
+        if source.name == name:
+            return source
+    raise UsageError(f"unknown pose source '{name}' (known: {', '.join(source_names())})")
+
+
+def check_needs(source: PoseSource, log: RangeLog, robot: RobotDescription | None) -> None:
+    """Raise the error of a log that lacks what ``source`` needs: odometry a map could be
+    built with, a reference track, laser scans."""
+    if "odometry" in source.needs and log.odometry_missing is not None:
+        raise InputFileError(log.source, f"{given('pose', source.name)}: odometry "
+                                         f"{log.odometry_missing}")  # fmt: skip
+    if "reference" in source.needs:
+        log.require_truth(f"{given('pose', source.name)} maps with it")
+    if "laser" in source.needs:
+        from gridmap_cli.poses.correction.scan_match import NoLaserError
+        from gridmap_cli.poses.sync import sensors_for_log
+
+        kinds = sorted({s.kind for s in sensors_for_log(log, robot)}) or ["none"]
+        if "laser" not in kinds:
+            others = source_names(needs_not="laser")
+            if naming_style() == "flags":
+                use = given("pose", " or ".join(others))
+            else:
+                use = " or ".join(given("pose", name) for name in others)
+            raise NoLaserError(
+                f"{log.source}: {given('pose', source.name)} matches laser scans, and the log "
+                f"has no laser (its range sensors: {', '.join(kinds)}); use {use}"
+            )
+
+
+def odometry_poses(
+    log: RangeLog, robot: RobotDescription | None, settings: PoseSettings
+) -> PosedLog:
+    """The robot's own odometry, as the log holds it."""
+    return PosedLog(log, "odometry")
+
+
+def global_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSettings) -> PosedLog:
+    """The log's reference track: a corrected pose or ground truth, in the world's frame."""
+    truth = log.require_truth(f"{given('pose', 'global')} maps with it")
+    return PosedLog(dataclasses.replace(log, poses=truth), "global")
+
+
+def scan_matched_poses(
+    log: RangeLog, robot: RobotDescription | None, settings: PoseSettings
+) -> PosedLog:
+    """The odometry corrected by registering each laser scan against the ones before it."""
+    from gridmap_cli.poses.correction.scan_match import scan_matched_log  # scipy, small_gicp
+
+    placed, match = scan_matched_log(log, robot, progress=settings.progress)
+    return PosedLog(placed, "scan-matched", match=match, summary={"scan_match": match.summary()})
+
+
+def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSettings) -> PosedLog:
+    """The scan-matched track with loop closures, optimised as a pose graph; with its belief
+    when ``settings`` asks for it."""
+    from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
+
+    placed, slam = slam_corrected_log(log, robot, progress=settings.progress)
+    summary = slam.summary()
+    belief = None
+    if settings.belief_samples is not None:
+        from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
+
+        belief = slam_belief(slam, settings.belief_samples, settings.belief_seed)
+        summary["belief_noise_scale"] = [round(f, 3) for f in belief.scale]
+    warnings = (f"{given('pose', 'slam')}: {slam.warning}",) if slam.warning else ()
+    return PosedLog(placed, "slam", match=slam.match, slam=slam, belief=belief,
+                    summary={"slam": summary}, warnings=warnings)  # fmt: skip
+
+
+def pose_help(intro: str) -> str:
+    """``intro`` and each source's name and help phrase, for a command's ``--pose``."""
+    phrases = [f"{s.name} ({s.help})" for s in SOURCES]
+    return f"{intro} {', '.join(phrases[:-1])}, or {phrases[-1]}."
