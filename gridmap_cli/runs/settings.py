@@ -22,7 +22,7 @@ from gridmap_cli.mapping.models.standard import StandardSonarParams
 from gridmap_cli.mapping.options import MAPPING_MODES, MAX_RESOLUTION_M, BuildOptions
 from gridmap_cli.mapping.selection import Selection
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
-from gridmap_cli.poses.sources import DEFAULT_SOURCE, SOURCES, pose_source
+from gridmap_cli.poses.sources import DEFAULT_SOURCE, ODOMETRY_SOURCE, SOURCES, pose_source
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RobotDescription
@@ -113,7 +113,11 @@ def map_settings(options: MapOptions, fused: bool = False) -> BuildOptions:
             f"{given('pose', odometry)} and one log, no {given('fuse')}"
         )
     if correct is None:
-        correct = auto_correction(options.mode, options.pose, fused, odometry_error)
+        # a source that chooses by the log corrects as the odometry would; the build undoes it
+        # when the choice is another track (runs.build.map_stage)
+        chooses = pose_source(options.pose).chooses
+        pose = ODOMETRY_SOURCE if chooses else options.pose
+        correct = auto_correction(options.mode, pose, fused, odometry_error)
     return BuildOptions(
         resolution_m=options.resolution,
         mode=options.mode,
