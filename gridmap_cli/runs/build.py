@@ -168,7 +168,7 @@ def pose_stage(request: BuildRequest, hooks: BuildHooks | None = None) -> Placed
         progress=hooks.stages,
         belief_samples=request.options.error_samples if mode == "error-aware" else None,
         belief_seed=request.options.error_seed,
-        odometry_model=request.options.odometry_error is not None,
+        odometry_model=request.options.odometry_error_given,
     )
     posed = source.run(whole, robot, settings)
     warnings = list(posed.warnings)
@@ -226,7 +226,7 @@ def _chosen_options(request: BuildRequest, placed: Placed) -> BuildOptions:
     own = "odometry" in pose_source(placed.posed.source).needs
     if options.correct_odometry and not own:
         options = dataclasses.replace(options, correct_odometry=False)
-    if options.mode == "error-aware" and options.odometry_error is None:
+    if options.mode == "error-aware" and not options.odometry_error_given:
         raise UsageError(
             f"{given('mode', 'error-aware')} needs the odometry error: "
             f"{given('odometry_error', 'FILE')} (gridmap calibrate writes one) or "

@@ -105,7 +105,9 @@ def map_settings(options: MapOptions, fused: bool = False) -> BuildOptions:
         raise UsageError(f"unknown mapping mode '{options.mode}' (known: {MAPPING_MODES})")
     error_aware, odometry_error = error_aware_settings(options)
     correct = options.correct_odometry
-    own = _own_odometry(options.pose)
+    # a source that chooses by the log maps the odometry when given its error model
+    chooses = pose_source(options.pose).chooses
+    own = chooses or _own_odometry(options.pose)
     if correct and (not own or fused):
         odometry = next(s.name for s in SOURCES if _own_odometry(s.name))
         raise UsageError(
@@ -113,9 +115,6 @@ def map_settings(options: MapOptions, fused: bool = False) -> BuildOptions:
             f"{given('pose', odometry)} and one log, no {given('fuse')}"
         )
     if correct is None:
-        # a source that chooses by the log corrects as the odometry would; the build undoes it
-        # when the choice is another track (runs.build.map_stage)
-        chooses = pose_source(options.pose).chooses
         pose = ODOMETRY_SOURCE if chooses else options.pose
         correct = auto_correction(options.mode, pose, fused, odometry_error)
     return BuildOptions(
@@ -127,6 +126,8 @@ def map_settings(options: MapOptions, fused: bool = False) -> BuildOptions:
         odometry_error=odometry_error,
         error_samples=error_samples_setting(options.mode, options.error_samples),
         correct_odometry=correct,
+        odometry_error_given=options.odometry_error is not None
+        or bool(options.odometry_coefficients),
     )
 
 
