@@ -260,7 +260,7 @@ def test_map_option_usage_errors_come_before_any_work(tmp_path: Path) -> None:
         (("--start", "60", "--end", "10"), "is not before --end"),
         (("--no-echo-free", "-1"), "no-echo free range"),
         (("--odometry-coefficient", "range_m_per_m=0.1"), "apply to --mode error-aware"),
-        (("--mode", "error-aware"), "needs the odometry error"),
+        (("--mode", "error-aware", "--pose", "odometry"), "needs the odometry error"),
         (("--mode", "trinary"), "--map-mode trinary"),
         (("--free", "0.7"), "--free < --occupied"),
         (("--error-samples", "4"), "--error-samples applies to --mode error-aware"),

@@ -95,7 +95,8 @@ def test_a_perfect_odometry_file_gives_the_standard_map_byte_for_byte(
             "-o", str(source),
         )  # fmt: skip
         assert code == 0, stderr
-        extra = ("--robot", "p3at-lms200")
+        # the odometry both times: by default a laser log is mapped with the pose graph
+        extra = ("--robot", "p3at-lms200", "--pose", "odometry")
     perfect = tmp_path / "perfect.yaml"
     perfect.write_text("gridmap-odometry-error: 1\n")  # the version line alone
     outputs = []

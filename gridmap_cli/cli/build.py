@@ -44,7 +44,7 @@ from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import MixedLogsError, NotRecordingFolderError, UsageError
 from gridmap_cli.heap import TRIM_EVERY_BATCHES, TrimEvery, keep_scratch_memory, release_free_memory
 from gridmap_cli.mapping.options import BuildOptions
-from gridmap_cli.poses.sources import pose_source, source_names
+from gridmap_cli.poses.sources import ODOMETRY_SOURCE, pose_source, source_names
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import load_robot, preset_names
@@ -153,6 +153,8 @@ def build(
     """
     started = time.perf_counter()
     opts = map_options
+    if fuse and pose_source(opts.pose).chooses:  # placed logs: their odometry, not a choice
+        opts = dataclasses.replace(opts, pose=ODOMETRY_SOURCE)
     output = map_output(output, basename, image_format)
     settings = map_settings(opts, fuse)
     selection = opts.selection()

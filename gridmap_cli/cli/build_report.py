@@ -97,6 +97,11 @@ def summary_line(s: dict[str, Any]) -> str:
             f"{sl['closures_rejected']:,} rejected, {sl['fallbacks']:,} scans fell back to "
             "odometry"
         )
+    choice = s.get("pose_choice")
+    if choice is not None and choice["source"] != "odometry":
+        matched = f"; poses: {choice['source']} (the automatic choice: {choice['because']})" + (
+            matched
+        )
     skipped = ""
     if r["skipped"]:
         skipped = (

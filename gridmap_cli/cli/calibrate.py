@@ -28,11 +28,10 @@ from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.poses.sources import (
-    DEFAULT_SOURCE,
+    ODOMETRY_SOURCE,
     SOURCES,
     PoseSettings,
     pose_source,
-    source_names,
 )
 from gridmap_cli.readers import STDIN_NAME
 from gridmap_cli.records import RangeLog
@@ -50,7 +49,7 @@ OUTLIER_SIGMA = 3.0
 
 #: What calibrate compares the track with (--reference): the log's own, or a correction the
 #: laser makes.
-REFERENCES = ("truth", *(s.name for s in SOURCES if s.uses_laser))
+REFERENCES = ("truth", *(s.name for s in SOURCES if "laser" in s.needs))
 
 
 @click.command()
@@ -87,8 +86,8 @@ REFERENCES = ("truth", *(s.name for s in SOURCES if s.uses_laser))
 )
 @click.option(
     "--pose",
-    type=click.Choice(source_names(needs_not="reference")),
-    default=DEFAULT_SOURCE,
+    type=click.Choice([s.name for s in SOURCES if s.needs and "reference" not in s.needs]),
+    default=ODOMETRY_SOURCE,
     show_default=True,
     help="The track to calibrate against the reference: the odometry, or the odometry corrected "
     "by the laser (its residual drift, for error-aware maps built with --pose scan-matched), or "

@@ -25,7 +25,7 @@ from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
-from gridmap_cli.poses.sources import SOURCES, PoseSettings, pose_source, source_names
+from gridmap_cli.poses.sources import SOURCES, PoseSettings, pose_source
 from gridmap_cli.readers import resolve_format
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.writers import check_output
@@ -67,7 +67,7 @@ if TYPE_CHECKING:
 )
 @click.option(
     "--pose",
-    type=click.Choice(source_names()),
+    type=click.Choice([s.name for s in SOURCES if not s.chooses]),
     help="The track the map was built with (build's --pose; default odometry): global puts the "
     "map in the world frame; odometry, scan-matched and slam in the odometry frame, placed by "
     "--log. --spread-plot draws that track's pose spread: the odometry error along the "

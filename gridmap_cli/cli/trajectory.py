@@ -126,14 +126,16 @@ def trajectory(
         truth = read_relations(relations)
     source = pose_source(pose)
     # the odometry and the reference need no range readings (a ROS recording of /odom and TF)
-    read_options = dataclasses.replace(topics, robot=robot_desc, poses_only=not source.uses_laser)
+    read_options = dataclasses.replace(
+        topics, robot=robot_desc, poses_only="laser" not in source.needs
+    )
     with reading(logs[0].name if len(logs) == 1 else f"{len(logs)} logs", quiet):
         data = read_logs(logs, log_format, read_options)
     if source.uses_laser and robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
     with StageBars(quiet) as bars:
         posed = source.run(data, robot_desc, PoseSettings(progress=bars))
-    summary: dict[str, object] = {"output": str(output), "pose": pose, **posed.summary}
+    summary: dict[str, object] = {"output": str(output), "pose": posed.source, **posed.summary}
     track, status, covariance = _written_track(posed)
     scored = posed.log.poses
     if covariance is not None:

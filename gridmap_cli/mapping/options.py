@@ -36,8 +36,7 @@ class BuildOptions:
     #: Error-aware mode: tracks sampled from the odometry-error model whose standard maps are
     #: averaged (the expected map, :func:`~gridmap_cli.mapping.pipeline.expected_map`); 0 maps
     #: with the analytic model, the standard models' evidence faded by the pose spread. 16 won
-    #: on accuracy in every measurement (docs/sensor-model.md); it costs about 1.2-1.5 standard
-    #: builds.
+    #: on accuracy in every measurement (docs/sensor-model.md); its cost is in the README's Speed.
     error_samples: int = 16
     #: Seed of the sampled tracks: the same seed, the same map.
     error_seed: int = 0
@@ -45,6 +44,9 @@ class BuildOptions:
     #: before mapping, in either mode; the error-aware spread then has the random part alone
     #: (:func:`~gridmap_cli.mapping.pipeline.corrected_for_build`).
     correct_odometry: bool = False
+    #: The odometry-error model was given (a file or coefficients), not the zero model a map of
+    #: a pose graph's belief takes: a pose source that chooses by the log then maps the odometry.
+    odometry_error_given: bool = False
     #: Processes mapping the readings; the map does not depend on it
     #: (:mod:`gridmap_cli.mapping.shards`).
     jobs: int = 1

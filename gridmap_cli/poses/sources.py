@@ -44,6 +44,9 @@ class PoseSettings:
     progress: Progress | None = None
     belief_samples: int | None = None
     belief_seed: int = 0
+    #: the build was given the odometry's error model: a source that chooses maps the odometry,
+    #: which that model describes
+    odometry_model: bool = False
 
 
 @dataclass(frozen=True)
@@ -89,6 +92,12 @@ class PoseSource:
     scans: bool | None = None
 
     @property
+    def chooses(self) -> bool:
+        """True for a source that picks another by what the log holds (it needs nothing of
+        its own and may read the scans)."""
+        return not self.needs and bool(self.scans)
+
+    @property
     def uses_laser(self) -> bool:
         """True when the source may read the laser: the log's readings are held for it."""
         return "laser" in self.needs if self.scans is None else self.scans
@@ -117,15 +126,27 @@ SOURCES: tuple[PoseSource, ...] = (
     PoseSource("slam", frozenset({"laser"}), "odometry",
                "the scan-matched track with loop closures on a pose graph",
                "gridmap_cli.poses.sources:slam_poses", belief=True),
+    PoseSource("auto", frozenset(), "odometry",
+               "the best the log allows: slam where it has a laser, the odometry otherwise; a "
+               "slam track that fails its own checks falls back to scan-matched or the odometry, "
+               "with a warning",
+               "gridmap_cli.poses.sources:auto_poses", belief=True, scans=True),
 )  # fmt: skip
-#: The source a build uses when none is named.
-DEFAULT_SOURCE = "odometry"
+#: The source a map or a track is made with when none is named.
+DEFAULT_SOURCE = "auto"
+#: The source that calibrates: the robot's own odometry.
+ODOMETRY_SOURCE = "odometry"
+#: A scan match that fell back to the odometry on more than this share of its scans did not
+#: match the laser: when slam fails its checks, the fallback is then the odometry itself.
+MATCHED_SHARE_MIN = 0.5
 
 
 def source_names(needs_not: str | None = None) -> tuple[str, ...]:
     """The sources' names, in the table's order; ``needs_not``: only those that do not need
-    that (``source_names(needs_not="laser")``)."""
-    return tuple(s.name for s in SOURCES if needs_not is None or needs_not not in s.needs)
+    that and make their own track (``source_names(needs_not="laser")``)."""
+    if needs_not is None:
+        return tuple(s.name for s in SOURCES)
+    return tuple(s.name for s in SOURCES if needs_not not in s.needs and not s.chooses)
 
 
 def pose_source(name: str) -> PoseSource:
@@ -139,6 +160,10 @@ def pose_source(name: str) -> PoseSource:
 def check_needs(source: PoseSource, log: RangeLog, robot: RobotDescription | None) -> None:
     """Raise the error of a log that lacks what ``source`` needs: odometry a map could be
     built with, a reference track, laser scans."""
+    if source.chooses:
+        if not has_laser(log, robot) and (log.odometry_missing is None or log.truth is None):
+            check_needs(pose_source(ODOMETRY_SOURCE), log, robot)
+        return
     if "odometry" in source.needs and log.odometry_missing is not None:
         raise InputFileError(log.source, f"{given('pose', source.name)}: odometry "
                                          f"{log.odometry_missing}")  # fmt: skip
@@ -200,6 +225,75 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
     warnings = (f"{given('pose', 'slam')}: {slam.warning}",) if slam.warning else ()
     return PosedLog(placed, "slam", match=slam.match, slam=slam, belief=belief,
                     summary={"slam": summary}, warnings=warnings)  # fmt: skip
+
+
+def auto_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSettings) -> PosedLog:
+    """The best source the log allows: the pose graph where there is a laser, else the robot's
+    odometry (a log without odometry but with a reference track: the reference, with a
+    warning). A slam track that fails its own checks (no loop closed is no failure: the track
+    is then the scan-matched one) falls back to the scan-matched track, or to the odometry when
+    the scan matcher itself mostly fell back to it; the warning says why."""
+    if settings.odometry_model and log.odometry_missing is None:
+        posed = odometry_poses(log, robot, settings)
+        return _chosen(posed, "odometry", "an odometry-error model was given")
+    if not has_laser(log, robot):
+        if log.odometry_missing is not None and log.truth is not None:
+            posed = global_poses(log, robot, settings)
+            why = (
+                f"{given('pose', 'auto')}: the log has no odometry ({log.odometry_missing}) and "
+                "no laser: mapped with its reference track"
+            )
+            return _chosen(posed, "global", "no laser, no odometry", (why,))
+        check_needs(pose_source("odometry"), log, robot)
+        return _chosen(odometry_poses(log, robot, settings), "odometry", "no laser")
+    posed = slam_poses(log, robot, settings)
+    slam = posed.slam
+    assert slam is not None
+    # no loop closed is no failure: the track is the scan-matched one, and the warning says so
+    failed = slam.warning if slam.closures else None
+    if failed is None:
+        return _chosen(posed, "slam", "a laser", posed.warnings)
+    matched = slam.scan_matched
+    scans = max(len(matched.status), 1)
+    if matched.fallbacks / scans > MATCHED_SHARE_MIN and log.odometry_missing is None:
+        fallback = odometry_poses(log, robot, settings)
+        name = "odometry"
+        detail = (
+            f"the scan matcher fell back to the odometry on {matched.fallbacks} of {scans} scans"
+        )
+    else:
+        from gridmap_cli.poses.correction.scan_match import corrected_track
+
+        placed = dataclasses.replace(log, poses=corrected_track(log.poses, matched))
+        fallback = PosedLog(placed, "scan-matched", match=matched,
+                            summary={"scan_match": matched.summary()})  # fmt: skip
+        name, detail = "scan-matched", "the scan-matched track has no closure to be wrong"
+    why = (f"{given('pose', 'auto')}: the pose graph failed its own check ({failed}); "
+           f"mapped with the {name} track instead ({detail}); {given('pose', 'slam')} maps "
+           "with the graph anyway")  # fmt: skip
+    summary = {**fallback.summary, "slam": posed.summary.get("slam", {})}
+    fallback = dataclasses.replace(fallback, summary=summary)
+    return _chosen(fallback, name, "the pose graph failed its check", (why,))
+
+
+def has_laser(log: RangeLog, robot: RobotDescription | None) -> bool:
+    """True when the log holds readings of a laser whose geometry is known (a sensor no robot
+    describes cannot be matched: the odometry then needs no robot)."""
+    from gridmap_cli.errors import GridmapError
+    from gridmap_cli.poses.sync import sensors_for_log
+
+    if log.reading_count == 0:
+        return False
+    try:
+        return any(s.kind == "laser" for s in sensors_for_log(log, robot))
+    except GridmapError:
+        return False
+
+
+def _chosen(posed: PosedLog, name: str, reason: str, warnings: tuple[str, ...] = ()) -> PosedLog:
+    """``posed`` as the automatic choice made it: its summary names the source and why."""
+    summary = {**posed.summary, "pose_choice": {"source": name, "because": reason}}
+    return dataclasses.replace(posed, source=name, summary=summary, warnings=warnings)
 
 
 def pose_help(intro: str) -> str:

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from gridmap_cli.errors import GridmapError, given
+from gridmap_cli.errors import GridmapError, UsageError, given
 from gridmap_cli.mapping.options import BuildOptions, BuildResult
 from gridmap_cli.mapping.selection import Selection
 from gridmap_cli.poses.sources import (
@@ -29,6 +29,7 @@ from gridmap_cli.poses.sources import (
     SOURCES,
     PosedLog,
     PoseSettings,
+    has_laser,
     pose_source,
 )
 from gridmap_cli.readers.options import ReadOptions
@@ -155,14 +156,19 @@ def pose_stage(request: BuildRequest, hooks: BuildHooks | None = None) -> Placed
     started = time.perf_counter()
     source = pose_source(request.pose)
     robot = _robot(request.robot)
-    whole = _read(request, source.uses_laser, robot, hooks)
+    # a source that chooses by the log reads it as a sonar log is read (a long one left in its
+    # file), and again, held, when it turns out to hold a laser's scans
+    whole = _read(request, source.uses_laser and not source.chooses, robot, hooks)
     if robot is None:
         robot = robot_of(whole, request.inputs)
+    if source.chooses and whole.stream is not None and has_laser(whole, robot):
+        whole = _read(request, True, robot, hooks)
     mode = request.options.mode
     settings = PoseSettings(
         progress=hooks.stages,
         belief_samples=request.options.error_samples if mode == "error-aware" else None,
         belief_seed=request.options.error_seed,
+        odometry_model=request.options.odometry_error_given,
     )
     posed = source.run(whole, robot, settings)
     warnings = list(posed.warnings)
@@ -198,9 +204,7 @@ def map_stage(request: BuildRequest, placed: Placed, hooks: BuildHooks | None = 
     from gridmap_cli.mapping.pipeline import build_map
 
     hooks = hooks or BuildHooks()
-    options = request.options
-    if placed.posed.belief is not None:  # the graph's marginals and draws, not the odometry's
-        options = dataclasses.replace(options, pose_belief=placed.posed.belief)
+    options = _chosen_options(request, placed)
     started = time.perf_counter()
     result = build_map(placed.log, placed.robot, options, hooks.mapped, hooks.between_passes)
     summary: dict[str, object] = {k: dict(v) for k, v in placed.posed.summary.items()}
@@ -208,6 +212,28 @@ def map_stage(request: BuildRequest, placed: Placed, hooks: BuildHooks | None = 
         summary["odometry_corrected"] = True
     seconds = {"read": placed.read_s, "map": time.perf_counter() - started}
     return MapBuild(result.map, placed, options, result, summary, placed.warnings, seconds)
+
+
+def _chosen_options(request: BuildRequest, placed: Placed) -> BuildOptions:
+    """The request's options for the track the pose source gave: the graph's belief where it
+    has one; for a source that chose by the log, no odometry correction of another track, and
+    the error-aware map's need of an odometry error where the choice was the odometry."""
+    options = request.options
+    if placed.posed.belief is not None:  # the graph's marginals and draws, not the odometry's
+        return dataclasses.replace(options, pose_belief=placed.posed.belief)
+    if not pose_source(request.pose).chooses:
+        return options
+    own = "odometry" in pose_source(placed.posed.source).needs
+    if options.correct_odometry and not own:
+        options = dataclasses.replace(options, correct_odometry=False)
+    if options.mode == "error-aware" and not options.odometry_error_given:
+        raise UsageError(
+            f"{given('mode', 'error-aware')} needs the odometry error: "
+            f"{given('odometry_error', 'FILE')} (gridmap calibrate writes one) or "
+            f"{given('odometry_coefficients', 'NAME=VALUE')}; {given('pose', request.pose)} "
+            f"mapped with the {placed.posed.source} track, which carries no uncertainty of its own"
+        )
+    return options
 
 
 def move_track(track: PoseTrack, first: tuple[float, float, float]) -> PoseTrack:

@@ -22,7 +22,7 @@ from gridmap_cli.mapping.models.standard import StandardSonarParams
 from gridmap_cli.mapping.options import MAPPING_MODES, MAX_RESOLUTION_M, BuildOptions
 from gridmap_cli.mapping.selection import Selection
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
-from gridmap_cli.poses.sources import DEFAULT_SOURCE, SOURCES, pose_source
+from gridmap_cli.poses.sources import DEFAULT_SOURCE, ODOMETRY_SOURCE, SOURCES, pose_source
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RobotDescription
@@ -105,7 +105,9 @@ def map_settings(options: MapOptions, fused: bool = False) -> BuildOptions:
         raise UsageError(f"unknown mapping mode '{options.mode}' (known: {MAPPING_MODES})")
     error_aware, odometry_error = error_aware_settings(options)
     correct = options.correct_odometry
-    own = _own_odometry(options.pose)
+    # a source that chooses by the log maps the odometry when given its error model
+    chooses = pose_source(options.pose).chooses
+    own = chooses or _own_odometry(options.pose)
     if correct and (not own or fused):
         odometry = next(s.name for s in SOURCES if _own_odometry(s.name))
         raise UsageError(
@@ -113,7 +115,8 @@ def map_settings(options: MapOptions, fused: bool = False) -> BuildOptions:
             f"{given('pose', odometry)} and one log, no {given('fuse')}"
         )
     if correct is None:
-        correct = auto_correction(options.mode, options.pose, fused, odometry_error)
+        pose = ODOMETRY_SOURCE if chooses else options.pose
+        correct = auto_correction(options.mode, pose, fused, odometry_error)
     return BuildOptions(
         resolution_m=options.resolution,
         mode=options.mode,
@@ -123,6 +126,8 @@ def map_settings(options: MapOptions, fused: bool = False) -> BuildOptions:
         odometry_error=odometry_error,
         error_samples=error_samples_setting(options.mode, options.error_samples),
         correct_odometry=correct,
+        odometry_error_given=options.odometry_error is not None
+        or bool(options.odometry_coefficients),
     )
 
 
