@@ -21,7 +21,14 @@ from gridmap_cli.cli.common import (
 )
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.evaluation.relations import read_relations, reordered_on_logged_clock, score_track
+from gridmap_cli.evaluation.relations import (
+    ClockOffset,
+    find_clock_offset,
+    logged_stamps,
+    read_relations,
+    reordered_on_logged_clock,
+    score_track,
+)
 from gridmap_cli.poses.correction.scan_match import STATUS_NAMES, corrected_track, match_log
 from gridmap_cli.poses.sync import POSE_SOURCES, select_poses
 from gridmap_cli.readers import format_names, read_logs
@@ -73,10 +80,9 @@ from gridmap_cli.writers.trajectory import covariance_path, trajectory_format, w
 @click.option(
     "--relations-offset",
     type=float,
-    default=0.0,
-    show_default=True,
     help="Seconds to add to the track's stamps to reach the relations' clock (for a log "
-    "republished with times from its start).",
+    "republished with times from its start); default: found from the stamps, where the "
+    "relation stamps land on the log's.",
 )
 @click.option("--format", "log_format", type=click.Choice(format_names()), help="Log format.")
 @topic_options
@@ -90,7 +96,7 @@ def trajectory(
     pose: str,
     robot: str | None,
     relations: Path | None,
-    relations_offset: float,
+    relations_offset: float | None,
     log_format: str | None,
     topics: ReadOptions,
     force: bool,
@@ -155,18 +161,25 @@ def trajectory(
         track = select_poses(data, pose).poses
         scored = track
     summary["poses"] = len(track)
+    clock: ClockOffset | None = None  # found from the stamps when no offset is given
     if relations is not None:
         # a corrected track is scored at every odometry stamp too (the track `build` maps
         # with), so a relation between two scans finds the pose the estimate gives at its time
-        score = score_track(
-            scored, truth, data.poses, offset_s=relations_offset, moved=data.moved_stamps
-        )
+        offset = relations_offset
+        if offset is None:
+            clock = find_clock_offset(logged_stamps(data), truth)
+            offset = clock.offset_s or 0.0
+        score = score_track(scored, truth, data.poses, offset_s=offset, moved=data.moved_stamps)
         if score.count == 0:
+            why = "is the clock offset right (--relations-offset)?"
             raise GridmapError(
-                f"{relations}: no relation lies within the track's time span; is the clock "
-                "offset right (--relations-offset)?"
+                f"{relations}: no relation lies within the track's time span; "
+                + (why if clock is None else clock.message())
             )
-        summary["relations"] = score.summary()
+        scored_summary: dict[str, object] = {**score.summary(), "offset_s": offset}
+        if clock is not None:
+            scored_summary["clock"] = clock.message()
+        summary["relations"] = scored_summary
     if data.moved_stamps is not None:
         # the log's own clock: a stamp the reader moved forward is written as the log gave it,
         # so the benchmark's relations (and evo) find this pose under the log's stamp
@@ -197,6 +210,9 @@ def trajectory(
             click.echo(f"gridmap: each pose's covariance -> {cov_path}", err=True)
         if "slam" in summary and result.warning:
             click.echo(f"gridmap: warning: {result.warning}", err=True)
+        if clock is not None and (clock.searched or clock.offset_s is None):
+            warn = "" if clock.offset_s is not None else "warning: scored on the log's clock: "
+            click.echo(f"gridmap: relations: {warn}{clock.message()}", err=True)
         if relations is not None:
             r = score.summary()
             click.echo(
