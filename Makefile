@@ -58,9 +58,10 @@ samples: install
 # bags, scored on their relations, and on the six corrected CARMEN logs, APE against their
 # corrected poses), that table printed at the end; writes docs/experiments.md,
 # docs/scan-matching-results.md and their images (needs matplotlib, in the dev extra). Nothing
-# is cached: every track is computed again. About 15 minutes on 2 quiet cores (the real logs
-# about 8 of them); without ../shared/data only the simulated part runs. To check one change on
-# a few logs: .venv/bin/python bench/real_logs.py --logs aces,intel --pose slam --no-doc
+# is cached: every track is computed again. About 6 minutes on 2 quiet cores: the real logs take
+# about 290 CPU seconds, the raw Intel bag about 90 of them (17 minutes of wall clock on a machine
+# loaded six times over); without ../shared/data only the simulated part runs. To check one
+# change on a few logs: .venv/bin/python bench/real_logs.py --logs aces,intel --pose slam --no-doc
 experiment: dev
 	$(BIN)/python bench/experiment.py
 

@@ -280,7 +280,9 @@ def tables(rows: list[Row], sources: tuple[str, ...]) -> list[str]:
     return out + (["What the runs said:", "", *said, ""] if said else [])
 
 
-def section(rows: list[Row], sources: tuple[str, ...], seconds: float, jobs: int) -> list[str]:
+def section(
+    rows: list[Row], sources: tuple[str, ...], seconds: float, cpu: float, jobs: int
+) -> list[str]:
     return [
         BEGIN,
         "## Every shared real log: odometry, scan-matched and slam",
@@ -298,8 +300,9 @@ def section(rows: list[Row], sources: tuple[str, ...], seconds: float, jobs: int
         "error. Each track is the one `trajectory --pose P` writes (scan-matched and slam "
         "corrected at every odometry stamp). In brackets: the CPU seconds (all threads) of scan "
         "matching and of the whole slam pipeline on the read log, in this run "
-        f"({jobs} log{'s' if jobs > 1 else ''} at a time on {_machine()}; {seconds:.0f} s in all, "
-        "reading included, wall clock).",
+        f"({jobs} log{'s' if jobs > 1 else ''} at a time on {_machine()}; in all, reading "
+        f"included, {cpu:.0f} CPU seconds and {seconds:.0f} s of wall clock, which counts what "
+        "else the machine ran).",
         "",
         *tables(rows, sources),
         END,
@@ -310,6 +313,15 @@ def _machine() -> str:
     import os
 
     return f"a {os.cpu_count() or 0}-core machine"
+
+
+def _cpu_seconds() -> float:
+    """CPU seconds of this process and of the workers it waited for (user and system)."""
+    import resource
+
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    workers = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + workers.ru_utime + workers.ru_stime
 
 
 def write_section(lines: list[str], path: Path) -> None:
@@ -372,11 +384,12 @@ def main(argv: list[str] | None = None) -> None:
     else:
         rows = [_run(w) for w in work]
     seconds = time.perf_counter() - started
+    cpu = _cpu_seconds()
     print("\n".join(tables(rows, sources)))
     if not args.no_doc:
-        write_section(section(rows, sources, seconds, args.jobs), DOC)
+        write_section(section(rows, sources, seconds, cpu, args.jobs), DOC)
         print(f"wrote the real-logs tables into {DOC}", file=sys.stderr)
-    print(f"{seconds:.0f} s", file=sys.stderr)
+    print(f"{seconds:.0f} s, {cpu:.0f} CPU seconds", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -93,11 +93,12 @@ def test_the_section_replaces_its_old_self(bench: ModuleType, tmp_path: Path) ->
     page = tmp_path / "results.md"
     page.write_text("# Scan matching\n\nthe rest\n")
     rows = _rows(bench)
-    bench.write_section(bench.section(rows, bench.SOURCES, 100.0, 2), page)
-    bench.write_section(bench.section(rows[1:], bench.SOURCES, 50.0, 1), page)
+    bench.write_section(bench.section(rows, bench.SOURCES, 100.0, 80.0, 2), page)
+    bench.write_section(bench.section(rows[1:], bench.SOURCES, 50.0, 40.0, 1), page)
     text = page.read_text()
     assert text.startswith("# Scan matching\n\nthe rest\n") and text.count(bench.BEGIN) == 1
     assert "| seattle |" in text and "| aces |" not in text
+    assert "40 CPU seconds and 50 s of wall clock" in text and "1 log at a time" in text
     kept = bench.kept_section(page)
     assert kept is not None and kept.startswith(bench.BEGIN) and kept.endswith(bench.END)
 
