@@ -522,6 +522,9 @@ def scan_matching() -> tuple[float, list[str]]:
     # then the SLAM benchmark's relations table, into the same page
     subprocess.run([*command[:-1], command[-1].replace("scan_match.py", "slam_relations.py")],
                    check=True, cwd=ROOT)  # fmt: skip
+    # then every shared real log, two at a time (one per core): its tables go into the same page
+    real = [sys.executable, str(Path(__file__).resolve().parent / "real_logs.py"), "--jobs", "2"]
+    subprocess.run(real, check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
     seconds = time.perf_counter() - started
     return seconds, [
         "",
@@ -531,7 +534,9 @@ def scan_matching() -> tuple[float, list[str]]:
         "core: odometry, scan-matched and reference tracks and their maps side by side on the "
         "same CARMEN logs, and the odometry, scan-matched and slam tracks scored on the SLAM "
         "benchmark's relations beside the published figures, in "
-        f"[scan-matching-results.md](scan-matching-results.md) ({seconds:.0f} s of this run).",
+        f"[scan-matching-results.md](scan-matching-results.md) ({seconds:.0f} s of this run), "
+        "with `bench/real_logs.py`'s table of every shared real log: the benchmark's raw logs on "
+        "their relations and six corrected CARMEN logs against their corrected poses.",
     ]
 
 
@@ -598,6 +603,13 @@ def main(argv: list[str] | None = None) -> None:
         + "\n"
     )
     print(f"wrote {args.doc} and {args.image} in {seconds:.0f} s", file=sys.stderr)
+    if not args.no_real and not args.no_scan_match and carmen.DATA.is_dir():
+        # last on stdout: the table a change to mapping or pose correction is judged by
+        import real_logs
+
+        kept = real_logs.kept_section(real_logs.DOC)
+        if kept is not None:
+            print("\n".join(kept.splitlines()[1:-1]))
 
 
 if __name__ == "__main__":

@@ -308,12 +308,14 @@ def write_doc(results: list[LogResult], sim: tuple[int, float] | None, path: Pat
         "![tracks and maps](images/scan-matching.png)",
         "",
     ]
-    # bench/slam_relations.py's section (the SLAM benchmark table) is its own: keep it
-    from slam_relations import kept_section
+    # bench/slam_relations.py's section (the SLAM benchmark table) and bench/real_logs.py's
+    # (every shared real log) are their own: keep them
+    import real_logs
+    import slam_relations
 
-    kept = kept_section(path)
-    if kept is not None:
-        text += [kept, ""]
+    for kept in (slam_relations.kept_section(path), real_logs.kept_section(path)):
+        if kept is not None:
+            text += [kept, ""]
     path.write_text("\n".join(text), encoding="utf-8")
 
 

@@ -12,6 +12,7 @@ import pytest
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.evaluation.relations import (
+    find_clock_offset,
     on_logged_clock,
     printed_step_ns,
     read_relations,
@@ -232,3 +233,75 @@ def test_the_logged_clock_order_takes_what_is_written_beside_each_pose_along() -
     assert list(order[:4]) == [0, 1, 3, 2]
     assert np.array_equal(out.x_m, track.x_m[order])
     assert np.all(np.diff(out.stamp_ns) > 0)
+
+
+def _random_stamps(n: int, seed: int) -> list[float]:
+    """``n`` stamps (s) at random moments of the circle's 50 s, on no pose stamp."""
+    rng = np.random.default_rng(seed)
+    return sorted(100.0 + rng.uniform(0.0, 49.0, n))
+
+
+def test_the_clock_offset_is_found_from_the_stamps() -> None:
+    track = _circle()
+    text = _relations_of(track, PAIRS + [(k, k + 3) for k in range(0, 40, 4)])
+    shifted = "".join(
+        f"{float(a) + 1234.5:.6f} {float(b) + 1234.5:.6f} {rest}\n"
+        for a, b, rest in (line.split(" ", 2) for line in text.splitlines())
+    )
+    relations = read_relations(io.StringIO(shifted))
+    clock = find_clock_offset(track.stamp_ns, relations)
+    assert clock.searched and clock.offset_s == pytest.approx(1234.5, abs=1e-6)
+    assert "log's + 1234.500 s, found from the stamps" in clock.message()
+    score = score_track(track, relations, offset_s=clock.offset_s)
+    assert score.count == len(relations) and score.trans_mean_m < 1e-6
+
+
+def test_relations_on_the_logs_own_clock_need_no_offset() -> None:
+    track = _circle()
+    relations = read_relations(io.StringIO(_relations_of(track, PAIRS)))
+    clock = find_clock_offset(track.stamp_ns, relations)
+    assert clock.offset_s == 0.0 and not clock.searched
+    assert clock.landed == clock.inside == len({k for pair in PAIRS for k in pair})
+
+
+def test_stamps_that_land_nowhere_give_no_offset() -> None:
+    track = _circle()
+    starts, ends = _random_stamps(20, 1), _random_stamps(20, 2)
+    relations = read_relations(
+        io.StringIO(
+            "".join(f"{a:.6f} {b:.6f} 1 0 0 0 0 0\n" for a, b in zip(starts, ends, strict=True))
+        )
+    )
+    clock = find_clock_offset(track.stamp_ns, relations)
+    assert clock.offset_s is None and clock.searched
+    assert clock.message().endswith(": give --relations-offset")
+    assert "\n" not in clock.message()
+
+
+def test_trajectory_finds_and_says_the_clock_offset(tmp_path: Path) -> None:
+    log = SAMPLES / "corridor_loop.csv"
+    out = tmp_path / "ref.tum"
+    code, _, _ = run("trajectory", str(log), "--pose", "global", "-o", str(out))
+    rows = np.loadtxt(out)
+    track = PoseTrack.from_rows(
+        np.round(rows[:, 0] * 1e9).astype(np.int64),
+        [(r[1], r[2], 2 * math.atan2(r[6], r[7])) for r in rows],
+    )
+    pairs = [(k, k + 7) for k in range(0, len(track) - 7, max(1, len(track) // 40))]
+    text = _relations_of(track, pairs)
+    shifted = "".join(
+        f"{float(a) + 5000.0:.6f} {float(b) + 5000.0:.6f} {rest}\n"
+        for a, b, rest in (line.split(" ", 2) for line in text.splitlines())
+    )
+    rel = _sample_relations(tmp_path, shifted)
+    args = ["trajectory", str(log), "--pose", "global", "-o", str(out), "--force"]
+    code, stdout, stderr = run(*args, "--relations", str(rel), "--json")
+    assert code == 0, stderr
+    summary = json.loads(stdout)["relations"]
+    assert summary["offset_s"] == pytest.approx(5000.0, abs=1e-6)
+    assert summary["relations"] == len(pairs) and summary["trans_mean_m"] < 1e-3
+    assert "gridmap: relations: the relations' clock is the log's + 5000.000 s" in stderr
+    # an offset given wins, even a wrong one
+    code, stdout, stderr = run(*args, "--relations", str(rel), "--relations-offset", "5000.5")
+    assert code == 0 and "found from the stamps" not in stderr
+    assert "translation 0.000" not in stderr

@@ -25,7 +25,14 @@ from gridmap_cli.cli.common import (
 )
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import GridmapError
-from gridmap_cli.evaluation.relations import read_relations, reordered_on_logged_clock, score_track
+from gridmap_cli.evaluation.relations import (
+    ClockOffset,
+    find_clock_offset,
+    logged_stamps,
+    read_relations,
+    reordered_on_logged_clock,
+    score_track,
+)
 from gridmap_cli.poses.correction.scan_match import STATUS_NAMES
 from gridmap_cli.poses.sources import (
     DEFAULT_SOURCE,
@@ -82,10 +89,9 @@ from gridmap_cli.writers.trajectory import covariance_path, trajectory_format, w
 @click.option(
     "--relations-offset",
     type=float,
-    default=0.0,
-    show_default=True,
     help="Seconds to add to the track's stamps to reach the relations' clock (for a log "
-    "republished with times from its start).",
+    "republished with times from its start); default: found from the stamps, where the "
+    "relation stamps land on the log's.",
 )
 @format_option
 @topic_options
@@ -99,7 +105,7 @@ def trajectory(
     pose: str,
     robot: str | None,
     relations: Path | None,
-    relations_offset: float,
+    relations_offset: float | None,
     log_format: str | None,
     topics: ReadOptions,
     force: bool,
@@ -141,18 +147,25 @@ def trajectory(
     if covariance is not None:
         summary["covariance"] = str(cov_path)
     summary["poses"] = len(track)
+    clock: ClockOffset | None = None  # found from the stamps when no offset is given
     if relations is not None:
         # a corrected track is scored at every odometry stamp too (the track `build` maps
         # with), so a relation between two scans finds the pose the estimate gives at its time
-        score = score_track(
-            scored, truth, data.poses, offset_s=relations_offset, moved=data.moved_stamps
-        )
+        offset = relations_offset
+        if offset is None:
+            clock = find_clock_offset(logged_stamps(data), truth)
+            offset = clock.offset_s or 0.0
+        score = score_track(scored, truth, data.poses, offset_s=offset, moved=data.moved_stamps)
         if score.count == 0:
+            why = "is the clock offset right (--relations-offset)?"
             raise GridmapError(
-                f"{relations}: no relation lies within the track's time span; is the clock "
-                "offset right (--relations-offset)?"
+                f"{relations}: no relation lies within the track's time span; "
+                + (why if clock is None else clock.message())
             )
-        summary["relations"] = score.summary()
+        scored_summary: dict[str, object] = {**score.summary(), "offset_s": offset}
+        if clock is not None:
+            scored_summary["clock"] = clock.message()
+        summary["relations"] = scored_summary
     if data.moved_stamps is not None:
         # the log's own clock: a stamp the reader moved forward is written as the log gave it,
         # so the benchmark's relations (and evo) find this pose under the log's stamp
@@ -164,7 +177,7 @@ def trajectory(
     if as_json:
         click.echo(json.dumps(summary, indent=2))
     if not quiet:
-        _report(summary, posed, len(track), cov_path)
+        _report(summary, posed, len(track), cov_path, clock)
 
 
 Covariance = tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_]]
@@ -188,7 +201,13 @@ def _written_track(posed: PosedLog) -> tuple[PoseTrack, list[str] | None, Covari
     return track, status, (belief.marginals_at(track.stamp_ns), keyframe)
 
 
-def _report(summary: dict[str, object], posed: PosedLog, poses: int, cov_path: Path | None) -> None:
+def _report(
+    summary: dict[str, object],
+    posed: PosedLog,
+    poses: int,
+    cov_path: Path | None,
+    clock: ClockOffset | None,
+) -> None:
     """The lines on stderr: what was written, how the scans were placed, the score."""
     line = f"gridmap: {poses:,} {summary['pose']} poses -> {summary['output']}"
     if "scan_match" in summary:
@@ -208,6 +227,9 @@ def _report(summary: dict[str, object], posed: PosedLog, poses: int, cov_path: P
         click.echo(f"gridmap: each pose's covariance -> {cov_path}", err=True)
     if posed.slam is not None and posed.slam.warning:
         click.echo(f"gridmap: warning: {posed.slam.warning}", err=True)
+    if clock is not None and (clock.searched or clock.offset_s is None):
+        warn = "" if clock.offset_s is not None else "warning: scored on the log's clock: "
+        click.echo(f"gridmap: relations: {warn}{clock.message()}", err=True)
     relations = summary.get("relations")
     if isinstance(relations, dict):
         r = relations

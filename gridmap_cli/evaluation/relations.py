@@ -15,6 +15,11 @@ The relations name poses by the log's own stamps. Where the reader had to move s
 time increases (a CARMEN log whose stamps go back by up to a second: Intel, a third of its
 lines), the poses are looked up by the stamps their lines carried (:func:`on_logged_clock`);
 by the moved ones, a relation end would take the pose of another line, up to a second away.
+
+A log republished with times from its start and relations on the original clock differ by a
+constant; :func:`find_clock_offset` finds it from the stamps alone. Most relation stamps are stamps
+the log recorded (its scans'), so at the right offset most of them land on one of the log's stamps,
+far more than chance would put there; at a wrong one about chance does.
 """
 
 from __future__ import annotations
@@ -26,11 +31,12 @@ from typing import TextIO
 
 import numpy as np
 import numpy.typing as npt
+from scipy.stats import binom
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.poses.sync import interpolate_pose, stamp_groups
-from gridmap_cli.records import MovedStamps, PoseTrack
+from gridmap_cli.records import MovedStamps, PoseTrack, RangeLog
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -257,3 +263,138 @@ def score_track(
         rot_mean_deg=float(rot.mean()),
         rot_std_deg=float(rot.std()),
     )
+
+
+#: Two stamps this close name the same moment: a log printed with six significant digits steps
+#: by 10 ms from 1,000 s on.
+SAME_MOMENT_S = 0.01
+#: How unlikely by chance a landing count must be for an offset to be taken: far below one over
+#: the number of offsets a search tries.
+CHANCE_P = 1e-9
+#: Relation stamps that seed the search (each proposes the offsets landing it on a log stamp) and
+#: relation stamps each proposal is checked against, spread evenly over the relations.
+SEEDS, CHECKS = 8, 64
+
+
+@dataclass(frozen=True)
+class ClockOffset:
+    """What the stamps say of the relations' clock against the log's.
+
+    ``offset_s``: the relations' clock minus the log's, None when no offset makes the stamps
+    agree; ``searched``: whether the log's own clock failed first. ``landed`` of ``inside``
+    distinct relation stamps within the log's span land within :data:`SAME_MOMENT_S` of one of
+    its stamps at ``offset_s`` (or at the best offset tried), where chance lands ``chance``.
+    """
+
+    offset_s: float | None
+    searched: bool
+    landed: int
+    inside: int
+    stamps: int
+    chance: float
+
+    def message(self) -> str:
+        """One line for people."""
+        counts = (
+            f"{self.landed:,} of {self.inside:,} relation stamps in the log's span land on its "
+            f"stamps, chance would land {self.chance:,.0f}"
+        )
+        if self.offset_s is None:
+            return (
+                "no clock offset found makes the relation stamps land on the log's stamps (at "
+                f"best {counts}): give --relations-offset"
+            )
+        if not self.searched:
+            return f"the relations are on the log's own clock ({counts})"
+        return (
+            f"the relations' clock is the log's + {self.offset_s:.3f} s, found from the stamps "
+            f"({counts})"
+        )
+
+
+def logged_stamps(log: RangeLog) -> npt.NDArray[np.int64]:
+    """Every moment ``log`` recorded (poses and held range readings), sorted, on the clock its
+    file printed (where the reader moved stamps): what relation stamps name."""
+    parts = [log.poses.stamp_ns]
+    if log.stream is None and len(log.readings):
+        parts.append(np.unique(log.readings.stamp_ns))
+    stamps = np.unique(np.concatenate(parts)).astype(np.int64)
+    moved = log.moved_stamps
+    if moved is not None and len(moved.stamp_ns):
+        at = np.clip(np.searchsorted(moved.stamp_ns, stamps), 0, len(moved.stamp_ns) - 1)
+        stamps = np.where(moved.stamp_ns[at] == stamps, moved.logged_ns[at], stamps)
+        stamps = np.unique(stamps)
+    return stamps
+
+
+def _landing(
+    stamps: npt.NDArray[np.int64], wanted: npt.NDArray[np.int64], tol_ns: int
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.int64]]:
+    """Per wanted stamp: whether it lands within ``tol_ns`` of one of ``stamps`` (sorted), and
+    its signed distance to the nearest."""
+    hi = np.clip(np.searchsorted(stamps, wanted), 1, len(stamps) - 1)
+    lo = hi - 1
+    d_hi, d_lo = stamps[hi] - wanted, stamps[lo] - wanted
+    nearest = np.where(np.abs(d_hi) < np.abs(d_lo), d_hi, d_lo)
+    return np.abs(nearest) <= tol_ns, nearest
+
+
+def _chance(stamps: npt.NDArray[np.int64], tol_ns: int) -> float:
+    """The share of the span of ``stamps`` within ``tol_ns`` of one of them: the chance a
+    moment taken at random lands."""
+    span = float(stamps[-1] - stamps[0]) + 2 * tol_ns
+    covered = float(np.minimum(np.diff(stamps), 2 * tol_ns).sum()) + 2 * tol_ns
+    return min(1.0, covered / span)
+
+
+def find_clock_offset(
+    stamps_ns: npt.NDArray[np.int64], relations: Relations, tolerance_s: float = SAME_MOMENT_S
+) -> ClockOffset:
+    """The offset (relations' clock minus the log's) at which most relation stamps land on the
+    log's stamps ``stamps_ns`` (sorted, at least two), far beyond chance: 0 when the log's own
+    clock does, else the best one a search of the stamps finds, else None."""
+    rel = np.unique(np.concatenate([relations.t1_ns, relations.t2_ns]))
+    if len(stamps_ns) < 2:
+        return ClockOffset(None, False, 0, 0, len(rel), 0.0)
+    tol = max(1, round(tolerance_s * 1e9))
+    q = _chance(stamps_ns, tol)
+
+    def judge(offset_ns: int) -> tuple[bool, int, int]:
+        wanted = rel - offset_ns
+        inside = (wanted >= stamps_ns[0] - tol) & (wanted <= stamps_ns[-1] + tol)
+        landed = int((_landing(stamps_ns, wanted[inside], tol)[0]).sum())
+        n = int(inside.sum())
+        unlikely = n > 0 and float(binom.sf(landed - 1, n, q)) < CHANCE_P
+        return unlikely and 2 * landed >= n, landed, n
+
+    def result(offset_ns: int | None, searched: bool, landed: int, n: int) -> ClockOffset:
+        offset = None if offset_ns is None else offset_ns / 1e9
+        return ClockOffset(offset, searched, landed, n, len(rel), n * q)
+
+    ok, landed, n = judge(0)
+    if ok:
+        return result(0, False, landed, n)
+    best = _search(stamps_ns, rel, tol)
+    ok, landed, n = judge(best)
+    return result(best if ok else None, True, landed, n)
+
+
+def _search(stamps: npt.NDArray[np.int64], rel: npt.NDArray[np.int64], tol_ns: int) -> int:
+    """The offset (ns) landing the most of a few relation stamps spread over ``rel``: each seed
+    proposes every offset that lands it on a log stamp, the checks count each proposal, and the
+    best is centred on the residuals of the relation stamps it lands."""
+    seeds = rel[np.unique(np.linspace(0, len(rel) - 1, SEEDS).round().astype(np.intp))]
+    checks = rel[np.unique(np.linspace(0, len(rel) - 1, CHECKS).round().astype(np.intp))]
+    best, best_count = 0, -1
+    for seed in seeds:
+        proposals = seed - stamps
+        count = np.zeros(len(proposals), dtype=np.int64)
+        for check in checks:
+            count += _landing(stamps, check - proposals, tol_ns)[0]
+        k = int(np.argmax(count))
+        if count[k] > best_count:
+            best, best_count = int(proposals[k]), int(count[k])
+    landed, nearest = _landing(stamps, rel - best, tol_ns)
+    if landed.any():
+        best -= int(np.median(nearest[landed]))
+    return best
