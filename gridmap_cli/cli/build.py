@@ -226,14 +226,26 @@ def build(
     # a long log's readings stay in its file, read again for each pass, unless scan matching
     # or a time window needs them held
     stream = pose not in LASER_POSES and selection.start is None and selection.end is None
+    laser_only = pose in LASER_POSES  # the scans can make the motion where no odometry is
     with reading(_names(logs), quiet):
-        whole = _read_logs(logs, log_format, dataclasses.replace(read_options, stream=stream))
+        whole = _read_logs(
+            logs,
+            log_format,
+            dataclasses.replace(read_options, stream=stream, odometry_optional=laser_only),
+        )
     data = whole
     if robot_desc is None:
         robot_desc = robot_from_log(logs[0], data.metadata)
     match: ScanMatch | None = None
     slam_summary: dict[str, object] | None = None
     belief: PoseBelief | None = None
+    motion_note: str | None = None
+    if laser_only and data.odometry_missing is not None and not len(data.poses):
+        from gridmap_cli.poses.correction.scan_odometry import MOTION_NOTE, with_scan_motion
+
+        with StageBars(quiet) as bars:
+            whole = data = with_scan_motion(data, robot_desc, progress=bars)
+        motion_note = MOTION_NOTE
     if pose == "scan-matched":
         from gridmap_cli.poses.correction.scan_match import (
             scan_matched_log,
@@ -306,6 +318,8 @@ def build(
         summary["slam"] = slam_summary
     if settings.correct_odometry:
         summary["odometry_corrected"] = True
+    if motion_note is not None:
+        summary["motion"] = motion_note
     report(summary, summary_line(summary), as_json, quiet)
 
 

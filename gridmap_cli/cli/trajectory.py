@@ -116,12 +116,25 @@ def trajectory(
         check_input(relations, folder_ok=False)
         truth = read_relations(relations)
     # the odometry and the reference need no range readings (a ROS recording of /odom and TF)
+    laser_only = pose in ("scan-matched", "slam")  # the scans can make the motion
     read_options = dataclasses.replace(
-        topics, robot=robot_desc, poses_only=pose in ("odometry", "global")
+        topics,
+        robot=robot_desc,
+        poses_only=pose in ("odometry", "global"),
+        odometry_optional=laser_only,
     )
     with reading(logs[0].name if len(logs) == 1 else f"{len(logs)} logs", quiet):
         data = read_logs(logs, log_format, read_options)
     summary: dict[str, object] = {"output": str(output), "pose": pose}
+    motion_note: str | None = None
+    if laser_only and data.odometry_missing is not None and not len(data.poses):
+        from gridmap_cli.poses.correction.scan_odometry import MOTION_NOTE, with_scan_motion
+
+        if robot_desc is None:
+            robot_desc = robot_from_log(logs[0], data.metadata)
+        with StageBars(quiet) as bars:
+            data = with_scan_motion(data, robot_desc, progress=bars)
+        summary["motion"] = motion_note = MOTION_NOTE
     status: list[str] | None = None
     covariance: tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_]] | None = None
     if pose == "scan-matched":
@@ -192,6 +205,8 @@ def trajectory(
                 f"{sl['closures_rejected']:,} rejected; {sl['fallbacks']:,} scans fell back "
                 "to odometry)"
             )
+        if motion_note is not None:
+            line += f"; {motion_note}"
         click.echo(line + f" in {summary['seconds']:.1f} s", err=True)
         if cov_path is not None:
             click.echo(f"gridmap: each pose's covariance -> {cov_path}", err=True)
