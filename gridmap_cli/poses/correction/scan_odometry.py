@@ -25,6 +25,7 @@ import small_gicp
 from scipy.spatial import cKDTree
 
 from gridmap_cli.geometry import compose, inverse, wrap_angle
+from gridmap_cli.poses.correction.degeneracy import keep_across, weak_axis
 from gridmap_cli.poses.correction.scan_match import (
     Progress,
     ScanMatchParams,
@@ -52,6 +53,8 @@ class ScanOdometryParams:
     distance. A match holds when ``min_inlier_fraction`` of the scan's points (at least
     ``min_points``) lie within ``inlier_m`` of the local map. ``heading_starts_rad``: the
     headings (offsets from the prediction) tried when a match does not hold.
+    ``degenerate_ratio``: a match constrained in one direction only (a featureless corridor,
+    :func:`.degeneracy.weak_axis`) keeps the prediction along it.
     ``max_gap_ratio``: the constant-velocity step is scaled by the time since the last scan
     over the last step's time, at most this much (a gap in the recording is not a long
     straight drive).
@@ -66,6 +69,7 @@ class ScanOdometryParams:
     inlier_m: float = 0.15
     min_inlier_fraction: float = 0.5
     min_points: int = 20
+    degenerate_ratio: float = 0.002
     max_gap_ratio: float = 3.0
     heading_starts_rad: tuple[float, ...] = tuple(
         math.radians(d) for d in (-15.0, 15.0, -30.0, 30.0, -45.0, 45.0, -60.0, 60.0)
@@ -131,8 +135,10 @@ class _Keyframes:
         self.tree2d = cKDTree(flat)
 
     def match(self, points: FloatArray, starts: list[Pose]) -> Pose | None:
-        """The pose of the best match from ``starts`` (tried in order until one holds), or
-        None when none holds."""
+        """The pose of the best match from ``starts``, or None when none holds: the first two
+        (the prediction and the last pose) are always tried, the others until one holds.
+        Along a degenerate match's weak axis the pose is the first start's (the prediction):
+        a corridor's walls say nothing of the motion along it."""
         p = self.params
         if self.cloud is None or self.tree is None or self.tree2d is None:
             return None
@@ -144,7 +150,10 @@ class _Keyframes:
         planar = cloud[np.abs(cloud[:, 2] - 0.5 * p.downsample_m) < 0.25 * p.downsample_m, :2]
         if len(planar) < p.min_points:
             return None
-        for start in starts:
+        best: tuple[float, Pose] | None = None
+        for i, start in enumerate(starts):
+            if i >= 2 and best is not None and best[0] >= p.min_inlier_fraction:
+                break
             result = small_gicp.align(
                 self.cloud,
                 source,
@@ -157,9 +166,18 @@ class _Keyframes:
             )
             pose = _planar(np.asarray(result.T_target_source))
             dist, _ = self.tree2d.query(_placed(planar, pose), distance_upper_bound=p.inlier_m)
-            if float(np.mean(np.isfinite(dist))) >= p.min_inlier_fraction:
-                return pose
-        return None
+            fraction = float(np.mean(np.isfinite(dist)))
+            if fraction < p.min_inlier_fraction or (best is not None and fraction <= best[0]):
+                continue
+            axis = weak_axis(np.asarray(result.H), p.degenerate_ratio, pose[2])
+            best = (fraction, pose if axis is None else keep_across(starts[0], pose, axis))
+        return None if best is None else best[1]
+
+
+def _moved(pose: FloatArray, step: Pose, ratio: float) -> Pose:
+    """``pose`` (3,) moved on by ``ratio`` times ``step`` (in its own frame)."""
+    x, y, th = compose(pose[0], pose[1], pose[2], *(ratio * v for v in step))
+    return float(x), float(y), float(th)
 
 
 def scan_odometry(
@@ -178,14 +196,16 @@ def scan_odometry(
             keyframes.offer(scans.points[0], (0.0, 0.0, 0.0))
             continue
         last: Pose = (float(poses[k - 1, 0]), float(poses[k - 1, 1]), float(poses[k - 1, 2]))
-        step: Pose = (0.0, 0.0, 0.0)
-        if k >= 2 and t[k - 1] > t[k - 2]:
-            ratio = min((t[k] - t[k - 1]) / (t[k - 1] - t[k - 2]), params.max_gap_ratio)
+        guess, scaled = last, last
+        if k >= 2:
             dx, dy, dth = compose(*inverse(*poses[k - 2]), *poses[k - 1])
-            step = (ratio * float(dx), ratio * float(dy), ratio * float(dth))
-        gx, gy, gth = compose(poses[k - 1, 0], poses[k - 1, 1], poses[k - 1, 2], *step)
-        guess: Pose = (float(gx), float(gy), float(gth))
-        starts = [guess, last]
+            guess = _moved(poses[k - 1], (float(dx), float(dy), float(dth)), 1.0)
+            if t[k - 1] > t[k - 2]:
+                # a log's clock can run in bursts: the step as it was first, then as the time
+                # since the last scan says
+                ratio = min((t[k] - t[k - 1]) / (t[k - 1] - t[k - 2]), params.max_gap_ratio)
+                scaled = _moved(poses[k - 1], (float(dx), float(dy), float(dth)), ratio)
+        starts = [guess, last, scaled]
         starts += [(guess[0], guess[1], guess[2] + d) for d in params.heading_starts_rad]
         pose = keyframes.match(scans.points[k], starts) or guess
         poses[k] = pose
