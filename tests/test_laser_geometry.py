@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from gridmap_cli.readers import read_log
+from gridmap_cli.readers.ros.mcap.bulk import DECODE_ENV
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import parse_robot_yaml
 from gridmap_cli.sim.path import WaypointPath
@@ -66,6 +67,18 @@ def test_each_scan_is_read_with_its_own_beams(interleaved: tuple[Path, Path, Pat
         first_yaw.append(min(log.sensors[int(b)].yaw_rad for b in beams))
     step = math.pi / 180
     assert np.diff(first_yaw) == pytest.approx([step / TURNS] * (TURNS - 1), abs=1e-3 * step)
+
+
+def test_bulk_and_message_by_message_read_an_interleaving_laser_alike(
+    interleaved: tuple[Path, Path, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _, turning, _ = interleaved
+    bulk = read_log(turning)
+    monkeypatch.setenv(DECODE_ENV, "messages")
+    one_by_one = read_log(turning)
+    assert one_by_one.sensor_names == bulk.sensor_names and one_by_one.sensors == bulk.sensors
+    assert np.array_equal(one_by_one.readings.sensor, bulk.readings.sensor)
+    assert np.array_equal(one_by_one.readings.range_m, bulk.readings.range_m)
 
 
 @pytest.mark.parametrize("pose", ["odometry", "scan-matched"])
