@@ -170,3 +170,15 @@ def test_odometry_is_still_asked_for_where_the_pose_needs_it(
     (line,) = stderr.strip().splitlines()
     assert line.startswith(f"Error: {laser_alone}: no odometry: no pose topic and no 'odom'")
     assert not out.exists()
+
+
+def test_batch_maps_a_laser_without_odometry_and_says_so(laser_alone: Path, tmp_path: Path) -> None:
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    (folder / "alone.bag").write_bytes(laser_alone.read_bytes())
+    out = tmp_path / "maps"
+    code, _, stderr = run("batch", str(folder), "-o", str(out), "--pose", "slam")
+    assert code == 0, stderr
+    (report,) = [json.loads(line) for line in (out / "batch-report.jsonl").read_text().splitlines()]
+    assert report["status"] == "built"
+    assert report["warnings"] == ["no odometry: motion from the scans"]

@@ -103,12 +103,20 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
     selection = Selection.parse(options.sensors, options.start, options.end)
     # a long log's readings stay in its file unless scan matching or a time window needs them
     stream = options.pose not in LASER_POSES and selection.start is None and selection.end is None
-    read_options = dataclasses.replace(options.topics, robot=robot, stream=stream)
+    laser_only = options.pose in LASER_POSES  # the scans can make the motion
+    read_options = dataclasses.replace(
+        options.topics, robot=robot, stream=stream, odometry_optional=laser_only
+    )
     data = read_logs([job.log], options.log_format, read_options)
     used_robot_file = robot_file(job, data.metadata)
     if robot is None:
         robot = robot_from_log(job.log, data.metadata)
     warnings: list[str] = []
+    if laser_only and data.odometry_missing is not None and not len(data.poses):
+        from gridmap_cli.poses.correction.scan_odometry import MOTION_NOTE, with_scan_motion
+
+        data = with_scan_motion(data, robot)
+        warnings.append(MOTION_NOTE)
     build = options.build
     if options.pose == "scan-matched":
         from gridmap_cli.poses.correction.scan_match import (
