@@ -4,10 +4,11 @@ A hand-held laser or a simple platform records scans and nothing else. The scan 
 pose graph (:mod:`.scan_match`, :mod:`.slam`) are seeded by odometry; here the scans give them
 one. Each scan is registered (small_gicp's GICP, the scan as a thin vertical sheet, as the
 matcher does) against a local map of the last few keyframe scans, starting from a
-constant-velocity prediction: the last matched step, scaled to the time since the last scan.
-A prediction is only as good as the motion is steady, so a match that does not hold is tried
-again from where the last scan was (a stop) and from turned headings, wider than the matcher's
-retries (a fast turn that the velocity did not see coming). The track that comes out is then
+constant-velocity prediction: the last matched step, applied again. A prediction is only as
+good as the motion is steady, so the match from where the last scan was (a stop) is tried too
+and the better kept; when neither holds, the step scaled to the time since the last scan (a gap)
+and turned headings, wider than the matcher's retries (a fast turn the velocity did not see
+coming), until one does. The track that comes out is then
 the "odometry" the matcher and the graph consume, unchanged: they match every scan again
 against their own local maps and close loops as they do with wheel odometry.
 """
