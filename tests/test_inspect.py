@@ -316,6 +316,7 @@ def test_laser_beams_fold_into_one_row_and_a_long_table_is_cut(tmp_path: Path) -
         scan = {
             "header": rec.header(S, "laser"),
             "angle_min": -0.5,
+            "angle_max": 0.5,
             "angle_increment": 0.25,
             "range_min": 0.1,
             "range_max": 8.0,
@@ -527,6 +528,7 @@ def test_a_laserscans_range_is_shown_for_mcap(tmp_path: Path) -> None:
         scan = {
             "header": rec.header(S, "laser"),
             "angle_min": -0.5,
+            "angle_max": 0.5,
             "angle_increment": 0.25,
             "range_min": 0.05,
             "range_max": 5.5,

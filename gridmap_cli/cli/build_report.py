@@ -116,6 +116,7 @@ def summary_line(s: dict[str, Any]) -> str:
         + (f", {s['yaml']}" if s["yaml"] else "")
         + matched
         + ("; the odometry's calibrated biases corrected" if s.get("odometry_corrected") else "")
+        + (f"; {s['motion']}" if s.get("motion") else "")
     )
 
 

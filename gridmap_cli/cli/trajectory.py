@@ -132,8 +132,12 @@ def trajectory(
         truth = read_relations(relations)
     source = pose_source(pose)
     # the odometry and the reference need no range readings (a ROS recording of /odom and TF)
+    # and a source that reads the scans can take the motion from them where there is no odometry
     read_options = dataclasses.replace(
-        topics, robot=robot_desc, poses_only="laser" not in source.needs
+        topics,
+        robot=robot_desc,
+        poses_only="laser" not in source.needs,
+        odometry_optional=source.uses_laser,
     )
     with reading(logs[0].name if len(logs) == 1 else f"{len(logs)} logs", quiet):
         data = read_logs(logs, log_format, read_options)
@@ -142,6 +146,8 @@ def trajectory(
     with StageBars(quiet) as bars:
         posed = source.run(data, robot_desc, PoseSettings(progress=bars))
     summary: dict[str, object] = {"output": str(output), "pose": posed.source, **posed.summary}
+    if posed.motion is not None:
+        summary["motion"] = posed.motion
     track, status, covariance = _written_track(posed)
     scored = posed.log.poses
     if covariance is not None:
@@ -222,6 +228,8 @@ def _report(
             f"{sl['closures_rejected']:,} rejected; {sl['fallbacks']:,} scans fell back "
             "to odometry)"
         )
+    if posed.motion is not None:
+        line += f"; {posed.motion}"
     click.echo(line + f" in {summary['seconds']:.1f} s", err=True)
     if cov_path is not None:
         click.echo(f"gridmap: each pose's covariance -> {cov_path}", err=True)

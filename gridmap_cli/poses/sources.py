@@ -66,6 +66,8 @@ class PosedLog:
     belief: PoseBelief | None = None
     summary: Mapping[str, Mapping[str, object]] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
+    #: where the track's motion came from when the log had no odometry (None: its odometry)
+    motion: str | None = None
 
 
 Runner = Callable[[RangeLog, RobotDescription | None, PoseSettings], PosedLog]
@@ -205,8 +207,10 @@ def scan_matched_poses(
     """The odometry corrected by registering each laser scan against the ones before it."""
     from gridmap_cli.poses.correction.scan_match import scan_matched_log  # scipy, small_gicp
 
+    log, motion = _scan_motion(log, robot, settings)
     placed, match = scan_matched_log(log, robot, progress=settings.progress)
-    return PosedLog(placed, "scan-matched", match=match, summary={"scan_match": match.summary()})
+    return PosedLog(placed, "scan-matched", match=match, summary={"scan_match": match.summary()},
+                    motion=motion)  # fmt: skip
 
 
 def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSettings) -> PosedLog:
@@ -214,6 +218,7 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
     when ``settings`` asks for it."""
     from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
 
+    log, motion = _scan_motion(log, robot, settings)
     placed, slam = slam_corrected_log(log, robot, progress=settings.progress)
     summary = slam.summary()
     belief = None
@@ -224,7 +229,19 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
         summary["belief_noise_scale"] = [round(f, 3) for f in belief.scale]
     warnings = (f"{given('pose', 'slam')}: {slam.warning}",) if slam.warning else ()
     return PosedLog(placed, "slam", match=slam.match, slam=slam, belief=belief,
-                    summary={"slam": summary}, warnings=warnings)  # fmt: skip
+                    summary={"slam": summary}, warnings=warnings, motion=motion)  # fmt: skip
+
+
+def _scan_motion(
+    log: RangeLog, robot: RobotDescription | None, settings: PoseSettings
+) -> tuple[RangeLog, str | None]:
+    """``log`` as the scan matcher takes it: a log read without odometry (a hand-held laser)
+    gets a track chained from its scans, and the note that says so; any other log as it is."""
+    if log.odometry_missing is None or len(log.poses):
+        return log, None
+    from gridmap_cli.poses.correction.scan_odometry import MOTION_NOTE, with_scan_motion
+
+    return with_scan_motion(log, robot, progress=settings.progress), MOTION_NOTE
 
 
 def auto_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSettings) -> PosedLog:

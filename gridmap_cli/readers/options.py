@@ -29,6 +29,9 @@ class ReadOptions:
     window. CSV files do it above :data:`gridmap_cli.readers.text.csv_stream.STREAM_FROM_BYTES`.
     ``poses_only``: the caller wants the tracks alone (``gridmap trajectory --pose odometry`` or
     ``global``), so a recording without range topics is read rather than refused.
+    ``odometry_optional``: the caller can make the motion from the laser scans (``--pose
+    scan-matched`` or ``slam``), so a recording without odometry is read rather than refused:
+    its pose track is empty and :attr:`~gridmap_cli.records.RangeLog.odometry_missing` says why.
     """
 
     odom_topic: str | None = None
@@ -40,6 +43,7 @@ class ReadOptions:
     robot: RobotDescription | None = None
     stream: bool = False
     poses_only: bool = False
+    odometry_optional: bool = False
 
     def topic_flags(self) -> list[str]:
         """The MCAP-only flags that were given, spelled as on the command line."""

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from gridmap_cli.errors import InputFileError, RobotDescriptionError, UnknownRobotError, given
 from gridmap_cli.limits import read_settings_text
+from gridmap_cli.robot.beams import BeamBook as BeamBook
 from gridmap_cli.robot.description import SENSOR_KINDS as SENSOR_KINDS
 from gridmap_cli.robot.description import RangeSensor as RangeSensor
 from gridmap_cli.robot.description import RobotDescription as RobotDescription

@@ -170,7 +170,11 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
             "free": int((prob[known] <= options.free).sum()),
         },
         readings=result.stats.sync.used,
-        warnings=result.warnings,
+        # the report's reader sees how the track was made where the log had no odometry
+        warnings=(
+            *result.warnings,
+            *((result.placed.posed.motion,) if result.placed.posed.motion else ()),
+        ),
         built_at=datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
     )
     thumbnail = thumbnail_png(prob, options.occupied, options.free)

@@ -210,6 +210,8 @@ def map_stage(request: BuildRequest, placed: Placed, hooks: BuildHooks | None = 
     summary: dict[str, object] = {k: dict(v) for k, v in placed.posed.summary.items()}
     if options.correct_odometry:
         summary["odometry_corrected"] = True
+    if placed.posed.motion is not None:
+        summary["motion"] = placed.posed.motion
     seconds = {"read": placed.read_s, "map": time.perf_counter() - started}
     return MapBuild(result.map, placed, options, result, summary, placed.warnings, seconds)
 
@@ -281,7 +283,13 @@ def _read(
         raise GridmapError(f"nothing to map: give {given('inputs')} or {given('log')}")
     window = request.selection.start is not None or request.selection.end is not None
     stream = request.stream and not held and not window
-    options = dataclasses.replace(request.read_options, robot=robot, stream=stream)
+    # a source that reads the scans can take the motion from them where the log has no odometry
+    options = dataclasses.replace(
+        request.read_options,
+        robot=robot,
+        stream=stream,
+        odometry_optional=pose_source(request.pose).uses_laser,
+    )
     read = hooks.read or _read_logs
     with hooks.reading() if hooks.reading is not None else contextlib.nullcontext():
         return read(request.inputs, request.log_format, options)

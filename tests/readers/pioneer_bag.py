@@ -72,23 +72,41 @@ def write_pioneer_bag(
     laser_name: str = "laser1",
     sonar: bool = False,
     second_odometry: str | None = None,
+    odometry: bool = True,
+    interleave: int = 1,
+    turning: bool = True,
+    skewed: int = -1,
 ) -> Path:
     """``log`` (a simulated run with one laser, ``laser_name``, beams ``laser_name_0``...) as a
     ROSARIA + SICK bag at ``target``. ``mounting``: the ``base_link -> laser`` transform (x, y,
     yaw) published on ``/tf``, or None for a bag without it. ``sonar``: write the log's sonars
     (``sonar0``...) as RosAria's point cloud; ``second_odometry``: a topic to repeat the odometry
-    on."""
+    on; ``odometry`` False leaves out the odometry (``/RosAria/pose`` and ``odom -> base_link``):
+    a laser alone. ``interleave`` > 1: the laser sends scans of ``interleave`` start angles in
+    turn, each a ``1 / interleave`` step on from the last, every other one a beam short (as a
+    SICK LMS in its interlaced modes): a scan's ranges are the world's along its own beams,
+    from ``log``'s ``laser_name`` beams at the same stamp by the nearest beam of the
+    simulation's beams: ``log``'s laser must have ``180 * interleave + 1`` beams over 180
+    degrees, of which scan ``j`` of a turn takes beams ``j``, ``j + interleave``, ...;
+    ``turning`` False gives every scan the first start angle (the same laser, constant). Scan
+    number ``skewed`` gets an ``angle_max`` ten steps off its ranges."""
     beams = [i for i, name in enumerate(log.sensor_names) if name.startswith(f"{laser_name}_")]
     order = np.argsort([int(log.sensor_names[i].rsplit("_", 1)[1]) for i in beams])
     beam_of = np.full(len(log.sensor_names), -1)
     beam_of[np.asarray(beams)[order]] = np.arange(len(beams))
     n_beams = len(beams)
+    fine = math.pi / (n_beams - 1)  # the simulation's step
+    step = fine * interleave  # each scan's
     r = log.readings
     stamps = np.unique(r.stamp_ns)
     p = log.poses
     rng = np.random.default_rng(7)
     with Writer(target) as bag:
-        odom = bag.add_connection("/RosAria/pose", "nav_msgs/msg/Odometry", typestore=STORE)
+        odom = (
+            bag.add_connection("/RosAria/pose", "nav_msgs/msg/Odometry", typestore=STORE)
+            if odometry
+            else None
+        )
         tf = bag.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=STORE)
         scan = bag.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=STORE)
         volts = bag.add_connection("/RosAria/battery_voltage", "std_msgs/msg/Float64",
@@ -118,30 +136,41 @@ def write_pioneer_bag(
                 pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=cov),
                 twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=cov),
             )
-            messages.append((ns + LATENCY_NS, odom, msg))
+            if odom is not None:
+                messages.append((ns + LATENCY_NS, odom, msg))
             if odom2 is not None:
                 messages.append((ns + LATENCY_NS, odom2, msg))
-            moving = [_transform(ns, "odom", "base_link", x, y, th)]
+            moving = [_transform(ns, "odom", "base_link", x, y, th)] if odometry else []
             if mounting is not None:
                 moving.append(_transform(ns, "base_link", laser_frame, *mounting))
-            messages.append((ns + LATENCY_NS, tf, T["tf2_msgs/msg/TFMessage"](transforms=moving)))
+            if moving:
+                messages.append(
+                    (ns + LATENCY_NS, tf, T["tf2_msgs/msg/TFMessage"](transforms=moving))
+                )
             if k % 10 == 0:
                 messages.append((ns + LATENCY_NS, volts, T["std_msgs/msg/Float64"](data=12.6)))
         cuts = np.searchsorted(r.stamp_ns, stamps, side="left")
         ends = np.searchsorted(r.stamp_ns, stamps, side="right")
         for seq, (ns, a, b) in enumerate(zip(stamps, cuts, ends, strict=True)):
-            ranges = np.full(n_beams, 8.0, dtype=np.float32)
+            every = np.full(n_beams, 8.0, dtype=np.float32)
             idx = beam_of[r.sensor[a:b]]
             ok = idx >= 0
-            ranges[idx[ok]] = np.minimum(r.range_m[a:b][ok], 8.0)
-            odd = rng.random(n_beams) < 0.01  # the odd beam reads inf or nan
-            ranges[odd & (rng.random(n_beams) < 0.5)] = np.inf
+            every[idx[ok]] = np.minimum(r.range_m[a:b][ok], 8.0)
+            turn = seq % interleave if turning else 0
+            ranges = every
+            if interleave > 1:
+                ranges = np.ascontiguousarray(every[turn::interleave][: 180 + (turn == 0)])
+            n_scan = len(ranges)
+            odd = rng.random(n_scan) < 0.01  # the odd beam reads inf or nan
+            ranges[odd & (rng.random(n_scan) < 0.5)] = np.inf
             ranges[odd & ~np.isinf(ranges)] = np.nan
+            first = -math.pi / 2 + turn * fine
             msg = T["sensor_msgs/msg/LaserScan"](
                 header=_header(seq, START_NS + int(ns), laser_frame),
-                angle_min=-math.pi / 2,
-                angle_max=math.pi / 2,
-                angle_increment=math.pi / (n_beams - 1),
+                angle_min=first if interleave > 1 else -math.pi / 2,
+                angle_max=(first + (n_scan - 1) * step if interleave > 1 else math.pi / 2)
+                + (10 * step if seq == skewed else 0.0),
+                angle_increment=step,
                 time_increment=0.0,
                 scan_time=0.1,
                 range_min=0.0,

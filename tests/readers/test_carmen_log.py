@@ -269,17 +269,23 @@ def test_bad_param_value_is_reported_where_it_is(tmp_path: Path) -> None:
         read_carmen_log(path)
 
 
-def test_a_laser_changing_its_beam_count_is_refused(tmp_path: Path) -> None:
+def test_each_scan_keeps_its_own_layout(tmp_path: Path) -> None:
+    """A laser interleaving start angles, or adding a beam: each direction is a beam sensor,
+    the first scan's first; a direction seen before is its sensor again."""
     lines = [
         odom((0, 0, 0), 1.0),
-        flaser(RANGES, (0, 0, 0), 1.0),
-        flaser([1.0] * 4, (0, 0, 0), 2.0),
+        robotlaser([1.0, 2.0, 3.0], (0, 0, 0), 1.05, start=-0.5, res=0.25),
+        robotlaser([4.0, 5.0, 6.0], (0, 0, 0), 1.10, start=-0.375, res=0.25),
+        robotlaser([7.0, 8.0, 9.0, 10.0], (0, 0, 0), 1.15, start=-0.5, res=0.25),
+        odom((0.1, 0, 0), 1.2),
     ]
-    path = write(tmp_path, lines)
-    with pytest.raises(
-        InputFileError, match=r":6: FLASER: 4 beams .* but line 5 had 5 .*one layout"
-    ):
-        read_carmen_log(path)
+    log = read_carmen_log(write(tmp_path, lines))
+    assert log.sensors is not None
+    yaws = [s.yaw_rad for s in log.sensors]
+    np.testing.assert_allclose(yaws, [-0.5, -0.25, 0.0, -0.375, -0.125, 0.125, 0.25])
+    assert log.readings.sensor.tolist() == [0, 1, 2, 3, 4, 5, 0, 1, 2, 6]
+    assert log.readings.range_m.tolist() == [float(v) for v in range(1, 11)]
+    assert "(and 2 other layouts: 7 directions)" in log.metadata["frontlaser"]
 
 
 def test_empty_log_and_log_without_laser(tmp_path: Path) -> None:

@@ -311,17 +311,43 @@ def test_laserscan_beams_take_the_frame_mount_and_scan_angles(tmp_path: Path) ->
     assert log.readings.range_m.tolist() == [1.0, 8.0, 1.0, 8.0]
 
 
-def test_laserscan_that_changes_its_beams_is_an_error(tmp_path: Path) -> None:
+def test_laserscans_are_read_each_with_its_own_beams(tmp_path: Path) -> None:
+    """A laser that interleaves start angles, or adds a beam, gives each direction a sensor:
+    the first scan's beams, then the new directions, in order; a direction seen before is its
+    sensor again."""
+    path = tmp_path / "scan.mcap"
+    geometries = [(-1.0, 3), (-1.25, 4), (-1.0, 4), (-1.25, 4)]
+    with Recording(path) as rec:
+        static_tf(rec, rec.transform(0, "base_link", "laser", 0.0, 0.0, 0.0))
+        drive(rec)
+        for k, (start, n) in enumerate(geometries):
+            ns = S + k * S // 4
+            scan = {"header": rec.header(ns, "laser"), "angle_min": start,
+                    "angle_max": start + 0.5 * (n - 1), "angle_increment": 0.5,
+                    "range_max": 8.0, "ranges": [1.0 + k] * n}  # fmt: skip
+            rec.write("/scan", "sensor_msgs/LaserScan", ns, scan)
+    log = read_log(path)
+    assert log.sensor_names == tuple(f"laser_{i}" for i in range(8))
+    assert log.sensors is not None
+    yaws = [s.yaw_rad for s in log.sensors]
+    assert yaws == pytest.approx([-1.0, -0.5, 0.0, -1.25, -0.75, -0.25, 0.25, 0.5])
+    sensor, rng = log.readings.sensor.tolist(), log.readings.range_m.tolist()
+    assert sensor == [0, 1, 2, 3, 4, 5, 6, 0, 1, 2, 7, 3, 4, 5, 6]
+    assert rng == [1.0] * 3 + [2.0] * 4 + [3.0] * 4 + [4.0] * 4
+
+
+def test_laserscan_whose_ranges_do_not_fit_its_angles_is_an_error(tmp_path: Path) -> None:
     path = tmp_path / "scan.mcap"
     with Recording(path) as rec:
         static_tf(rec, rec.transform(0, "base_link", "laser", 0.0, 0.0, 0.0))
         drive(rec)
-        for k, n in enumerate((3, 4)):
+        for k, n in enumerate((3, 5)):
             ns = S + k * S // 2
-            scan = {"header": rec.header(ns, "laser"), "angle_min": -1.0, "angle_increment": 0.5,
-                    "range_max": 8.0, "ranges": [1.0] * n}  # fmt: skip
+            scan = {"header": rec.header(ns, "laser"), "angle_min": -1.0, "angle_max": 0.0,
+                    "angle_increment": 0.5, "range_max": 8.0, "ranges": [1.0] * n}  # fmt: skip
             rec.write("/scan", "sensor_msgs/LaserScan", ns, scan)
-    with pytest.raises(InputFileError, match=r"/scan at log time 1.5.*laser 'laser' changed"):
+    with pytest.raises(InputFileError, match=r"/scan at log time 1.5.*laser 'laser': 5 ranges, "
+                       r"but its angles do not fit them \(from -1 to 0 rad by 0.5"):  # fmt: skip
         read_log(path)
 
 
@@ -380,8 +406,8 @@ def _no_odometry(rec: Recording) -> None:
 def _unmounted_sonar_and_laser(rec: Recording) -> None:
     drive(rec)
     rec.write("/sonar", "sensor_msgs/Range", S, sonar_range(rec, S, "s0", 1.0))
-    scan = {"header": rec.header(S, "laser"), "angle_min": 0.0, "angle_increment": 0.5,
-            "range_max": 8.0, "ranges": [1.0, 2.0]}  # fmt: skip
+    scan = {"header": rec.header(S, "laser"), "angle_min": 0.0, "angle_max": 0.5,
+            "angle_increment": 0.5, "range_max": 8.0, "ranges": [1.0, 2.0]}  # fmt: skip
     rec.write("/scan", "sensor_msgs/LaserScan", S, scan)
 
 

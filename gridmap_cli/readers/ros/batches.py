@@ -25,7 +25,8 @@ from gridmap_cli.readers.ros.frames import (
 )
 from gridmap_cli.readers.ros.messages import MessageAccumulator
 from gridmap_cli.readers.ros.messages.fields import _f32
-from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar, _Track
+from gridmap_cli.readers.ros.messages.ranges import scan_angles_error
+from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar, _Track, scan_angles_disagree
 
 #: Poses whose headings are computed at a time (yaw_of is per pose, on Python floats).
 _YAW_ROWS = 1 << 14
@@ -143,48 +144,62 @@ def _scans(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
     first = _first_rows(index, len(frames))
     count = a["count"].astype(np.int64)
     amin, ainc = a["angle_min"].astype(np.float64), a["angle_increment"].astype(np.float64)
+    rmin, rmax = a["range_min"], a["range_max"]
+    too_many = count > MAX_LASER_SAMPLES
+    bad = scan_angles_disagree(amin, a["angle_max"].astype(np.float64), ainc, count) | too_many
+    bad_row = int(np.argmax(bad)) if bad.any() else n
+    _claim_until(acc, topic, frames, first, bad_row)
+    if bad_row < n:
+        frame = frames[int(index[bad_row])]
+        where = _where(acc, topic, cols, bad_row)
+        if too_many[bad_row]:
+            raise too_many_beams(
+                acc.message_path, int(count[bad_row]), where=f"{where}: laser '{frame}': "
+            )
+        raise scan_angles_error(
+            acc.message_path, where, frame, int(count[bad_row]), float(amin[bad_row]),
+            float(a["angle_max"][bad_row]), float(ainc[bad_row]),
+        )  # fmt: skip
     known: list[_Scan] = []
     for i, frame in enumerate(frames):
         row = int(first[i])
-        geometry = _Scan(
-            float(amin[row]),
-            float(ainc[row]),
-            int(count[row]),
-            float(a["range_min"][row]),
-            float(a["range_max"][row]),
-        )
-        if geometry.count > MAX_LASER_SAMPLES:  # a frame's scans all have its first's beams
-            where = f"{_where(acc, topic, cols, row)}: laser '{frame}': "
-            raise too_many_beams(acc.message_path, geometry.count, where=where)
-        known.append(acc.scans.get(frame, geometry))
+        scan = acc.scans.get(frame)
+        if scan is None:
+            scan = _Scan(float(amin[row]), float(ainc[row]), int(count[row]), float(rmin[row]),
+                         float(rmax[row]))  # fmt: skip
+        known.append(scan)
+    for i in np.argsort(first, kind="stable").tolist():  # frames in order of appearance
+        acc.scans.setdefault(frames[i], known[i])
     k_min = np.array([k.angle_min for k in known])[index]
     k_inc = np.array([k.angle_increment for k in known])[index]
     k_count = np.array([k.count for k in known], dtype=np.int64)[index]
     changed = (amin != k_min) | (ainc != k_inc) | (count != k_count)
-    bad_row = int(np.argmax(changed)) if changed.any() else n
-    _claim_until(acc, topic, frames, first, bad_row)
-    for i in np.argsort(first, kind="stable").tolist():
-        if first[i] <= bad_row:
-            acc.scans.setdefault(frames[i], known[i])
-    if bad_row < n:
-        frame = frames[int(index[bad_row])]
-        k = acc.scans[frame]
-        raise InputFileError(
-            acc.message_path,
-            f"{_where(acc, topic, cols, bad_row)}: laser '{frame}' changed its beams "
-            f"({int(count[bad_row])} from {_f32(amin[bad_row]):g} rad by "
-            f"{_f32(ainc[bad_row]):g}, first scan had {k.count} from "
-            f"{_f32(k.angle_min):g} by {_f32(k.angle_increment):g})",
-        )
-    base = np.empty(len(frames), dtype=np.int64)
-    for i in np.argsort(first, kind="stable").tolist():
-        frame, k = frames[i], known[i]
-        first_key = base[i] = acc._key(f"{frame}_0")
-        if first_key + k.count > len(acc.keys):
-            for j in range(1, k.count):
-                acc._key(f"{frame}_{j}")
-    scan, beam, out = scan_beams(cols, count)
-    acc.r_chunks.append((_stamps(cols)[scan], base[index][scan] + beam, out, True))
+    scan_row, beam, out = scan_beams(cols, count)
+    if not changed.any():  # every scan as its frame's first: its beams' keys in order
+        base = np.empty(len(frames), dtype=np.int64)
+        for i in np.argsort(first, kind="stable").tolist():
+            k = known[i]
+            keys = acc._beam_keys(frames[i], k, k.book.sensors(k.angle_min, k.angle_increment,
+                                                                k.count))  # fmt: skip
+            base[i] = keys[0] if len(keys) else 0
+            changed |= (index == i) & bool(len(keys) and keys[-1] - keys[0] != len(keys) - 1)
+        if not changed.any():
+            acc.r_chunks.append((_stamps(cols)[scan_row], base[index][scan_row] + beam, out, True))
+            return
+    # scans of several geometries: each distinct one's beams looked up once, in log order
+    geometry = np.column_stack((index.astype(np.float64), amin, ainc, count.astype(np.float64)))
+    _, first_of, which = np.unique(geometry, axis=0, return_index=True, return_inverse=True)
+    which = which.reshape(-1)
+    tables: list[npt.NDArray[np.int64]] = [np.zeros(0, np.int64)] * len(first_of)
+    for g in np.argsort(first_of, kind="stable").tolist():
+        row = int(first_of[g])
+        k = known[int(index[row])]
+        sensors = k.book.sensors(float(amin[row]), float(ainc[row]), int(count[row]))
+        tables[g] = acc._beam_keys(frames[int(index[row])], k, sensors)
+    offset = np.cumsum([0] + [len(t) for t in tables])[:-1]
+    flat = np.concatenate(tables)
+    keys = flat[offset[which][scan_row] + beam]
+    acc.r_chunks.append((_stamps(cols)[scan_row], keys, out, True))
 
 
 def scan_beams(

@@ -306,11 +306,11 @@ def decode_tf(raw: Raw, cdr: bool) -> Columns:
 
 
 def decode_scan(raw: Raw, cdr: bool) -> Columns:
-    """sensor_msgs/LaserScan: stamp, frame, angle_min, angle_increment, range_min, range_max
-    (float32) and the ranges (float32, ragged)."""
+    """sensor_msgs/LaserScan: stamp, frame, angle_min, angle_max, angle_increment, range_min,
+    range_max (float32) and the ranges (float32, ragged)."""
     r = _Reader(raw, cdr)
     stamp, frame, names, at = _header(r)
-    amin, _amax, ainc, _tinc, _scan_t, rmin, rmax = _floats(r, at, _F4, 7)
+    amin, amax, ainc, _tinc, _scan_t, rmin, rmax = _floats(r, at, _F4, 7)
     at = r.align(at, 4) + 28
     count = r.get(at, _U4).astype(np.int64)
     first = at + 4
@@ -323,7 +323,8 @@ def decode_scan(raw: Raw, cdr: bool) -> Columns:
     flat = np.repeat(first, count) + 4 * beam  # byte offset of each range
     ranges = r.buf[flat[:, None] + np.arange(4, dtype=np.int64)].view(_F4).reshape(-1)
     arrays = {**_base(raw), "stamp_ns": stamp, "frame": frame, "angle_min": amin}
-    arrays.update({"angle_increment": ainc, "range_min": rmin, "range_max": rmax, "count": count})
+    arrays.update({"angle_max": amax, "angle_increment": ainc, "range_min": rmin})
+    arrays.update({"range_max": rmax, "count": count})
     return Columns(arrays, {"frame": names}, ranges)
 
 

@@ -152,6 +152,8 @@ class Plan:
     base_frame: str | None
     reference_topic: str | None = None
     map_frame: str = "map"
+    #: a recording without odometry is read (its track empty) rather than refused
+    odometry_optional: bool = False
 
     def topics(self) -> list[str]:
         """Every topic the read decodes: /tf unless a pose topic gives both the odometry and
@@ -207,7 +209,7 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
                 + "; choose one with --odom-topic",
             )
         odom_topic = candidates[0].topic if candidates else None
-        if not candidates and not tf_topics:
+        if not candidates and not tf_topics and not options.odometry_optional:
             refuse(
                 InputFileError(
                     path,
@@ -272,4 +274,5 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
         base_frame=options.base_frame,
         reference_topic=reference_topic,
         map_frame=options.map_frame or "map",
+        odometry_optional=options.odometry_optional,
     )

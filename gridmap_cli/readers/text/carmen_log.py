@@ -33,7 +33,7 @@ from gridmap_cli.readers.text.carmen_tracks import Event, build_tracks
 from gridmap_cli.readers.text.csv_log import seconds_to_ns
 from gridmap_cli.readers.text.source import parse_text
 from gridmap_cli.records import RangeLog, RangeReadings
-from gridmap_cli.robot import RangeSensor
+from gridmap_cli.robot import BeamBook, RangeSensor
 
 EXTENSIONS = (".clf",)
 #: ``.log`` is CARMEN's usual extension but everyone's: the registry sniffs such files first.
@@ -92,8 +92,9 @@ class Scan:
 class _Laser:
     number: int
     sources: dict[str, int] = field(default_factory=dict)  # message -> scans
-    layout: tuple[int, float, float] | None = None  # count, start_rad, step_rad
-    layout_line: int = 0
+    layout: tuple[int, float, float] | None = None  # the first scan's count, start_rad, step_rad
+    book: BeamBook | None = None  # the beam directions of its scans (the first scan's first)
+    layouts: int = 0  # distinct layouts among its scans
     max_range_m: float = DEFAULT_MAX_RANGE_M
     max_from: str = "CARMEN's default"
     params_read: str = ""  # how the fov/resolution PARAM lines were read
@@ -303,7 +304,8 @@ class _Parser:
         lasers = self.choose_lasers(last_line)
         used = {id(s) for s in self.scans if s.laser in lasers and _source(s) == lasers[s.laser]}
         kept = [e for e in self.events if e.kind != "scan" or id(self.scans[e.scan]) in used]
-        layouts = {n: self.laser_layout(n, msg) for n, msg in lasers.items()}
+        beams: dict[int, npt.NDArray[np.int64]] = {}
+        layouts = {n: self.laser_layout(n, msg, beams) for n, msg in lasers.items()}
         sensors, names, offsets = self.sensors(layouts)
         tracks = build_tracks(self.path, kept, last_line)
         stamps, index, ranges = [], [], []
@@ -318,7 +320,7 @@ class _Parser:
             no_echo[scan.laser] += int(np.count_nonzero(beyond))
             present = ~np.isnan(scan.ranges)
             stamps.append(np.full(int(present.sum()), stamp_ns, dtype=np.int64))
-            index.append(offsets[scan.laser] + np.nonzero(present)[0])
+            index.append(offsets[scan.laser] + beams[id(scan)][present])
             ranges.append(np.where(beyond, np.inf, scan.ranges)[present])
         readings = RangeReadings(
             stamp_ns=np.concatenate(stamps),
@@ -329,9 +331,12 @@ class _Parser:
         for number, laser in sorted(layouts.items()):
             assert laser.layout is not None
             count, start, step = laser.layout
+            varied = ""
+            if laser.layouts > 1 and laser.book is not None:
+                varied = f" (and {laser.layouts - 1} other layouts: {len(laser.book)} directions)"
             metadata[LASER_NAMES[number]] = (
                 f"{lasers[number]}, {count} beams from {math.degrees(start):g} deg every "
-                f"{math.degrees(step):g} deg, max range {laser.max_range_m:g} m "
+                f"{math.degrees(step):g} deg{varied}, max range {laser.max_range_m:g} m "
                 f"({laser.max_from}); {no_echo[number]} readings at or beyond it: no echo"
                 + (f"; PARAM {laser.params_read}" if laser.params_read else "")
             )
@@ -375,11 +380,15 @@ class _Parser:
                                 f"(same laser as {order[0]})" for k in order[1:]]  # fmt: skip
         return chosen
 
-    def laser_layout(self, number: int, source: str) -> _Laser:
-        """One beam layout and maximum range per laser, from its messages and the PARAM lines."""
+    def laser_layout(
+        self, number: int, source: str, beams: dict[int, npt.NDArray[np.int64]]
+    ) -> _Laser:
+        """A laser's beams and maximum range, from its messages and the PARAM lines; each
+        scan's beam sensors go into ``beams`` (by the scan's id)."""
         laser = _Laser(number)
         word = _PARAM_WORD.get(number)
         biggest = 0.0
+        layouts: set[tuple[int, float, float]] = set()
         for scan in self.scans:
             if scan.laser != number or _source(scan) != source:
                 continue
@@ -392,22 +401,18 @@ class _Parser:
                 laser.params_read = read.read
             else:
                 start, step = scan.start_rad, scan.step_rad
-            if laser.layout is None:
+            if laser.layout is None or laser.book is None:
                 laser.layout = (n, start, step)
-                laser.layout_line = scan.line
+                laser.book = BeamBook(start, step, n)
                 if scan.max_range_m is not None:
                     laser.max_range_m, laser.max_from = scan.max_range_m, "maximum_range field"
-            elif laser.layout[0] != n or not np.allclose(laser.layout[1:], (start, step)):
-                raise self.error(
-                    scan.line,
-                    f"{scan.message}: {n} beams from {math.degrees(start):g} deg every "
-                    f"{math.degrees(step):g} deg, but line {laser.layout_line} had "
-                    f"{laser.layout[0]} from {math.degrees(laser.layout[1]):g} every "
-                    f"{math.degrees(laser.layout[2]):g}: one layout per laser",
-                )
+            # each scan with its own layout (lasers interleave start angles, add a beam)
+            beams[id(scan)] = laser.book.sensors(start, step, n)
+            layouts.add((n, start, step))
             finite = scan.ranges[np.isfinite(scan.ranges)]
             if finite.size:
                 biggest = max(biggest, float(finite.max()))
+        laser.layouts = len(layouts)
         if source in ("FLASER", "RLASER") and word is not None:
             given = self.param(f"robot_{word}_laser_max")
             if given is not None and given > 0:
@@ -432,17 +437,17 @@ class _Parser:
         names: list[str] = []
         offsets: dict[int, int] = {}
         for number, laser in sorted(layouts.items()):
-            assert laser.layout is not None
-            count, start, step = laser.layout
+            assert laser.book is not None
+            book = laser.book
             x, y, yaw = self.mounting(number)
             offsets[number] = len(sensors)
-            for i in range(count):
+            yaws = yaw + book.start + book.local * book.step
+            for i, beam_yaw in enumerate(yaws.tolist()):
                 name = f"{LASER_NAMES[number]}_{i}"
                 names.append(name)
                 sensors.append(
-                    RangeSensor(name, x, y, yaw + start + i * step, 0.0, 0.0,
-                                laser.max_range_m, "laser")
-                )  # fmt: skip
+                    RangeSensor(name, x, y, beam_yaw, 0.0, 0.0, laser.max_range_m, "laser")
+                )
         return sensors, names, offsets
 
     def mounting(self, number: int) -> Pose:

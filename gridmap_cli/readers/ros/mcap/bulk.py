@@ -320,9 +320,9 @@ def matches(type_name: str, cols: Columns, pos: int, msg: Any) -> bool:
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         want += [msg.child_frame_id, p.x, p.y, q.x, q.y, q.z, q.w]
     elif type_name == "sensor_msgs/LaserScan":
-        keys = ("angle_min", "angle_increment", "range_min", "range_max")
+        keys = ("angle_min", "angle_max", "angle_increment", "range_min", "range_max")
         got += [float(a[k][row]) for k in keys]
-        want += [msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max]
+        want += [msg.angle_min, msg.angle_max, msg.angle_increment, msg.range_min, msg.range_max]
         start = int(np.sum(a["count"][:row]))
         got += [float(v) for v in cols.ranges[start : start + int(a["count"][row])]]  # type: ignore[index]
         want += [float(v) for v in msg.ranges]

@@ -18,7 +18,7 @@ Anything else unusual leaves the recording to the held reader, which reads it (a
 is wrong) as it always has: several range topics or channels, a range type other than
 ``sensor_msgs/Range`` and ``LaserScan``, several laser frames (or beams whose sensors are not
 consecutive), gridmap's JSON channels, a channel the bulk decoder cannot take, an unindexed
-file, an error anywhere (a scan changing its beams among them).
+file, a laser whose scans change their geometry, an error anywhere.
 """
 
 from __future__ import annotations
@@ -141,7 +141,7 @@ class _Check:
     def read(self, acc: MessageAccumulator, plan: Plan) -> None:
         """Read the plan's one ``sensor_msgs/Range`` or ``sensor_msgs/LaserScan`` topic into
         ``acc`` chunk by chunk, keeping the counts and stamps of its readings, not the readings
-        (a scan changing its beams raises the held reader's error here)."""
+        (a bad scan raises the held reader's error here)."""
         self.acc = acc
         if len(plan.range_topics) != 1 or plan.sensors_topic is not None:
             raise _Unusual
@@ -256,12 +256,15 @@ class _Check:
 
     def _beams(self, names: dict[str, int]) -> tuple[dict[str, int], dict[str, int]]:
         """The one laser frame's first beam sensor index and beam count; several laser frames,
-        or beams whose sensors are not consecutive, are left to the held reader."""
+        scans of several geometries, or beams whose sensors are not consecutive, are left to
+        the held reader."""
         assert self.acc is not None
         scans = self.acc.scans
         if len(scans) != 1 or self.acc.sonars:
             raise _Unusual
         ((frame, scan),) = scans.items()
+        if scan.book.varied:
+            raise _Unusual
         first = names.get(f"{frame}_0")
         if first is None or [names.get(f"{frame}_{j}") for j in range(scan.count)] != list(
             range(first, first + scan.count)

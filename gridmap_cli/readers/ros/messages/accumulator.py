@@ -108,4 +108,5 @@ class MessageAccumulator(_Poses, _Ranges):
             sensors=tuple(described) or None,
             truth=truth,
             metadata=dict(metadata),
+            odometry_missing=self.odometry_missing,
         )

@@ -49,7 +49,8 @@ class _Poses(_Mounts):
         track.add(stamp, x, y, theta)
 
     def _odometry(self, base: str) -> PoseTrack:
-        """The odometry track; refused when there is none (empty when read on)."""
+        """The odometry track; refused when there is none (empty when read on, or when the
+        recording has none and the plan can do without: :attr:`odometry_missing` says so)."""
         if self.plan.odom_topic is not None:
             if len(self.odom):
                 return self.odom.track()
@@ -62,7 +63,7 @@ class _Poses(_Mounts):
                 return _tf_track(*found)
             seen = sorted(self.tf_pairs)
             listing = ", ".join(f"{p} -> {c}" for p, c in seen[:12]) or "none"
-            self.refusals.refuse(
+            self._no_odometry(
                 InputFileError(
                     self.path,
                     f"no odometry: no pose topic and no '{self.plan.odom_frame}' -> '{base}' "
@@ -71,6 +72,12 @@ class _Poses(_Mounts):
                 )
             )
         return PoseTrack.from_rows(np.empty(0, dtype=np.int64), [])
+
+    def _no_odometry(self, error: InputFileError) -> None:
+        if self.plan.odometry_optional:
+            self.odometry_missing = "missing: the recording has no odometry"
+        else:
+            self.refusals.refuse(error)
 
     def _truth(self, base: str) -> PoseTrack | None:
         """The reference track: a ground-truth or ``--pose-topic`` topic; else the TF chain

@@ -9,6 +9,7 @@ import math
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import wrap_angle
@@ -16,7 +17,7 @@ from gridmap_cli.limits import MAX_LASER_SAMPLES, too_many_beams
 from gridmap_cli.readers.ros.frames import frame_name
 from gridmap_cli.readers.ros.messages.fields import _classify, _f32, float32_decimal
 from gridmap_cli.readers.ros.messages.mounts import _Mounts
-from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar
+from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar, scan_angles_disagree
 from gridmap_cli.robot import RangeSensor
 
 
@@ -74,35 +75,37 @@ class _Ranges(_Mounts):
         frame = frame_name(msg.header.frame_id)
         self._claim(frame, topic)
         ranges = np.asarray(msg.ranges, dtype=np.float64)  # float32 values
-        geometry = _Scan(
-            msg.angle_min, msg.angle_increment, len(ranges), msg.range_min, msg.range_max
-        )
-        if geometry.count > MAX_LASER_SAMPLES:
+        amin, ainc, count = float(msg.angle_min), float(msg.angle_increment), len(ranges)
+        if count > MAX_LASER_SAMPLES:
             where = f"{self._where(topic, log_time)}: laser '{frame}': "
-            raise too_many_beams(self.message_path, geometry.count, where=where)
-        known = self.scans.setdefault(frame, geometry)
-        if (known.angle_min, known.angle_increment, known.count) != (
-            geometry.angle_min,
-            geometry.angle_increment,
-            geometry.count,
-        ):
-            raise InputFileError(
-                self.message_path,
-                f"{self._where(topic, log_time)}: laser '{frame}' changed its beams "
-                f"({geometry.count} from {_f32(geometry.angle_min):g} rad by "
-                f"{_f32(geometry.angle_increment):g}, first scan had {known.count} from "
-                f"{_f32(known.angle_min):g} by {_f32(known.angle_increment):g})",
-            )
-        base = self._key(f"{frame}_0")
-        if base + known.count > len(self.keys):
-            for i in range(1, known.count):
-                self._key(f"{frame}_{i}")
+            raise too_many_beams(self.message_path, count, where=where)
+        if scan_angles_disagree(
+            np.array([amin]), np.array([float(msg.angle_max)]), np.array([ainc]), np.array([count])
+        )[0]:
+            raise scan_angles_error(
+                self.message_path, self._where(topic, log_time), frame, count, amin,
+                float(msg.angle_max), ainc,
+            )  # fmt: skip
+        known = self.scans.get(frame)
+        if known is None:
+            known = self.scans[frame] = _Scan(amin, ainc, count, msg.range_min, msg.range_max)
+        beams = self._beam_keys(frame, known, known.book.sensors(amin, ainc, count))
         with np.errstate(invalid="ignore"):
             valid = ~np.isnan(ranges) & (ranges >= 0.0)  # NaN: no reading; -inf: too close
-            no_echo = valid & (ranges >= geometry.range_max)
+            no_echo = valid & (ranges >= msg.range_max)
         out = np.where(no_echo, np.inf, ranges)[valid]
-        keys = base + np.nonzero(valid)[0]
+        keys = beams[valid]
         self._extend(self._stamp(msg.header.stamp, log_time), keys.tolist(), out.tolist(), True)
+
+    def _beam_keys(
+        self, frame: str, known: _Scan, sensors: npt.NDArray[np.int64]
+    ) -> npt.NDArray[np.int64]:
+        """The reading key of each of a scan's beams (``sensors``: their beam sensors), giving
+        the beam sensors the scan added keys ``<frame>_<i>`` in order."""
+        if len(known.keys) < len(known.book):
+            new = [self._key(f"{frame}_{i}") for i in range(len(known.keys), len(known.book))]
+            known.keys = np.concatenate((known.keys, np.asarray(new, dtype=np.int64)))
+        return known.keys[sensors]
 
     def _cloud(self, topic: str, log_time: int, msg: Any) -> None:
         frame = frame_name(msg.header.frame_id)
@@ -167,24 +170,39 @@ class _Ranges(_Mounts):
         return tuple(s for frame in sorted(out, key=rank) for s in out[frame])
 
     def _beams(self, base: str, frame: str, scan: _Scan) -> list[RangeSensor]:
+        """The beam sensors of a laser frame: the first scan's beams, then those of the
+        directions later scans added (:class:`~gridmap_cli.robot.BeamBook`)."""
         mount = self._mount(base, frame)
-        names = [f"{frame}_{i}" for i in range(scan.count)]
-        first, step, rmin, rmax = float32_decimal(
-            [scan.angle_min, scan.angle_increment, scan.range_min, scan.range_max]
-        ).tolist()
+        book = scan.book
+        names = [f"{frame}_{i}" for i in range(len(book))]
+        rmin, rmax = float32_decimal([scan.range_min, scan.range_max]).tolist()
+        starts = float32_decimal(book.start)
+        steps = float32_decimal(book.step)
         known = self.robot.by_name() if self.robot is not None else {}
-        robot_names = names
-        if mount is None and not all(n in known for n in names):
-            robot_names = self._sole_robot_laser(base, scan) or names
+        first = names[: scan.count]
+        robot_names = first
+        if mount is None and not all(n in known for n in first):
+            robot_names = self._sole_robot_laser(base, scan) or first
         if mount is None and all(n in known for n in robot_names):
             self.mount_from[frame] = "robot"
-            return [
+            beams = [
                 RangeSensor(n, known[r].x_m, known[r].y_m, known[r].yaw_rad, 0.0, rmin, rmax,
                             "laser")
-                for n, r in zip(names, robot_names, strict=True)
+                for n, r in zip(first, robot_names, strict=True)
             ]  # fmt: skip
+            if len(names) > scan.count:
+                # the directions later scans added, about the robot laser's axis
+                zero = known[robot_names[0]]
+                axis = zero.yaw_rad - float(starts[0])
+                more = slice(scan.count, None)
+                yaws = wrap_angle(axis + starts[more] + book.local[more] * steps[more]).tolist()
+                beams += [
+                    RangeSensor(n, zero.x_m, zero.y_m, beam_yaw, 0.0, rmin, rmax, "laser")
+                    for n, beam_yaw in zip(names[scan.count :], yaws, strict=True)
+                ]
+            return beams
         x, y, yaw = mount or self._unmounted(base, frame)
-        yaws = wrap_angle(yaw + first + np.arange(len(names)) * step).tolist()
+        yaws = wrap_angle(yaw + starts + book.local * steps).tolist()
         return [
             RangeSensor(name, x, y, beam_yaw, 0.0, rmin, rmax, "laser")
             for name, beam_yaw in zip(names, yaws, strict=True)
@@ -249,3 +267,16 @@ class _Ranges(_Mounts):
                 px, py = tx + c * px - s * py, ty + s * px + c * py
             n = len(points)
             self._extend(stamp, keys[:n], np.hypot(px - sx[:n], py - sy[:n]).tolist(), False)
+
+
+def scan_angles_error(
+    path: str, where: str, frame: str, count: int, amin: float, amax: float, inc: float
+) -> InputFileError:
+    """A LaserScan whose number of ranges disagrees with its own angles
+    (:func:`~.state.scan_angles_disagree`)."""
+    return InputFileError(
+        path,
+        f"{where}: laser '{frame}': {count} ranges, but its angles do not fit them (from "
+        f"{_f32(amin):g} to {_f32(amax):g} rad by {_f32(inc):g}: angle_max must be angle_min + "
+        "(ranges - 1) x angle_increment)",
+    )

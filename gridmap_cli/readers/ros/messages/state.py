@@ -15,7 +15,7 @@ from gridmap_cli.readers.ros.frames import FrameTree, TransformBuffer, Transform
 from gridmap_cli.readers.ros.messages.fields import _stamp_ns
 from gridmap_cli.readers.ros.topics import Plan, Refusals
 from gridmap_cli.records import PoseTrack
-from gridmap_cli.robot import RangeSensor, RobotDescription
+from gridmap_cli.robot import BeamBook, RangeSensor, RobotDescription
 
 
 @dataclass
@@ -66,13 +66,39 @@ class _Track:
 
 @dataclass
 class _Scan:
-    """Beam geometry of one laser frame, from its first scan (the messages' float32 values)."""
+    """One laser frame: the geometry and range limits of its first scan (the messages' float32
+    values; each scan's own ``range_max`` decides its no-echo beams), and the beam sensors its
+    scans used (``book``; ``keys``: each beam sensor's reading key)."""
 
     angle_min: float
     angle_increment: float
     count: int
     range_min: float
     range_max: float
+    book: BeamBook = field(init=False)
+    keys: npt.NDArray[np.int64] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.book = BeamBook(self.angle_min, self.angle_increment, self.count)
+        self.keys = np.zeros(0, dtype=np.int64)
+
+
+def scan_angles_disagree(
+    angle_min: npt.NDArray[np.float64],
+    angle_max: npt.NDArray[np.float64],
+    increment: npt.NDArray[np.float64],
+    count: npt.NDArray[np.int64],
+) -> npt.NDArray[np.bool_]:
+    """Per scan, whether its ranges' number disagrees with its own angles: ``angle_max`` must
+    lie at the last beam (``angle_min + (count - 1) * angle_increment``) or one step beyond
+    (drivers differ on whether it is the last beam or the end of the sweep), within half a
+    step; angles must be finite. A scan of one beam needs only a finite ``angle_min``, an empty
+    one nothing."""
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        steps = (angle_max - angle_min) / increment
+        fits = (steps >= count - 1.5) & (steps <= count + 0.5)
+    finite = np.isfinite(angle_min)
+    return (count >= 1) & (~finite | ((count >= 2) & ~fits))
 
 
 @dataclass
@@ -106,6 +132,7 @@ class _State:
         self.tree = FrameTree()  # /tf_static, then (by finish) the /tf pairs that never change
         self._buffer: TransformBuffer | None = None
         self.truth_from: str | None = None  # where the reference track came from
+        self.odometry_missing: str | None = None  # why the odometry track is empty (RangeLog)
         self.mount_from: dict[str, str] = {}  # sensor frame -> "TF", "robot" or "unknown"
         self.odom_children: Counter[str] = Counter()
         self.frame_topic: dict[str, str] = {}  # sensor frame -> topic it arrived on

@@ -1,0 +1,237 @@
+"""Motion from the laser alone: an odometry track made of the scans, for a log without odometry.
+
+A hand-held laser or a simple platform records scans and nothing else. The scan matcher and the
+pose graph (:mod:`.scan_match`, :mod:`.slam`) are seeded by odometry; here the scans give them
+one. Each scan is registered (small_gicp's GICP, the scan as a thin vertical sheet, as the
+matcher does) against a local map of the last few keyframe scans, starting from a
+constant-velocity prediction: the last matched step, applied again. A prediction is only as
+good as the motion is steady, so the match from where the last scan was (a stop) is tried too
+and the better kept; when neither holds, the step scaled to the time since the last scan (a gap)
+and turned headings, wider than the matcher's retries (a fast turn the velocity did not see
+coming), until one does. The track that comes out is then
+the "odometry" the matcher and the graph consume, unchanged: they match every scan again
+against their own local maps and close loops as they do with wheel odometry.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import small_gicp
+from scipy.spatial import cKDTree
+
+from gridmap_cli.geometry import compose, inverse, wrap_angle
+from gridmap_cli.poses.correction.degeneracy import keep_across, weak_axis
+from gridmap_cli.poses.correction.scan_match import (
+    Progress,
+    ScanMatchParams,
+    Scans,
+    laser_scans,
+)
+from gridmap_cli.poses.sync import sensors_for_log
+from gridmap_cli.records import PoseTrack, RangeLog
+from gridmap_cli.robot import RobotDescription
+
+FloatArray = npt.NDArray[np.float64]
+Pose = tuple[float, float, float]
+
+#: What a log's summary says when its motion came from the scans.
+MOTION_NOTE = "no odometry: motion from the scans"
+
+
+@dataclass(frozen=True)
+class ScanOdometryParams:
+    """How the scans are chained into a track. Metres, radians, seconds.
+
+    ``downsample_m``: voxel of the scan and the local map; ``local_map_scans`` keyframes make
+    the local map, a scan being one when the track moved ``keyframe_m`` or turned
+    ``keyframe_rad`` since the last. ``correspondence_m``: GICP's largest correspondence
+    distance. A match holds when ``min_inlier_fraction`` of the scan's points (at least
+    ``min_points``) lie within ``inlier_m`` of the local map. ``heading_starts_rad``: the
+    headings (offsets from the prediction) tried when a match does not hold.
+    ``degenerate_ratio``: a match constrained in one direction only (a featureless corridor,
+    :func:`.degeneracy.weak_axis`) keeps the prediction along it.
+    ``max_gap_ratio``: the constant-velocity step is scaled by the time since the last scan
+    over the last step's time, at most this much (a gap in the recording is not a long
+    straight drive).
+    """
+
+    downsample_m: float = 0.1
+    local_map_scans: int = 10
+    keyframe_m: float = 0.2
+    keyframe_rad: float = math.radians(5.0)
+    correspondence_m: float = 1.0
+    max_iterations: int = 30
+    inlier_m: float = 0.15
+    min_inlier_fraction: float = 0.5
+    min_points: int = 20
+    degenerate_ratio: float = 0.002
+    max_gap_ratio: float = 3.0
+    heading_starts_rad: tuple[float, ...] = tuple(
+        math.radians(d) for d in (-15.0, 15.0, -30.0, 30.0, -45.0, 45.0, -60.0, 60.0)
+    )
+
+
+def _sheet(points: FloatArray, voxel_m: float) -> FloatArray:
+    """Planar points (K, 2) as three layers one voxel apart in z, shape (3K, 3), so that GICP's
+    local covariances see a wall as a plane."""
+    layers = [np.column_stack([points, np.full(len(points), z)]) for z in (-voxel_m, 0.0, voxel_m)]
+    sheet: FloatArray = np.vstack(layers) + np.array([0.0, 0.0, 0.5 * voxel_m])
+    return sheet
+
+
+def _matrix(pose: Pose) -> FloatArray:
+    x, y, theta = pose
+    m = np.eye(4)
+    c, s = math.cos(theta), math.sin(theta)
+    m[0, 0], m[0, 1], m[1, 0], m[1, 1] = c, -s, s, c
+    m[0, 3], m[1, 3] = x, y
+    return m
+
+
+def _planar(m: FloatArray) -> Pose:
+    return float(m[0, 3]), float(m[1, 3]), math.atan2(float(m[1, 0]), float(m[0, 0]))
+
+
+def _placed(points: FloatArray, pose: Pose) -> FloatArray:
+    x, y, th = pose
+    c, s = math.cos(th), math.sin(th)
+    return np.column_stack(
+        [x + c * points[:, 0] - s * points[:, 1], y + s * points[:, 0] + c * points[:, 1]]
+    )
+
+
+class _Keyframes:
+    """The last keyframe scans, placed: GICP's target (3-D sheet) and a 2-D tree for scoring."""
+
+    def __init__(self, params: ScanOdometryParams) -> None:
+        self.params = params
+        self.frames: deque[FloatArray] = deque(maxlen=params.local_map_scans)
+        self.last: Pose | None = None
+        self.cloud: small_gicp.PointCloud | None = None
+        self.tree: small_gicp.KdTree | None = None
+        self.tree2d: cKDTree | None = None
+
+    def offer(self, points: FloatArray, pose: Pose) -> None:
+        """Take the scan as a keyframe if the track moved or turned enough since the last."""
+        if len(points) == 0:
+            return
+        if self.last is not None:
+            moved = math.hypot(pose[0] - self.last[0], pose[1] - self.last[1])
+            turned = abs(float(wrap_angle(pose[2] - self.last[2])))
+            if moved < self.params.keyframe_m and turned < self.params.keyframe_rad:
+                return
+        self.frames.append(_placed(points, pose))
+        self.last = pose
+        flat = np.vstack(list(self.frames))
+        voxel = self.params.downsample_m
+        self.cloud, self.tree = small_gicp.preprocess_points(
+            _sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
+        )
+        self.tree2d = cKDTree(flat)
+
+    def match(self, points: FloatArray, starts: list[Pose]) -> Pose | None:
+        """The pose of the best match from ``starts``, or None when none holds: the first two
+        (the prediction and the last pose) are always tried, the others until one holds.
+        Along a degenerate match's weak axis the pose is the first start's (the prediction):
+        a corridor's walls say nothing of the motion along it."""
+        p = self.params
+        if self.cloud is None or self.tree is None or self.tree2d is None:
+            return None
+        source, _ = small_gicp.preprocess_points(
+            _sheet(points, p.downsample_m), downsampling_resolution=p.downsample_m,
+            num_neighbors=10,
+        )  # fmt: skip
+        cloud = np.asarray(source.points())
+        planar = cloud[np.abs(cloud[:, 2] - 0.5 * p.downsample_m) < 0.25 * p.downsample_m, :2]
+        if len(planar) < p.min_points:
+            return None
+        best: tuple[float, Pose] | None = None
+        for i, start in enumerate(starts):
+            if i >= 2 and best is not None and best[0] >= p.min_inlier_fraction:
+                break
+            result = small_gicp.align(
+                self.cloud,
+                source,
+                self.tree,
+                init_T_target_source=_matrix(start),
+                registration_type="GICP",
+                max_correspondence_distance=p.correspondence_m,
+                max_iterations=p.max_iterations,
+                num_threads=1,
+            )
+            pose = _planar(np.asarray(result.T_target_source))
+            dist, _ = self.tree2d.query(_placed(planar, pose), distance_upper_bound=p.inlier_m)
+            fraction = float(np.mean(np.isfinite(dist)))
+            if fraction < p.min_inlier_fraction or (best is not None and fraction <= best[0]):
+                continue
+            axis = weak_axis(np.asarray(result.H), p.degenerate_ratio, pose[2])
+            best = (fraction, pose if axis is None else keep_across(starts[0], pose, axis))
+        return None if best is None else best[1]
+
+
+def _moved(pose: FloatArray, step: Pose, ratio: float) -> Pose:
+    """``pose`` (3,) moved on by ``ratio`` times ``step`` (in its own frame)."""
+    x, y, th = compose(pose[0], pose[1], pose[2], *(ratio * v for v in step))
+    return float(x), float(y), float(th)
+
+
+def scan_odometry(
+    scans: Scans, params: ScanOdometryParams | None = None, progress: Progress | None = None
+) -> PoseTrack:
+    """A track at the scans' stamps (shape (S,)) from the scans alone, starting at the origin:
+    each scan matched from the constant-velocity prediction (see the module). A scan whose
+    match does not hold keeps the prediction."""
+    params = params or ScanOdometryParams()
+    n = len(scans)
+    poses = np.zeros((n, 3))
+    keyframes = _Keyframes(params)
+    t = scans.stamp_ns.astype(np.float64)
+    for k in range(n):
+        if k == 0:
+            keyframes.offer(scans.points[0], (0.0, 0.0, 0.0))
+            continue
+        last: Pose = (float(poses[k - 1, 0]), float(poses[k - 1, 1]), float(poses[k - 1, 2]))
+        guess, scaled = last, last
+        if k >= 2:
+            dx, dy, dth = compose(*inverse(*poses[k - 2]), *poses[k - 1])
+            guess = _moved(poses[k - 1], (float(dx), float(dy), float(dth)), 1.0)
+            if t[k - 1] > t[k - 2]:
+                # a log's clock can run in bursts: the step as it was first, then as the time
+                # since the last scan says
+                ratio = min((t[k] - t[k - 1]) / (t[k - 1] - t[k - 2]), params.max_gap_ratio)
+                scaled = _moved(poses[k - 1], (float(dx), float(dy), float(dth)), ratio)
+        starts = [guess, last, scaled]
+        starts += [(guess[0], guess[1], guess[2] + d) for d in params.heading_starts_rad]
+        pose = keyframes.match(scans.points[k], starts) or guess
+        poses[k] = pose
+        keyframes.offer(scans.points[k], pose)
+        if progress is not None:
+            progress("motion from the scans", k + 1, n)
+    return PoseTrack(
+        stamp_ns=scans.stamp_ns.copy(),
+        x_m=np.ascontiguousarray(poses[:, 0]),
+        y_m=np.ascontiguousarray(poses[:, 1]),
+        theta_rad=np.ascontiguousarray(wrap_angle(poses[:, 2])),
+    )
+
+
+def with_scan_motion(
+    log: RangeLog,
+    robot: RobotDescription | None,
+    params: ScanOdometryParams | None = None,
+    progress: Progress | None = None,
+) -> RangeLog:
+    """``log`` itself when it has odometry; else the log with the scans' track
+    (:func:`scan_odometry`) as its odometry, for the scan matcher and the pose graph to
+    correct. ``odometry_missing`` stays set: the track is no odometry to map with alone."""
+    if log.odometry_missing is None or len(log.poses):
+        return log
+    scans = laser_scans(log, sensors_for_log(log, robot), ScanMatchParams())
+    track = scan_odometry(scans, params, progress)
+    return dataclasses.replace(log, poses=track)
