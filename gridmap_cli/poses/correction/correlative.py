@@ -63,23 +63,8 @@ class LikelihoodGrid:
         shape = np.ceil((high - low) / resolution_m).astype(int) + 1
         self.origin = low
         cells = np.floor((points - low) / resolution_m).astype(int)
-        hit = np.zeros(tuple(shape), dtype=bool)
-        hit[cells[:, 0], cells[:, 1]] = True
-        dist = ndimage.distance_transform_edt(~hit) * resolution_m
-        base = np.exp(-0.5 * (dist / sigma_m) ** 2).astype(np.float32)
-        # rows and columns beyond the target's reach stay zero, so clipping an index to the
-        # grid's edge scores "no target point here" at every level
-        base[:pad, :] = base[-pad:, :] = 0.0
-        base[:, :pad] = base[:, -pad:] = 0.0
-        self.shape = base.shape
-        grids = [base]
-        for level in range(levels):
-            g, h = grids[-1], 2**level
-            up = g.copy()
-            up[:-h, :] = np.maximum(up[:-h, :], g[h:, :])
-            up2 = up.copy()
-            up2[:, :-h] = np.maximum(up2[:, :-h], up[:, h:])
-            grids.append(up2)
+        self.shape = (int(shape[0]), int(shape[1]))
+        grids = _pooled_levels(cells, self.shape, pad, resolution_m, sigma_m, levels)
         self.flat = [g.ravel() for g in grids]
 
     def cells(self, points: FloatArray) -> npt.NDArray[np.intp]:
@@ -100,6 +85,53 @@ class LikelihoodGrid:
         """Mean over the points' cells (K,) moved by each of ``offsets`` (M,): shape (M,)."""
         g = self.flat[level]
         return np.asarray(g[cells[None, :] + offsets[:, None]].sum(axis=1) / len(cells))
+
+
+def _pooled_levels(
+    cells: npt.NDArray[np.int_],
+    shape: tuple[int, int],
+    pad: int,
+    resolution_m: float,
+    sigma_m: float,
+    levels: int,
+) -> list[npt.NDArray[np.float32]]:
+    """The likelihood grid of the hit ``cells`` (K, 2) and its ``levels`` max-pooled copies,
+    each of ``shape``, zero in the ``pad`` cells along every edge.
+
+    Only the box that can hold a non-zero value is computed: the likelihood is zeroed within
+    ``pad`` of the edges, and a pooled cell reaches ``2^levels - 1`` cells up and right of it.
+    The distance to the nearest hit is exact on any box that holds every hit, so the values are
+    those of the whole grid, for a fraction of its area.
+    """
+    lo = max(0, pad - 2**levels)
+    hi = (shape[0] - pad, shape[1] - pad)
+    # the distance transform's box: the interior and every hit (a hit may round onto the edge)
+    r0 = min(lo, int(cells[:, 0].min()))
+    c0 = min(lo, int(cells[:, 1].min()))
+    r1 = max(hi[0], int(cells[:, 0].max()) + 1)
+    c1 = max(hi[1], int(cells[:, 1].max()) + 1)
+    hit = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+    hit[cells[:, 0] - r0, cells[:, 1] - c0] = True
+    dist = ndimage.distance_transform_edt(~hit) * resolution_m
+    near = np.exp(-0.5 * (dist / sigma_m) ** 2).astype(np.float32)
+    # the pooled box: [lo, hi) in both axes, zero outside the interior [pad, hi)
+    base = np.zeros((hi[0] - lo, hi[1] - lo), dtype=np.float32)
+    inner = near[pad - r0 : hi[0] - r0, pad - c0 : hi[1] - c0]
+    base[pad - lo :, pad - lo :] = inner
+    boxes = [base]
+    for level in range(levels):
+        g, h = boxes[-1], 2**level
+        up = g.copy()
+        up[:-h, :] = np.maximum(up[:-h, :], g[h:, :])
+        up2 = up.copy()
+        up2[:, :-h] = np.maximum(up2[:, :-h], up[:, h:])
+        boxes.append(up2)
+    grids = []
+    for box in boxes:
+        full = np.zeros(shape, dtype=np.float32)
+        full[lo : hi[0], lo : hi[1]] = box
+        grids.append(full)
+    return grids
 
 
 def search(
