@@ -6,8 +6,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from scipy import ndimage
 
+from gridmap_cli.extensions import optional
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
 
 
@@ -71,3 +73,34 @@ def test_search_finds_the_offset() -> None:
     assert abs(found.x_m - true[0]) <= 0.1 and abs(found.y_m - true[1]) <= 0.1
     assert abs(found.theta_rad - true[2]) <= math.radians(1.01)
     assert found.score > 0.8
+
+
+def test_compiled_search_equals_the_numpy_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The compiled branch and bound returns the numpy reference's pose and score bit for bit,
+    ties included (targets and sources on a lattice give tied scores)."""
+    if optional("gridmap_cli.poses.correction._cbranch") is None:
+        pytest.skip("the compiled branch and bound is not built")
+    rng = np.random.default_rng(5)
+    outcomes = set()
+    for trial in range(40):
+        walls = []
+        for _ in range(int(rng.integers(1, 5))):
+            a, along = rng.uniform(0, math.pi), rng.uniform(-8, 8, 200)
+            o = rng.uniform(-4, 4, 2)
+            walls.append(np.column_stack([o[0] + along * math.cos(a), o[1] + along * math.sin(a)]))
+        target = np.vstack(walls) + rng.normal(0, 0.02, (len(walls) * 200, 2))
+        k = int(rng.integers(5, 400))
+        source = target[rng.integers(0, len(target), k)] + rng.normal(0, 0.05, (k, 2))
+        if trial % 3 == 0:
+            target, source = np.round(target, 1), np.round(source, 1)
+        grid = LikelihoodGrid(target, 0.1, 0.1, 5, 6.0)
+        guess = (rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-0.2, 0.2))
+        args = (guess, rng.uniform(0.5, 6), math.radians(15), math.radians(1))
+        min_score = rng.uniform(0.3, 0.95)
+        compiled = search(grid, source, *args, min_score)
+        monkeypatch.setenv("GRIDMAP_KERNELS", "numpy")
+        reference = search(grid, source, *args, min_score)
+        monkeypatch.delenv("GRIDMAP_KERNELS")
+        assert compiled == reference
+        outcomes.add(reference is None)
+    assert outcomes == {True, False}  # both a pose found and none above the floor were checked

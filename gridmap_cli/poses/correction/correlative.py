@@ -17,12 +17,16 @@ step); GICP refines it.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 import numpy.typing as npt
 from scipy import ndimage
+
+from gridmap_cli.extensions import optional
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -147,18 +151,15 @@ def search(
     ``guess`` (source in the target's frame), or None when no pose scores ``min_score``."""
     res = grid.resolution_m
     reach = max(1, math.ceil(window_m / res))
-    top = grid.levels
-    size = 2**top
+    size = 2**grid.levels
     # the coarsest nodes tile [-reach, reach] in both axes
     starts = np.arange(-reach, reach + 1, size)
     ox, oy = np.meshgrid(starts, starts, indexing="ij")
     tiles = np.column_stack([ox.ravel(), oy.ravel()]).astype(np.intp)
     n_turns = max(0, math.floor(window_rad / step_rad))
-    best_score, best = min_score, None
-    roots: list[tuple[float, int, npt.NDArray[np.intp], float]] = []
+    thetas = [guess[2] + k * step_rad for k in range(-n_turns, n_turns + 1)]
     cells_by_turn: list[npt.NDArray[np.intp]] = []
-    for t, k in enumerate(range(-n_turns, n_turns + 1)):
-        theta = guess[2] + k * step_rad
+    for theta in thetas:
         c, s = math.cos(theta), math.sin(theta)
         moved = np.column_stack(
             [
@@ -166,22 +167,69 @@ def search(
                 guess[1] + s * source[:, 0] + c * source[:, 1],
             ]
         )
-        cells = grid.cells(moved)
-        cells_by_turn.append(cells)
+        cells_by_turn.append(grid.cells(moved))
+    compiled = optional("gridmap_cli.poses.correction._cbranch")
+    if compiled is not None and len(source):
+        found = compiled.search(
+            grid.flat, grid.shape[1], np.ascontiguousarray(cells_by_turn, dtype=np.int64),
+            len(thetas), np.ascontiguousarray(tiles, dtype=np.int64), reach, min_score,
+            _argsort_table(),
+        )  # fmt: skip
+        if found is None:
+            return None
+        score, t, u, v = found
+        return SearchResult(guess[0] + u * res, guess[1] + v * res, thetas[t], score)
+    best = _branch_and_bound(grid, cells_by_turn, tiles, reach, min_score)
+    if best is None:
+        return None
+    score, t, (u, v) = best
+    return SearchResult(guess[0] + u * res, guess[1] + v * res, thetas[t], score)
+
+
+def _branch_and_bound(
+    grid: LikelihoodGrid,
+    cells_by_turn: list[npt.NDArray[np.intp]],
+    tiles: npt.NDArray[np.intp],
+    reach: int,
+    min_score: float,
+) -> tuple[float, int, tuple[int, int]] | None:
+    """The best (score, heading index, cell offset) above ``min_score``: the roots (``tiles``
+    at each heading's cells) by decreasing bound, each searched depth first below it."""
+    top = grid.levels
+    best_score: float = min_score
+    best: tuple[float, int, tuple[int, int]] | None = None
+    roots: list[tuple[float, int, npt.NDArray[np.intp]]] = []
+    for t, cells in enumerate(cells_by_turn):
         bounds = grid.score(top, cells, grid.offsets(tiles))
-        roots.extend((float(b), t, tiles[m], theta) for m, b in enumerate(bounds))
+        roots.extend((float(b), t, tiles[m]) for m, b in enumerate(bounds))
     roots.sort(key=lambda r: -r[0])
-    for bound, t, offset, theta in roots:
+    for bound, t, offset in roots:
         if bound <= best_score:
             break
         found = _descend(grid, cells_by_turn[t], offset, top, best_score, reach)
         if found is not None:
             best_score = found[0]
-            best = (found[1], theta)
-    if best is None:
-        return None
-    (u, v), theta = best
-    return SearchResult(guess[0] + u * res, guess[1] + v * res, theta, best_score)
+            best = (found[0], t, found[1])
+    return best
+
+
+@cache
+def _argsort_table() -> bytes:
+    """numpy's argsort order of up to 4 float32 scores, for the compiled branch and bound: 4
+    indices for each count (1 to 4) and code (the scores' dense ranks as base-4 digits). The
+    order of tied scores is the sort's own, so it is read from numpy rather than assumed."""
+    table = bytearray(4 * 256 * 4)
+    for n in range(1, 5):
+        for ranks in itertools.product(range(n), repeat=n):
+            if set(ranks) != set(range(max(ranks) + 1)):
+                continue  # not dense
+            code = 0
+            for r in ranks:
+                code = code * 4 + r
+            order = np.argsort(np.array(ranks, dtype=np.float32))
+            at = ((n - 1) * 256 + code) * 4
+            table[at : at + n] = bytes(int(i) for i in order)
+    return bytes(table)
 
 
 def _descend(
