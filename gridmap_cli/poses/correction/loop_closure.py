@@ -122,8 +122,13 @@ def _matrix(x: float, y: float, theta: float) -> FloatArray:
 
 
 def _sheet(points: FloatArray, voxel_m: float) -> FloatArray:
-    layers = [np.column_stack([points, np.full(len(points), z)]) for z in (-voxel_m, 0.0, voxel_m)]
-    return np.vstack(layers)
+    """Planar points (K, 2) as three layers at z -``voxel_m``, 0 and ``voxel_m``, (3K, 3)."""
+    k = len(points)
+    sheet = np.empty((3 * k, 3))
+    for layer, z in enumerate((-voxel_m, 0.0, voxel_m)):
+        sheet[layer * k : (layer + 1) * k, :2] = points
+        sheet[layer * k : (layer + 1) * k, 2] = z
+    return sheet
 
 
 class Submaps:
