@@ -1,10 +1,11 @@
 """The one thing pyproject.toml cannot say: gridmap's compiled inner loops (issue 10).
 
-Two small C extensions (plain CPython API and the buffer protocol, no numpy headers): the
+Three small C extensions (plain CPython API and the buffer protocol, no numpy headers): the
 mapping kernels of the sonar cone and the ray model; the record walks of the MCAP and bag
-integrity checks. Both are optional: where no C compiler is at hand, the
-install still succeeds and the numpy / Python reference paths do the work
-(gridmap_cli/mapping/models/kernels.py and gridmap_cli/readers/ros/walk.py choose).
+integrity checks; the closure search's branch and bound. All are optional: where no C
+compiler is at hand, the install still succeeds and the numpy / Python reference paths do the
+work (gridmap_cli/mapping/models/kernels.py, gridmap_cli/readers/ros/walk.py and
+gridmap_cli/poses/correction/correlative.py choose).
 """
 
 from setuptools import Extension, setup
@@ -23,6 +24,14 @@ setup(
             "gridmap_cli.readers.ros._cwalk",
             sources=["gridmap_cli/readers/ros/_cwalk.c"],
             extra_compile_args=["-O2"],
+            optional=True,
+        ),
+        # the closure search's branch and bound (gridmap_cli/poses/correction/correlative.py)
+        Extension(
+            "gridmap_cli.poses.correction._cbranch",
+            sources=["gridmap_cli/poses/correction/_cbranch.c"],
+            # no fused multiply-adds: the scores must round as the numpy reference does
+            extra_compile_args=["-O2", "-ffp-contract=off"],
             optional=True,
         ),
     ]

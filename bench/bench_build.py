@@ -14,7 +14,10 @@ ROS targets are <= 1.5x), ``vs ref`` over the reference measured in the same run
 standard build with the numpy reference kernels (:data:`NUMPY_KERNELS`), ``vs std`` an
 error-aware row's over the standard build of the same log (issue 19 asks for <= 2x). Rates are
 per CPU second too. Freiburg 079 (``../shared/data/carmen``, when present) is timed in both
-modes, error-aware with the coefficients ``gridmap calibrate`` fits on it.
+modes, error-aware with the coefficients ``gridmap calibrate`` fits on it. The SLAM benchmark's
+raw Intel bag (``../shared/data/slam-benchmark``, when present; 13,631 scans) is timed with
+``--pose slam``: scan matching, loop closure and the map, the whole process on one core
+(``--slam`` runs that row alone).
 
 ``--repeat N`` runs every command N times and reports the median (default 1: a few minutes).
 ``--quick`` leaves out the 8-hour log and the ROS 1 bag (their one-off preparation is slow).
@@ -52,6 +55,9 @@ SEED = 1
 HOUR_S = 3600
 FREIBURG = ROOT.parent / "shared" / "data" / "carmen" / "freiburg-079-corrected.log.gz"
 FREIBURG_ERROR = CACHE / "freiburg-079-odometry.yaml"
+#: the SLAM benchmark's raw Intel log (13,631 scans): ``--pose slam`` timed on it, the whole
+#: process on one core (issue 28 asks for under 30 s)
+INTEL_BAG = ROOT.parent / "shared" / "data" / "slam-benchmark" / "intel.bag"
 LASER_S = 318.2  # 3,183 scans of 181 beams: about 576,000 rays
 LASER_ROBOT = """\
 gridmap-robot: 1
@@ -228,9 +234,10 @@ def build_cmd(
     log: Path, mode: str, out: Path, robot: str | None, numpy_kernels: bool = False
 ) -> list[str]:
     program = [sys.executable, "-c", _NUMPY_GRIDMAP] if numpy_kernels else gridmap()
-    # the mapping's throughput: the odometry, never the pose graph build picks for a laser log
+    # the mapping's throughput on the odometry, unless the row times the pose graph (build
+    # would pick the graph for a laser log by itself)
     cmd = [*program, "build", str(log), "-o", str(out), "--force", "--quiet", "--json",
-           "--pose", "odometry"]  # fmt: skip
+           "--pose", "slam" if mode == "slam" else "odometry"]  # fmt: skip
     if robot:
         cmd += ["--robot", robot]
     if mode == "error-aware" and log == FREIBURG:
@@ -330,11 +337,62 @@ def memory_table(laser: Path, laser_robot: str, repeat: int) -> None:
             )
 
 
+def _table(
+    rows: list[Row], logs: dict[str, Path], laser_robot: str, repeat: int
+) -> tuple[dict[tuple[str, str], float], dict[tuple[str, str], float]]:
+    """Time each row's build and print the table; CPU seconds and peak MiB by (log, mode)."""
+    pinned = "one core (taskset -c 0)" if shutil.which("taskset") else "unpinned"
+    print(
+        f"gridmap build, whole process, {pinned}, {os.cpu_count()}-core machine, "
+        f"median of {repeat}; 5 cm cells"
+    )
+    header = (
+        f"{'case':34} {'mode':11} {'readings':>9} {'wall s':>7} {'CPU s':>6} {'MiB':>6} "
+        f"{'readings/s':>11} {'updates/s':>11} {'vs CSV':>6} {'vs ref':>6} {'vs std':>6}"
+        "   (rates and ratios per CPU second)"
+    )
+    print(header)
+    print("-" * len(header))
+    cpus: dict[tuple[str, str], float] = {}
+    peaks: dict[tuple[str, str], float] = {}
+    reference = None
+    with tempfile.TemporaryDirectory() as tmp:
+        for row in rows:
+            env = dict(row.extra_env or {})
+            robot = laser_robot if row.log == "laser" else None
+            out = Path(tmp) / f"{row.log}_{row.mode}.png"
+            numpy_kernels = env.pop("BENCH_KERNELS", None) == "numpy"
+            cmd = build_cmd(logs[row.log], row.mode, out, robot, numpy_kernels)
+            run = median_run(cmd, repeat, env)
+            summary = json.loads(run.stdout)
+            readings = summary["readings"]["used"]
+            updates = summary["cell_updates"]
+            cpu = max(run.cpu_s, 1e-3)
+            if reference is None:
+                reference = cpu
+            if row.extra_env is None:
+                cpus[(row.log, row.mode)] = cpu
+                peaks[(row.log, row.mode)] = run.peak_mib
+            peer = cpus.get((row.csv_peer, row.mode)) if row.csv_peer else None
+            vs_csv = f"{cpu / peer:6.2f}" if peer else f"{'':6}"
+            # error-aware over the standard build of the same log (issue 19: <= 2x)
+            std = cpus.get((row.log, "standard")) if row.mode == "error-aware" else None
+            vs_std = f"{cpu / std:6.2f}" if std and row.extra_env is None else f"{'':6}"
+            print(
+                f"{row.case:34} {row.mode:11} {readings:9,d} {run.wall_s:7.2f} {run.cpu_s:6.2f} "
+                f"{run.peak_mib:6.0f} {readings / cpu:11,.0f} {updates / cpu:11,.0f} "
+                f"{vs_csv} {cpu / reference:6.2f} {vs_std}",
+                flush=True,
+            )
+    return cpus, peaks
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=1, help="runs per command (median)")
     parser.add_argument("--quick", action="store_true", help="no 8 h log, no ROS 1 bag")
     parser.add_argument("--memory", action="store_true", help="only the large-map memory table")
+    parser.add_argument("--slam", action="store_true", help="only --pose slam on the Intel bag")
     args = parser.parse_args()
 
     if args.memory:
@@ -344,6 +402,12 @@ def main() -> None:
         laser = CACHE / f"laser_{_inputs_digest()}.csv"
         _step("the laser log", laser, simulate(LASER_S, laser, robot=str(robot)))
         memory_table(laser, str(robot), args.repeat)
+        return
+    slam_row = Row("Intel (ROS 1 bag), --pose slam", "intel-slam", "slam")
+    if args.slam:
+        if not INTEL_BAG.exists():
+            sys.exit(f"bench: {INTEL_BAG} is not here")
+        _table([slam_row], {"intel-slam": INTEL_BAG}, "", args.repeat)
         return
     logs = prepare(args.quick)
     laser_robot = str(CACHE / "lms200-only.yaml")
@@ -367,49 +431,10 @@ def main() -> None:
     if "freiburg" in logs:
         rows += [Row("Freiburg 079 (CARMEN)", "freiburg", m) for m in ("standard", "error-aware")]
 
-    pinned = "one core (taskset -c 0)" if shutil.which("taskset") else "unpinned"
-    print(
-        f"gridmap build, whole process, {pinned}, {os.cpu_count()}-core machine, "
-        f"median of {args.repeat}; 5 cm cells"
-    )
-    header = (
-        f"{'case':34} {'mode':11} {'readings':>9} {'wall s':>7} {'CPU s':>6} {'MiB':>6} "
-        f"{'readings/s':>11} {'updates/s':>11} {'vs CSV':>6} {'vs ref':>6} {'vs std':>6}"
-        "   (rates and ratios per CPU second)"
-    )
-    print(header)
-    print("-" * len(header))
-    cpus: dict[tuple[str, str], float] = {}
-    peaks: dict[tuple[str, str], float] = {}
-    reference = None
-    with tempfile.TemporaryDirectory() as tmp:
-        for row in rows:
-            env = dict(row.extra_env or {})
-            robot = laser_robot if row.log == "laser" else None
-            out = Path(tmp) / f"{row.log}_{row.mode}.png"
-            numpy_kernels = env.pop("BENCH_KERNELS", None) == "numpy"
-            cmd = build_cmd(logs[row.log], row.mode, out, robot, numpy_kernels)
-            run = median_run(cmd, args.repeat, env)
-            summary = json.loads(run.stdout)
-            readings = summary["readings"]["used"]
-            updates = summary["cell_updates"]
-            cpu = max(run.cpu_s, 1e-3)
-            if reference is None:
-                reference = cpu
-            if row.extra_env is None:
-                cpus[(row.log, row.mode)] = cpu
-                peaks[(row.log, row.mode)] = run.peak_mib
-            peer = cpus.get((row.csv_peer, row.mode)) if row.csv_peer else None
-            vs_csv = f"{cpu / peer:6.2f}" if peer else f"{'':6}"
-            # error-aware over the standard build of the same log (issue 19: <= 2x)
-            std = cpus.get((row.log, "standard")) if row.mode == "error-aware" else None
-            vs_std = f"{cpu / std:6.2f}" if std and row.extra_env is None else f"{'':6}"
-            print(
-                f"{row.case:34} {row.mode:11} {readings:9,d} {run.wall_s:7.2f} {run.cpu_s:6.2f} "
-                f"{run.peak_mib:6.0f} {readings / cpu:11,.0f} {updates / cpu:11,.0f} "
-                f"{vs_csv} {cpu / reference:6.2f} {vs_std}",
-                flush=True,
-            )
+    if INTEL_BAG.exists():  # loop closure's cost, on a real log
+        logs["intel-slam"] = INTEL_BAG
+        rows.append(slam_row)
+    cpus, peaks = _table(rows, logs, laser_robot, args.repeat)
     for mode in ("standard", "error-aware"):
         if ("csv-8h", mode) in cpus:
             cpu = cpus[("csv-8h", mode)] / cpus[("csv", mode)]

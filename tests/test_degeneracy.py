@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from gridmap_cli.poses.correction.degeneracy import (
     DistanceScale,
+    _clearly_constrained,
     keep_across,
     weak_axis,
     weak_stretch,
@@ -76,3 +77,23 @@ def test_weak_stretch_sums_the_travel_along_the_axes_in_the_last_pose_frame() ->
     # the map's x axis seen from a pose facing +y is its -y axis (either sign)
     assert abs(axis[0]) < 1e-12 and abs(axis[1]) == pytest.approx(1.0)
     assert weak_stretch(poses, np.full((4, 2), np.nan), 0, 3)[0] == 0.0
+
+
+def test_the_closed_form_shortcut_never_overrules_eigh() -> None:
+    """Where the closed-form eigenvalues call a match constrained, LAPACK's do too, including
+    matches a hair from the threshold either side."""
+    rng = np.random.default_rng(7)
+    shortcut = 0
+    for trial in range(20000):
+        low, high = np.sort(rng.uniform(0, 1, 2)) * 10 ** rng.uniform(-3, 6)
+        if trial % 2:
+            low = high * 0.002 * (1 + rng.uniform(-1e-9, 1e-9)) * rng.choice([1.0, 2.0])
+        a = rng.uniform(0, math.pi)
+        turn = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+        hessian = np.zeros((6, 6))
+        hessian[3:5, 3:5] = turn @ np.diag([low, high]) @ turn.T
+        values = np.linalg.eigvalsh(hessian[3:5, 3:5])
+        if _clearly_constrained(hessian, 0.002):
+            shortcut += 1
+            assert values[1] > 0 and values[0] / values[1] >= 0.002
+    assert 5000 < shortcut < 20000  # both paths were taken

@@ -17,12 +17,16 @@ step); GICP refines it.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 import numpy.typing as npt
 from scipy import ndimage
+
+from gridmap_cli.extensions import optional
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -63,23 +67,8 @@ class LikelihoodGrid:
         shape = np.ceil((high - low) / resolution_m).astype(int) + 1
         self.origin = low
         cells = np.floor((points - low) / resolution_m).astype(int)
-        hit = np.zeros(tuple(shape), dtype=bool)
-        hit[cells[:, 0], cells[:, 1]] = True
-        dist = ndimage.distance_transform_edt(~hit) * resolution_m
-        base = np.exp(-0.5 * (dist / sigma_m) ** 2).astype(np.float32)
-        # rows and columns beyond the target's reach stay zero, so clipping an index to the
-        # grid's edge scores "no target point here" at every level
-        base[:pad, :] = base[-pad:, :] = 0.0
-        base[:, :pad] = base[:, -pad:] = 0.0
-        self.shape = base.shape
-        grids = [base]
-        for level in range(levels):
-            g, h = grids[-1], 2**level
-            up = g.copy()
-            up[:-h, :] = np.maximum(up[:-h, :], g[h:, :])
-            up2 = up.copy()
-            up2[:, :-h] = np.maximum(up2[:, :-h], up[:, h:])
-            grids.append(up2)
+        self.shape = (int(shape[0]), int(shape[1]))
+        grids = _pooled_levels(cells, self.shape, pad, resolution_m, sigma_m, levels)
         self.flat = [g.ravel() for g in grids]
 
     def cells(self, points: FloatArray) -> npt.NDArray[np.intp]:
@@ -102,6 +91,53 @@ class LikelihoodGrid:
         return np.asarray(g[cells[None, :] + offsets[:, None]].sum(axis=1) / len(cells))
 
 
+def _pooled_levels(
+    cells: npt.NDArray[np.int_],
+    shape: tuple[int, int],
+    pad: int,
+    resolution_m: float,
+    sigma_m: float,
+    levels: int,
+) -> list[npt.NDArray[np.float32]]:
+    """The likelihood grid of the hit ``cells`` (K, 2) and its ``levels`` max-pooled copies,
+    each of ``shape``, zero in the ``pad`` cells along every edge.
+
+    Only the box that can hold a non-zero value is computed: the likelihood is zeroed within
+    ``pad`` of the edges, and a pooled cell reaches ``2^levels - 1`` cells up and right of it.
+    The distance to the nearest hit is exact on any box that holds every hit, so the values are
+    those of the whole grid, for a fraction of its area.
+    """
+    lo = max(0, pad - 2**levels)
+    hi = (shape[0] - pad, shape[1] - pad)
+    # the distance transform's box: the interior and every hit (a hit may round onto the edge)
+    r0 = min(lo, int(cells[:, 0].min()))
+    c0 = min(lo, int(cells[:, 1].min()))
+    r1 = max(hi[0], int(cells[:, 0].max()) + 1)
+    c1 = max(hi[1], int(cells[:, 1].max()) + 1)
+    hit = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+    hit[cells[:, 0] - r0, cells[:, 1] - c0] = True
+    dist = ndimage.distance_transform_edt(~hit) * resolution_m
+    near = np.exp(-0.5 * (dist / sigma_m) ** 2).astype(np.float32)
+    # the pooled box: [lo, hi) in both axes, zero outside the interior [pad, hi)
+    base = np.zeros((hi[0] - lo, hi[1] - lo), dtype=np.float32)
+    inner = near[pad - r0 : hi[0] - r0, pad - c0 : hi[1] - c0]
+    base[pad - lo :, pad - lo :] = inner
+    boxes = [base]
+    for level in range(levels):
+        g, h = boxes[-1], 2**level
+        up = g.copy()
+        up[:-h, :] = np.maximum(up[:-h, :], g[h:, :])
+        up2 = up.copy()
+        up2[:, :-h] = np.maximum(up2[:, :-h], up[:, h:])
+        boxes.append(up2)
+    grids = []
+    for box in boxes:
+        full = np.zeros(shape, dtype=np.float32)
+        full[lo : hi[0], lo : hi[1]] = box
+        grids.append(full)
+    return grids
+
+
 def search(
     grid: LikelihoodGrid,
     source: FloatArray,
@@ -115,18 +151,15 @@ def search(
     ``guess`` (source in the target's frame), or None when no pose scores ``min_score``."""
     res = grid.resolution_m
     reach = max(1, math.ceil(window_m / res))
-    top = grid.levels
-    size = 2**top
+    size = 2**grid.levels
     # the coarsest nodes tile [-reach, reach] in both axes
     starts = np.arange(-reach, reach + 1, size)
     ox, oy = np.meshgrid(starts, starts, indexing="ij")
     tiles = np.column_stack([ox.ravel(), oy.ravel()]).astype(np.intp)
     n_turns = max(0, math.floor(window_rad / step_rad))
-    best_score, best = min_score, None
-    roots: list[tuple[float, int, npt.NDArray[np.intp], float]] = []
+    thetas = [guess[2] + k * step_rad for k in range(-n_turns, n_turns + 1)]
     cells_by_turn: list[npt.NDArray[np.intp]] = []
-    for t, k in enumerate(range(-n_turns, n_turns + 1)):
-        theta = guess[2] + k * step_rad
+    for theta in thetas:
         c, s = math.cos(theta), math.sin(theta)
         moved = np.column_stack(
             [
@@ -134,22 +167,69 @@ def search(
                 guess[1] + s * source[:, 0] + c * source[:, 1],
             ]
         )
-        cells = grid.cells(moved)
-        cells_by_turn.append(cells)
+        cells_by_turn.append(grid.cells(moved))
+    compiled = optional("gridmap_cli.poses.correction._cbranch")
+    if compiled is not None and len(source):
+        found = compiled.search(
+            grid.flat, grid.shape[1], np.ascontiguousarray(cells_by_turn, dtype=np.int64),
+            len(thetas), np.ascontiguousarray(tiles, dtype=np.int64), reach, min_score,
+            _argsort_table(),
+        )  # fmt: skip
+        if found is None:
+            return None
+        score, t, u, v = found
+        return SearchResult(guess[0] + u * res, guess[1] + v * res, thetas[t], score)
+    best = _branch_and_bound(grid, cells_by_turn, tiles, reach, min_score)
+    if best is None:
+        return None
+    score, t, (u, v) = best
+    return SearchResult(guess[0] + u * res, guess[1] + v * res, thetas[t], score)
+
+
+def _branch_and_bound(
+    grid: LikelihoodGrid,
+    cells_by_turn: list[npt.NDArray[np.intp]],
+    tiles: npt.NDArray[np.intp],
+    reach: int,
+    min_score: float,
+) -> tuple[float, int, tuple[int, int]] | None:
+    """The best (score, heading index, cell offset) above ``min_score``: the roots (``tiles``
+    at each heading's cells) by decreasing bound, each searched depth first below it."""
+    top = grid.levels
+    best_score: float = min_score
+    best: tuple[float, int, tuple[int, int]] | None = None
+    roots: list[tuple[float, int, npt.NDArray[np.intp]]] = []
+    for t, cells in enumerate(cells_by_turn):
         bounds = grid.score(top, cells, grid.offsets(tiles))
-        roots.extend((float(b), t, tiles[m], theta) for m, b in enumerate(bounds))
+        roots.extend((float(b), t, tiles[m]) for m, b in enumerate(bounds))
     roots.sort(key=lambda r: -r[0])
-    for bound, t, offset, theta in roots:
+    for bound, t, offset in roots:
         if bound <= best_score:
             break
         found = _descend(grid, cells_by_turn[t], offset, top, best_score, reach)
         if found is not None:
             best_score = found[0]
-            best = (found[1], theta)
-    if best is None:
-        return None
-    (u, v), theta = best
-    return SearchResult(guess[0] + u * res, guess[1] + v * res, theta, best_score)
+            best = (found[0], t, found[1])
+    return best
+
+
+@cache
+def _argsort_table() -> bytes:
+    """numpy's argsort order of up to 4 float32 scores, for the compiled branch and bound: 4
+    indices for each count (1 to 4) and code (the scores' dense ranks as base-4 digits). The
+    order of tied scores is the sort's own, so it is read from numpy rather than assumed."""
+    table = bytearray(4 * 256 * 4)
+    for n in range(1, 5):
+        for ranks in itertools.product(range(n), repeat=n):
+            if set(ranks) != set(range(max(ranks) + 1)):
+                continue  # not dense
+            code = 0
+            for r in ranks:
+                code = code * 4 + r
+            order = np.argsort(np.array(ranks, dtype=np.float32))
+            at = ((n - 1) * 256 + code) * 4
+            table[at : at + n] = bytes(int(i) for i in order)
+    return bytes(table)
 
 
 def _descend(

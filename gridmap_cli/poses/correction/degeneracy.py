@@ -38,12 +38,24 @@ def weak_axis(hessian: FloatArray, ratio: float, theta_rad: float) -> FloatArray
     degenerate when the smaller eigenvalue of its x, y block is under ``ratio`` times the
     larger. ``theta_rad``: the matched heading (robot frame -> map frame).
     """
+    if _clearly_constrained(hessian, ratio):
+        return None
     values, vectors = np.linalg.eigh(hessian[3:5, 3:5])
     if values[1] > 0 and values[0] / values[1] >= ratio:
         return None
     c, s = math.cos(theta_rad), math.sin(theta_rad)
     u = vectors[:, 0]
     return np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
+
+
+def _clearly_constrained(hessian: FloatArray, ratio: float) -> bool:
+    """Whether the x, y block's eigenvalues, in closed form, are so far from degenerate (twice
+    ``ratio``, and clearly positive) that LAPACK's would say so too; most matches are, and
+    the closed form costs a small fraction of ``eigh``'s call. Near the line ``eigh`` decides."""
+    a, b, c = float(hessian[3, 3]), float(hessian[4, 3]), float(hessian[4, 4])
+    mean, half = 0.5 * (a + c), math.hypot(0.5 * (a - c), b)
+    top, bottom = mean + half, mean - half
+    return bottom > 2.0 * ratio * top and bottom > 1e-6 * top
 
 
 def keep_across(

@@ -122,8 +122,13 @@ def _matrix(x: float, y: float, theta: float) -> FloatArray:
 
 
 def _sheet(points: FloatArray, voxel_m: float) -> FloatArray:
-    layers = [np.column_stack([points, np.full(len(points), z)]) for z in (-voxel_m, 0.0, voxel_m)]
-    return np.vstack(layers)
+    """Planar points (K, 2) as three layers at z -``voxel_m``, 0 and ``voxel_m``, (3K, 3)."""
+    k = len(points)
+    sheet = np.empty((3 * k, 3))
+    for layer, z in enumerate((-voxel_m, 0.0, voxel_m)):
+        sheet[layer * k : (layer + 1) * k, :2] = points
+        sheet[layer * k : (layer + 1) * k, 2] = z
+    return sheet
 
 
 class Submaps:
@@ -199,23 +204,7 @@ class Submaps:
         reach = p.submap_m if wide else p.source_m
         lo = int(np.searchsorted(self.travel, self.travel[s] - reach, side="left"))
         hi = int(np.searchsorted(self.travel, self.travel[s] + reach, side="right"))
-        ix, iy, ith = inverse(self.local[s, 0], self.local[s, 1], self.local[s, 2])
-        parts = []
-        last = -math.inf
-        for k in (s, *(k for k in range(lo, hi) if k != s)):
-            pts = self.points[k]
-            if len(pts) == 0 or (k != s and abs(self.travel[k] - last) < p.thin_m):
-                continue
-            if k != s:
-                last = float(self.travel[k])
-            rx, ry, rth = compose(ix, iy, ith, self.local[k, 0], self.local[k, 1], self.local[k, 2])
-            c, sn = math.cos(float(rth)), math.sin(float(rth))
-            parts.append(
-                np.column_stack(
-                    [rx + c * pts[:, 0] - sn * pts[:, 1], ry + sn * pts[:, 0] + c * pts[:, 1]]
-                )
-            )
-        flat = np.vstack(parts) if parts else np.zeros((0, 2))
+        flat = self._gather(s, lo, hi)
         voxel = p.voxel_m if wide else p.source_voxel_m
         cloud, tree = small_gicp.preprocess_points(
             _sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
@@ -226,6 +215,34 @@ class Submaps:
         if len(self._cache) > CACHED_SUBMAPS:
             self._cache.popitem(last=False)
         return entry
+
+    def _gather(self, s: int, lo: int, hi: int) -> FloatArray:
+        """The points (K, 2) of scan ``s`` and of the scans ``lo`` to ``hi`` around it, in scan
+        ``s``'s frame; a scan closer than ``thin_m`` of travel to the last one taken is left
+        out, so a slow or dense log costs what a sparse one does."""
+        taken = [s]
+        last = -math.inf
+        travel = self.travel
+        for k in range(lo, hi):
+            if k == s or len(self.points[k]) == 0 or abs(travel[k] - last) < self.params.thin_m:
+                continue
+            last = float(travel[k])
+            taken.append(k)
+        if len(self.points[s]) == 0:
+            taken.pop(0)
+        if not taken:
+            return np.zeros((0, 2))
+        ix, iy, ith = inverse(self.local[s, 0], self.local[s, 1], self.local[s, 2])
+        ks = np.array(taken)
+        rx, ry, rth = compose(ix, iy, ith, self.local[ks, 0], self.local[ks, 1], self.local[ks, 2])
+        # each scan's turn as math.cos/sin of its own angle, the points moved in one go
+        counts = [len(self.points[k]) for k in taken]
+        cos = np.repeat([math.cos(t) for t in rth.tolist()], counts)
+        sin = np.repeat([math.sin(t) for t in rth.tolist()], counts)
+        pts = np.concatenate([self.points[k] for k in taken])
+        x = np.repeat(rx, counts) + cos * pts[:, 0] - sin * pts[:, 1]
+        y = np.repeat(ry, counts) + sin * pts[:, 0] + cos * pts[:, 1]
+        return np.column_stack([x, y])
 
 
 def verify(

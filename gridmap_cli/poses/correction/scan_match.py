@@ -220,8 +220,13 @@ def _planar(m: FloatArray) -> tuple[float, float, float]:
 
 def _sheet(points: FloatArray, voxel_m: float) -> FloatArray:
     """Planar points (K, 2) as three layers one voxel apart in z, shape (3K, 3)."""
-    layers = [np.column_stack([points, np.full(len(points), z)]) for z in (-voxel_m, 0.0, voxel_m)]
-    sheet: FloatArray = np.vstack(layers) + np.array([0.0, 0.0, 0.5 * voxel_m])
+    k = len(points)
+    sheet = np.empty((3 * k, 3))
+    for layer, z in enumerate((-voxel_m, 0.0, voxel_m)):
+        # the layers filled in place (this runs for every scan and local map); + 0.0 as a sum
+        # with the lift vector has it: a -0.0 coordinate becomes +0.0
+        np.add(points, 0.0, out=sheet[layer * k : (layer + 1) * k, :2])
+        sheet[layer * k : (layer + 1) * k, 2] = z + 0.5 * voxel_m
     return sheet
 
 
@@ -373,8 +378,8 @@ def _match_one(
     source, _ = small_gicp.preprocess_points(
         _sheet(pts, voxel), downsampling_resolution=voxel, num_neighbors=10
     )
-    planar = np.asarray(source.points())[:, :2]
-    planar = planar[np.abs(np.asarray(source.points())[:, 2] - 0.5 * voxel) < 0.25 * voxel]
+    cloud = np.asarray(source.points())
+    planar = cloud[np.abs(cloud[:, 2] - 0.5 * voxel) < 0.25 * voxel, :2]
     if len(planar) < params.min_points:
         return kept, FALLBACK, 0.0, None
     limit_m = params.max_correction_m + params.correction_per_m * step_m
