@@ -306,6 +306,9 @@ def build(
         summary["slam"] = slam_summary
     if settings.correct_odometry:
         summary["odometry_corrected"] = True
+    if result.odometry_check is not None:
+        summary["odometry_check"] = result.odometry_check.as_dict()
+        summary["odometry_check_note"] = result.odometry_check.summary()
     report(summary, summary_line(summary), as_json, quiet)
 
 

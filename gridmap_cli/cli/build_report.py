@@ -111,6 +111,7 @@ def summary_line(s: dict[str, Any]) -> str:
         + (f", {s['yaml']}" if s["yaml"] else "")
         + matched
         + ("; the odometry's calibrated biases corrected" if s.get("odometry_corrected") else "")
+        + (f"; {s['odometry_check_note']}" if s.get("odometry_check_note") else "")
     )
 
 

@@ -306,13 +306,14 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
     if c.halves is not None:
         lines += [
             "",
-            "the same fit on each half of the span (by distance driven): do they transfer?",
+            "the same fit on each half of the span (by travel): do they transfer?",
             f"{'':30s} {'first half':>11s} {'second half':>11s} {'whole':>11s}",
         ]
         for _, _, key in rows:
             first, second = (getattr(h, key) for h in c.halves)
             values = (_number(key, v) for v in (first, second, getattr(m, key)))
             lines.append(f"{key:30s} " + " ".join(f"{v:>11s}" for v in values))
+    lines += _bias_lines(c)
     lines += ["", *_robust_lines(c)]
     if c.jitter_estimated:
         lines += [
@@ -331,6 +332,38 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
         f"wrote {output}" if output is not None else "(give -o FILE to write these)",
     ]
     return "\n".join(lines)
+
+
+#: How the calibrate table names each bias.
+_BIAS_NAMES = {
+    "distance_scale_bias": "distance scale",
+    "turn_scale_bias": "turn scale",
+    "heading_drift_bias_rad_per_m": "heading drift",
+}
+
+
+def _bias_lines(c: Calibration) -> list[str]:
+    """Which biases were written: those the halves agree on and the whole tells from 0."""
+    from gridmap_cli.poses.calibration.bias_check import NONE, SIGMA
+
+    shown = [b for b in c.bias_checks if b.reason != NONE]
+    if not shown:
+        return []
+    lines = [
+        "",
+        f"biases written when the halves agree within {SIGMA:g} standard errors and the whole "
+        f"stands {SIGMA:g} from 0:",
+    ]
+    for b in shown:
+        verdict = "written" if b.applied else f"{b.reason}, not written"
+        detail = f"whole {b.whole:+.4g} +- {b.se:.2g}"
+        if b.halves is not None:
+            detail += (
+                f", halves {b.halves[0]:+.4g} / {b.halves[1]:+.4g}, "
+                f"{b.disagreement:.1f} standard errors apart"
+            )
+        lines.append(f"{_BIAS_NAMES[b.key]}: {verdict} ({detail})")
+    return lines
 
 
 def _check_lines(c: Calibration) -> list[str]:

@@ -373,6 +373,8 @@ def build_settings(
         )
     if correct_odometry is None:
         correct_odometry = auto_correction(mode, pose, fused, odometry_error)
+    # an error-aware map of the robot's own odometry checks the file against the log's laser
+    own_odometry = mode == "error-aware" and pose == "odometry" and not fused
     return BuildOptions(
         resolution_m=resolution,
         mode=mode,
@@ -382,6 +384,7 @@ def build_settings(
         odometry_error=odometry_error,
         error_samples=error_samples_setting(mode, error_samples),
         correct_odometry=correct_odometry,
+        check_odometry_error=own_odometry and odometry_file is not None,
     )
 
 

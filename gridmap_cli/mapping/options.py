@@ -9,6 +9,7 @@ from gridmap_cli.mapping.grid import DEFAULT_CLAMP_P, DEFAULT_MAX_CELLS, Occupan
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.models.ray import RayParams
 from gridmap_cli.mapping.models.standard import StandardSonarParams
+from gridmap_cli.poses.calibration.log_check import FileCheck
 from gridmap_cli.poses.odometry_error import OdometryError
 from gridmap_cli.poses.sync import SyncStats
 from gridmap_cli.poses.uncertainty.pose_belief import PoseBelief
@@ -45,6 +46,10 @@ class BuildOptions:
     #: before mapping, in either mode; the error-aware spread then has the random part alone
     #: (:func:`~gridmap_cli.mapping.pipeline.corrected_for_build`).
     correct_odometry: bool = False
+    #: Error-aware mode: check ``odometry_error`` against the log's own laser before mapping
+    #: (:func:`~gridmap_cli.poses.calibration.log_check.check_file`): a bias this log does not
+    #: show is not corrected, random walks wider than its own error are narrowed.
+    check_odometry_error: bool = False
     #: Processes mapping the readings; the map does not depend on it
     #: (:mod:`gridmap_cli.mapping.shards`).
     jobs: int = 1
@@ -61,6 +66,8 @@ class BuildResult:
     map: OccupancyMap
     sync: SyncStats
     cell_updates: int
+    #: What the log's laser made of the odometry-error file (``check_odometry_error``).
+    odometry_check: FileCheck | None = None
 
     @property
     def observed_cells(self) -> int:

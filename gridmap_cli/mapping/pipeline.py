@@ -41,6 +41,7 @@ from gridmap_cli.mapping.shards import accumulate_log_odds
 from gridmap_cli.mapping.shards import (
     batch_bounds as batch_bounds,  # callers cut batches as build does
 )
+from gridmap_cli.poses.calibration.log_check import check_file
 from gridmap_cli.poses.odometry_error import OdometryError, correct_track, travelled
 from gridmap_cli.poses.sync import (
     SensorReadings,
@@ -133,15 +134,23 @@ def build_map(
     ``between_passes`` once the bounds pass is done, before any mapping (the CLI returns the
     freed heap then). Raises what :func:`plan_build` raises, before any mapping.
     """
+    check = None
+    if options.check_odometry_error and options.odometry_error is not None:
+        check = check_file(log, robot, options.odometry_error)
+        options = dataclasses.replace(
+            options, odometry_error=check.model, check_odometry_error=False
+        )
     if options.correct_odometry:
         log, options = corrected_for_build(log, options)
     if options.mode == "error-aware" and options.error_samples > 0:
-        return expected_map(log, robot, options, progress, between_passes)
-    plan = plan_build(log, robot, options)
-    if between_passes is not None:
-        between_passes()
-    # both modes sum log-odds: the error-aware mode is the standard one with faded evidence
-    return _one_grid(plan, options, progress)
+        result = expected_map(log, robot, options, progress, between_passes)
+    else:
+        plan = plan_build(log, robot, options)
+        if between_passes is not None:
+            between_passes()
+        # both modes sum log-odds: the error-aware mode is the standard one with faded evidence
+        result = _one_grid(plan, options, progress)
+    return result if check is None else dataclasses.replace(result, odometry_check=check)
 
 
 def _one_grid(
