@@ -48,6 +48,7 @@ from gridmap_cli.evaluation.evaluate import (
     sensed_region,
 )
 from gridmap_cli.mapping.selection import Selection, apply_selection
+from gridmap_cli.poses.calibration import bias_check
 from gridmap_cli.poses.calibration.windows import truth_at_odometry
 from gridmap_cli.poses.odometry_error import (
     FORMAT_KEY,
@@ -82,8 +83,7 @@ MODES: dict[str, list[str]] = {
     ],
 }  # fmt: skip
 #: The modes run by default (``--modes`` may name any of :data:`MODES`).
-DEFAULT_MODES = ("standard", "standard-corrected", "error-aware-perfect", "error-aware",
-                 "error-aware-uncorrected")  # fmt: skip
+DEFAULT_MODES = ("standard", "standard-corrected", "error-aware-perfect", "error-aware")
 #: The claim: error-aware against the best of these drift-blind mappers.
 DRIFT_BLIND = ("standard", "standard-corrected", "error-aware-perfect")
 CLAIMED = "error-aware"
@@ -399,10 +399,21 @@ def main(argv: list[str] | None = None) -> None:
         "--modes", default=",".join(DEFAULT_MODES), help=f"any of {', '.join(MODES)}"
     )
     parser.add_argument("--out", type=Path, default=ROOT / "out" / "carmen-experiment")
+    parser.add_argument(
+        "--sigma",
+        type=float,
+        default=bias_check.SIGMA,
+        help="standard errors of the bias checks (the product's 2): is the table on a knife edge?",
+    )
+    parser.add_argument(
+        "--no-other-log", action="store_true", help="skip the parts mapped with another log's"
+    )
     args = parser.parse_args(argv)
+    bias_check.SIGMA = args.sigma  # the commands run in this process
     started = time.perf_counter()
     logs = tuple(n for n in args.logs.split(",") if n)
-    runs, _, _ = run_all(args.out, logs, tuple(m for m in args.modes.split(",") if m))
+    modes = tuple(m for m in args.modes.split(",") if m)
+    runs, _, _ = run_all(args.out, logs, modes, cross_log=not args.no_other_log)
     print("\n".join(claim_lines(runs)))
     print(f"{time.perf_counter() - started:.0f} s")
 

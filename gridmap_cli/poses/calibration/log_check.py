@@ -30,7 +30,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-from gridmap_cli.poses.calibration.bias_check import SIGMA
+from gridmap_cli.poses.calibration import bias_check
 from gridmap_cli.poses.calibration.calibrate import (
     MAGNITUDE_KEYS,
     WALK_KEYS,
@@ -114,7 +114,7 @@ def check_file(log: RangeLog, robot: RobotDescription | None, model: OdometryErr
         se = own.bias_se[k]
         if bias == 0.0 or not shown or not math.isfinite(se):
             continue
-        if abs(bias - value) > SIGMA * se:
+        if abs(bias - value) > bias_check.SIGMA * se:
             dropped.append((key, bias, value, se))
             kept = dataclasses.replace(kept, **{key: 0.0, MAGNITUDE_KEYS[k]: 0.0})
     # each walk no wider than this log's own (its windows against the laser, the scan
