@@ -37,13 +37,13 @@ DRIFT = "heading_drift_bias_rad_per_m"
     ("whole", "se", "halves", "halves_se", "reason"),
     [
         (0.02, 0.001, (0.019, 0.021), (0.002, 0.002), APPLIED),
-        # the halves differ by 4 standard errors of their difference
-        (0.02, 0.001, (0.01, 0.03), (0.0025, 0.0025), DISAGREE),
-        # they agree, but the whole is 1 standard error from 0
+        # the halves differ by 4 of their own standard errors, yet the whole is larger than
+        # their difference: the bias varies a little and is still known
+        (0.02, 0.001, (0.01, 0.03), (0.0025, 0.0025), APPLIED),
+        # the halves differ by more than the whole: half their difference is its worth
+        (0.02, 0.001, (0.005, 0.035), (0.002, 0.002), DISAGREE),
+        # they agree, but the whole is 1 of its standard errors from 0
         (0.002, 0.002, (0.001, 0.003), (0.003, 0.003), NOT_SHOWN),
-        # they agree within their own (wide) errors, but half their difference is the whole's
-        # worth: 0.02 is not 2 of 0.015 from 0
-        (0.02, 0.001, (0.005, 0.035), (0.02, 0.02), NOT_SHOWN),
         (0.02, 0.001, None, None, UNCHECKED),
         (0.0, 0.001, (0.0, 0.0), (0.001, 0.001), NONE),
     ],
@@ -60,12 +60,13 @@ def test_the_verdicts(
     assert check.applied == (reason == APPLIED)
 
 
-def test_the_halves_threshold_is_two_standard_errors_of_their_difference() -> None:
-    # standard errors 0.3e-3 and 0.4e-3: the difference's is 0.5e-3; 1.9 and 2.1 of it apart
-    agree = check_bias(DRIFT, 0.02, 0.001, (0.02 - 0.475e-3, 0.02 + 0.475e-3), (3e-4, 4e-4))
-    assert agree.applied and agree.disagreement == pytest.approx(1.9, rel=1e-9)
-    apart = check_bias(DRIFT, 0.02, 0.001, (0.02 - 0.525e-3, 0.02 + 0.525e-3), (3e-4, 4e-4))
-    assert apart.reason == DISAGREE and apart.disagreement == pytest.approx(2.1, rel=1e-9)
+def test_the_threshold_is_two_standard_errors_from_zero() -> None:
+    # the jackknife's standard error decides (0.001), then half the halves' difference (0.01)
+    assert check_bias(DRIFT, 0.0021, 0.001, (0.002, 0.0022), (0.001, 0.001)).applied
+    assert not check_bias(DRIFT, 0.0019, 0.001, (0.0018, 0.002), (0.001, 0.001)).applied
+    assert check_bias(DRIFT, 0.021, 0.001, (0.011, 0.031), (0.001, 0.001)).applied
+    late = check_bias(DRIFT, 0.019, 0.001, (0.009, 0.029), (0.001, 0.001))
+    assert late.reason == DISAGREE and late.disagreement == pytest.approx(0.02 / math.sqrt(2e-6))
 
 
 def drifting_line(first: float, second: float, metres: float = 40.0) -> RangeLog:
@@ -88,16 +89,16 @@ def test_a_drift_the_halves_agree_on_is_written() -> None:
 
 
 def test_a_drift_that_changes_within_the_log_is_not_written(tmp_path: Path) -> None:
-    c = calibrate(drifting_line(0.006, 0.002))
+    c = calibrate(drifting_line(0.007, 0.001))
     check = {b.key: b for b in c.bias_checks}[DRIFT]
     assert check.reason == DISAGREE and check.halves is not None
-    assert check.halves[0] == pytest.approx(0.006, abs=3e-4)
-    assert check.halves[1] == pytest.approx(0.002, abs=3e-4)
+    assert check.halves[0] == pytest.approx(0.007, abs=3e-4)
+    assert check.halves[1] == pytest.approx(0.001, abs=3e-4)
     # measured and printed, but neither corrected nor spread by build
     assert c.heading_drift_rad_per_m == pytest.approx(0.004, abs=5e-4)
     assert c.model.heading_drift_bias_rad_per_m == 0.0 and c.model.heading_drift_rad_per_m == 0.0
     csv = tmp_path / "line.csv"
-    save_csv_log(drifting_line(0.006, 0.002), csv)
+    save_csv_log(drifting_line(0.007, 0.001), csv)
     code, stdout, stderr = run("calibrate", str(csv), "--json")
     assert code == 0, stderr
     got = json.loads(stdout)["bias_check"][DRIFT]

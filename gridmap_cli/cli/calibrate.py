@@ -351,8 +351,8 @@ def _bias_lines(c: Calibration) -> list[str]:
         return []
     lines = [
         "",
-        f"biases written when the halves agree within {SIGMA:g} standard errors and the whole "
-        f"stands {SIGMA:g} from 0:",
+        f"biases written when they stand {SIGMA:g} standard errors from 0 (the larger of the "
+        "fit's and half the halves' difference):",
     ]
     for b in shown:
         verdict = "written" if b.applied else f"{b.reason}, not written"

@@ -2,23 +2,26 @@
 
 ``build --correct-odometry`` (the default of an error-aware map) takes the signed biases out of
 the track of *another* log, or of another stretch of the same one. A bias is a claim that the
-odometry makes the same error per metre (per radian) everywhere; the calibration log can test
-that claim on itself, by fitting each half of it apart (:func:`~.calibrate.calibrate`). Two
-tests, each at :data:`SIGMA` standard errors (about 95 % two-sided for a normal estimate):
+odometry makes the same error per metre (per radian) everywhere; the calibration log tests that
+claim on itself by fitting each half of it apart (:func:`~.calibrate.calibrate`), and a bias is
+written only when
 
-* **the halves agree**: ``|b1 - b2| <= SIGMA * sqrt(se1**2 + se2**2)``, the standard errors
-  the halves' own block jackknives give. Under one constant bias the difference of two
-  independent estimates is zero-mean with that spread; a larger one says the bias changed
-  within the log (a floor, a load, a tyre), and the next log will have yet another;
-* **the whole shows it**: ``|b| >= SIGMA * se``, with ``se`` the larger of the whole's jackknife
-  standard error and half the halves' difference (the standard error of the mean of two
-  independent estimates, what the halves say the whole's estimate is worth). A bias not
-  distinguishable from 0 is not known: correcting by it adds as much error as it takes out.
+    ``|b| >= SIGMA * se``, ``se = max(se_jackknife, |b1 - b2| / 2)``
 
-A bias that fails either is dropped from the file (its signed value and its magnitude set to
-0), so that neither ``--correct-odometry`` nor a spread of it acts on it: a narrow spread costs
-an error-aware map little, a wrong correction turns a whole track. Without halves (too little
-travel to fit each) a bias cannot be checked and is dropped too.
+with :data:`SIGMA` = 2 (about 95 % two-sided for a normal estimate). ``se_jackknife`` is the
+whole's block-jackknife standard error; ``|b1 - b2| / 2`` is the standard error of the mean of
+two independent estimates, what the halves themselves say the whole is worth. When the halves
+differ by more than their own noise, the bias changes within the log (a floor, a load, a wheel)
+and the next log has yet another value: the bias is then kept only when it is larger than the
+halves' difference, so that correcting by it takes out more than it can put in. Correcting by an
+estimate helps, in expectation, when the bias is larger than the estimate's error; 2 standard
+errors ask that with the usual margin.
+
+A bias that fails is dropped from the file (its signed value and its magnitude set to 0), so that
+neither ``--correct-odometry`` nor a spread of it acts on it: a narrow spread costs an
+error-aware map little, a wrong correction turns a whole track. Without halves (too little
+travel to fit each) a bias cannot be checked and is dropped too. The reason given says which
+standard error decided: :data:`DISAGREE` when the halves' difference was the larger.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from dataclasses import dataclass
 
 from gridmap_cli.poses.odometry_error import BIAS_KEYS
 
-#: Standard errors a bias's halves may differ by, and the whole must stand from 0 by.
+#: Standard errors a bias must stand from 0 by to be written.
 SIGMA = 2.0
 
 APPLIED = "applied"
@@ -91,9 +94,8 @@ def check_bias(
     if halves is None or halves_se is None:
         return BiasCheck(key, whole, se, halves, halves_se, False, UNCHECKED)
     diff = abs(halves[0] - halves[1])
-    if not diff <= SIGMA * math.hypot(*halves_se):
-        return BiasCheck(key, whole, se, halves, halves_se, False, DISAGREE)
     worth = max(se, 0.5 * diff)
-    if not abs(whole) >= SIGMA * worth:
-        return BiasCheck(key, whole, se, halves, halves_se, False, NOT_SHOWN)
-    return BiasCheck(key, whole, se, halves, halves_se, True, APPLIED)
+    if abs(whole) >= SIGMA * worth:
+        return BiasCheck(key, whole, se, halves, halves_se, True, APPLIED)
+    reason = DISAGREE if 0.5 * diff > se else NOT_SHOWN
+    return BiasCheck(key, whole, se, halves, halves_se, False, reason)

@@ -7,11 +7,12 @@ of metres a bias and a random walk act on. Against it the build fits the log's o
 robust fit of ``gridmap calibrate``, with the standard errors of its block jackknife) and checks
 the file:
 
-* **a bias** of the file is corrected only when this log's own estimate agrees with it within
-  :data:`~.bias_check.SIGMA` of its standard errors; otherwise the file's bias does not hold
-  here and is dropped (signed value and magnitude). The log's own estimate is not put in its
-  place: a scan matcher has biases of its own (along a featureless corridor) and a
-  correction of the map's log by its own reference is another product (``--pose scan-matched``);
+* **a bias** of the file is dropped (signed value and magnitude) when correcting by it would
+  leave this log with more bias than not correcting, by more than :data:`~.bias_check.SIGMA` of
+  the standard errors of the log's own estimate ``b``: ``|b - b_file| - |b| > SIGMA * se``. The
+  log's own estimate is not put in its place: a scan matcher has biases of its own (along a
+  featureless corridor) and a correction of the map's log by its own reference is another
+  product (``--pose scan-matched``);
 * **the random walks** are checked on the positions, as calibrate checks its own
   (:func:`~.consistency.consistency`): from every key pose the corrected odometry is compared
   with the scan-matched track after 20 to 500 key steps, against the covariance the walks
@@ -114,7 +115,8 @@ def check_file(log: RangeLog, robot: RobotDescription | None, model: OdometryErr
         se = own.bias_se[k]
         if bias == 0.0 or not shown or not math.isfinite(se):
             continue
-        if abs(bias - value) > bias_check.SIGMA * se:
+        # corrected by the file, this log keeps |value - bias| of bias; uncorrected, |value|
+        if abs(value - bias) - abs(value) > bias_check.SIGMA * se:
             dropped.append((key, bias, value, se))
             kept = dataclasses.replace(kept, **{key: 0.0, MAGNITUDE_KEYS[k]: 0.0})
     # each walk no wider than this log's own (its windows against the laser, the scan
