@@ -4,15 +4,18 @@ checked by the CLI, as every mapping stage takes them) and :class:`BuildResult`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from gridmap_cli.mapping.grid import DEFAULT_CLAMP_P, DEFAULT_MAX_CELLS, OccupancyMap
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
 from gridmap_cli.mapping.models.ray import RayParams
 from gridmap_cli.mapping.models.standard import StandardSonarParams
-from gridmap_cli.poses.calibration.log_check import FileCheck
 from gridmap_cli.poses.odometry_error import OdometryError
 from gridmap_cli.poses.sync import SyncStats
 from gridmap_cli.poses.uncertainty.pose_belief import PoseBelief
+
+if TYPE_CHECKING:  # the scan matcher and the fit load only for a build that checks
+    from gridmap_cli.poses.calibration.log_check import FileCheck
 
 MAPPING_MODES = ("standard", "error-aware")
 #: The coarsest cell size build takes: a range sensor sees a few metres, so coarser cells map

@@ -41,7 +41,6 @@ from gridmap_cli.mapping.shards import accumulate_log_odds
 from gridmap_cli.mapping.shards import (
     batch_bounds as batch_bounds,  # callers cut batches as build does
 )
-from gridmap_cli.poses.calibration.log_check import check_file
 from gridmap_cli.poses.odometry_error import OdometryError, correct_track, travelled
 from gridmap_cli.poses.sync import (
     SensorReadings,
@@ -136,6 +135,9 @@ def build_map(
     """
     check = None
     if options.check_odometry_error and options.odometry_error is not None:
+        # the scan matcher and the fit load only for a build that checks
+        from gridmap_cli.poses.calibration.log_check import check_file
+
         check = check_file(log, robot, options.odometry_error)
         options = dataclasses.replace(
             options, odometry_error=check.model, check_odometry_error=False
