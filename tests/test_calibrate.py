@@ -110,11 +110,20 @@ def test_a_simulated_drift_1_log_finds_the_simulators_errors() -> None:
     # samples/corridor_loop.csv is `gridmap simulate --drift 1` (tests/test_samples.py checks
     # that); one 56 m lap with 3 corners. Found: scale 0.00802, distance walk 0.00993, turn scale
     # 0.01251, turn walk 0.01171, drift 0.00313 rad/m against the simulator's 0.01, 0.01, 0.02,
-    # 0.02, 0.00349. Three corners say little about turning, so allow a factor of two.
+    # 0.02, 0.00349. Three corners say little about turning, so allow a factor of two; the
+    # turn scale they give (0.012) is within 2 standard errors of 0, so it is not written
+    # (poses/calibration/bias_check.py): a bias the log cannot tell from noise is not known.
     c = calibrate(read_log(SAMPLES / "corridor_loop.csv"))
     sim = OdometryErrorModel().as_odometry_error()
+    checks = {b.key: b for b in c.bias_checks}
+    assert not checks["turn_scale_bias"].applied
+    assert checks["turn_scale_bias"].reason == "within noise of 0"
+    assert c.model.turn_scale_bias == c.model.bearing_rad_per_rad == 0.0
+    assert 0.5 * OdometryErrorModel().turn_scale_error < c.turn_scale_error  # measured, printed
     for name, true in sim.as_dict().items():
         found = getattr(c.model, name)
+        if name == "bearing_rad_per_rad":
+            continue  # not written: above
         if name == "sonar_relative_error":
             assert found == true  # not calibrated: the default is passed through
         elif name in VERSION_2_KEYS:
@@ -127,7 +136,7 @@ def test_a_simulated_drift_1_log_finds_the_simulators_errors() -> None:
     # version 3: the signs too, what --correct-odometry takes out
     signed = OdometryErrorModel()
     assert 0.5 * signed.scale_error < c.model.distance_scale_bias < 2 * signed.scale_error
-    assert 0.5 * signed.turn_scale_error < c.model.turn_scale_bias < 2 * signed.turn_scale_error
+    assert checks["distance_scale_bias"].applied and checks["heading_drift_bias_rad_per_m"].applied
     assert c.model.heading_drift_bias_rad_per_m == pytest.approx(
         signed.heading_drift_rad_per_m, rel=0.15
     )

@@ -117,6 +117,7 @@ def summary_line(s: dict[str, Any]) -> str:
         + matched
         + ("; the odometry's calibrated biases corrected" if s.get("odometry_corrected") else "")
         + (f"; {s['motion']}" if s.get("motion") else "")
+        + (f"; {s['odometry_check_note']}" if s.get("odometry_check_note") else "")
     )
 
 

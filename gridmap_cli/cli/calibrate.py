@@ -312,6 +312,7 @@ def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:
         "their magnitudes, the spread of a bias left in); random: what error-aware maps spread",
     ]
     lines += _halves_lines(c, [key for _, _, key in rows])
+    lines += _bias_lines(c)
     lines += ["", *_robust_lines(c)]
     if c.jitter_estimated:
         lines += [
@@ -338,13 +339,45 @@ def _halves_lines(c: Calibration, keys: list[str]) -> list[str]:
         return []
     lines = [
         "",
-        "the same fit on each half of the span (by distance driven): do they transfer?",
+        "the same fit on each half of the span (by travel): do they transfer?",
         f"{'':30s} {'first half':>11s} {'second half':>11s} {'whole':>11s}",
     ]
     for key in keys:
         first, second = (getattr(h, key) for h in c.halves)
         values = (_number(key, v) for v in (first, second, getattr(c.model, key)))
         lines.append(f"{key:30s} " + " ".join(f"{v:>11s}" for v in values))
+    return lines
+
+
+#: How the calibrate table names each bias.
+_BIAS_NAMES = {
+    "distance_scale_bias": "distance scale",
+    "turn_scale_bias": "turn scale",
+    "heading_drift_bias_rad_per_m": "heading drift",
+}
+
+
+def _bias_lines(c: Calibration) -> list[str]:
+    """Which biases were written: those the halves agree on and the whole tells from 0."""
+    from gridmap_cli.poses.calibration.bias_check import NONE, SIGMA
+
+    shown = [b for b in c.bias_checks if b.reason != NONE]
+    if not shown:
+        return []
+    lines = [
+        "",
+        f"biases written when they stand {SIGMA:g} standard errors from 0 (the larger of the "
+        "fit's and half the halves' difference):",
+    ]
+    for b in shown:
+        verdict = "written" if b.applied else f"{b.reason}, not written"
+        detail = f"whole {b.whole:+.4g} +- {b.se:.2g}"
+        if b.halves is not None:
+            detail += (
+                f", halves {b.halves[0]:+.4g} / {b.halves[1]:+.4g}, "
+                f"{b.disagreement:.1f} standard errors apart"
+            )
+        lines.append(f"{_BIAS_NAMES[b.key]}: {verdict} ({detail})")
     return lines
 
 

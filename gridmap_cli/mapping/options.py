@@ -4,6 +4,7 @@ checked by the CLI, as every mapping stage takes them) and :class:`BuildResult`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from gridmap_cli.mapping.grid import DEFAULT_CLAMP_P, DEFAULT_MAX_CELLS, OccupancyMap
 from gridmap_cli.mapping.models.fading import ErrorAwareParams
@@ -12,6 +13,9 @@ from gridmap_cli.mapping.models.standard import StandardSonarParams
 from gridmap_cli.poses.odometry_error import OdometryError
 from gridmap_cli.poses.sync import SyncStats
 from gridmap_cli.poses.uncertainty.pose_belief import PoseBelief
+
+if TYPE_CHECKING:  # the scan matcher and the fit load only for a build that checks
+    from gridmap_cli.poses.calibration.log_check import FileCheck
 
 MAPPING_MODES = ("standard", "error-aware")
 #: The coarsest cell size build takes: a range sensor sees a few metres, so coarser cells map
@@ -47,6 +51,10 @@ class BuildOptions:
     #: The odometry-error model was given (a file or coefficients), not the zero model a map of
     #: a pose graph's belief takes: a pose source that chooses by the log then maps the odometry.
     odometry_error_given: bool = False
+    #: Error-aware mode: check ``odometry_error`` against the log's own laser before mapping
+    #: (:func:`~gridmap_cli.poses.calibration.log_check.check_file`): a bias this log does not
+    #: show is not corrected, random walks wider than its own error are narrowed.
+    check_odometry_error: bool = False
     #: Processes mapping the readings; the map does not depend on it
     #: (:mod:`gridmap_cli.mapping.shards`).
     jobs: int = 1
@@ -63,6 +71,8 @@ class BuildResult:
     map: OccupancyMap
     sync: SyncStats
     cell_updates: int
+    #: What the log's laser made of the odometry-error file (``check_odometry_error``).
+    odometry_check: FileCheck | None = None
 
     @property
     def observed_cells(self) -> int:

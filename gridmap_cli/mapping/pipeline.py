@@ -133,15 +133,26 @@ def build_map(
     ``between_passes`` once the bounds pass is done, before any mapping (the CLI returns the
     freed heap then). Raises what :func:`plan_build` raises, before any mapping.
     """
+    check = None
+    if options.check_odometry_error and options.odometry_error is not None:
+        # the scan matcher and the fit load only for a build that checks
+        from gridmap_cli.poses.calibration.log_check import check_file
+
+        check = check_file(log, robot, options.odometry_error)
+        options = dataclasses.replace(
+            options, odometry_error=check.model, check_odometry_error=False
+        )
     if options.correct_odometry:
         log, options = corrected_for_build(log, options)
     if options.mode == "error-aware" and options.error_samples > 0:
-        return expected_map(log, robot, options, progress, between_passes)
-    plan = plan_build(log, robot, options)
-    if between_passes is not None:
-        between_passes()
-    # both modes sum log-odds: the error-aware mode is the standard one with faded evidence
-    return _one_grid(plan, options, progress)
+        result = expected_map(log, robot, options, progress, between_passes)
+    else:
+        plan = plan_build(log, robot, options)
+        if between_passes is not None:
+            between_passes()
+        # both modes sum log-odds: the error-aware mode is the standard one with faded evidence
+        result = _one_grid(plan, options, progress)
+    return result if check is None else dataclasses.replace(result, odometry_check=check)
 
 
 def _one_grid(

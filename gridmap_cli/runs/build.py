@@ -212,6 +212,9 @@ def map_stage(request: BuildRequest, placed: Placed, hooks: BuildHooks | None = 
         summary["odometry_corrected"] = True
     if placed.posed.motion is not None:
         summary["motion"] = placed.posed.motion
+    if result.odometry_check is not None:
+        summary["odometry_check"] = result.odometry_check.as_dict()
+        summary["odometry_check_note"] = result.odometry_check.summary()
     seconds = {"read": placed.read_s, "map": time.perf_counter() - started}
     return MapBuild(result.map, placed, options, result, summary, placed.warnings, seconds)
 

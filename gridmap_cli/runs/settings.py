@@ -128,6 +128,11 @@ def map_settings(options: MapOptions, fused: bool = False) -> BuildOptions:
         correct_odometry=correct,
         odometry_error_given=options.odometry_error is not None
         or bool(options.odometry_coefficients),
+        # an error-aware map of the robot's own odometry checks the file against the log's laser
+        check_odometry_error=options.mode == "error-aware"
+        and own
+        and not fused
+        and options.odometry_error is not None,
     )
 
 

@@ -36,8 +36,9 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import GridmapError
+from gridmap_cli.poses.calibration.bias_check import BiasCheck, check_bias
 from gridmap_cli.poses.calibration.consistency import consistency
-from gridmap_cli.poses.calibration.robust_fit import RobustFit, robust_fit, walk_standard_errors
+from gridmap_cli.poses.calibration.robust_fit import RobustFit, robust_fit, standard_errors
 from gridmap_cli.poses.calibration.windows import (
     BUDGET_TOLERANCE,
     DEFAULT_WINDOW_M,
@@ -48,6 +49,7 @@ from gridmap_cli.poses.calibration.windows import (
     truth_at_odometry,
 )
 from gridmap_cli.poses.odometry_error import (
+    BIAS_KEYS,
     DEFAULT_SONAR_RELATIVE_ERROR,
     MAX_BIAS,
     OdometryError,
@@ -138,6 +140,12 @@ class Calibration:
     walk_variance_se: tuple[float, float, float] = (math.inf, math.inf, math.inf)
     #: Which random walks the check on the positions scaled (along, turn, heading per metre).
     walk_checked: tuple[bool, bool, bool] = (False, False, False)
+    #: Standard errors of the signed biases (distance scale, turn scale, heading drift), the
+    #: block jackknife's.
+    bias_se: tuple[float, float, float] = (math.inf, math.inf, math.inf)
+    #: The check of each bias across the log's halves (:mod:`.bias_check`), in the order of
+    #: :data:`~gridmap_cli.poses.odometry_error.BIAS_KEYS`; empty before it is made.
+    bias_checks: tuple[BiasCheck, ...] = ()
 
     @property
     def turning_windows(self) -> int:
@@ -185,6 +193,7 @@ class Calibration:
                 "scale": self.random_walk_scale,
                 "cut": dict(zip(WALK_KEYS, self.walk_checked, strict=True)),
             },
+            "bias_check": {c.key: c.as_dict() for c in self.bias_checks},
         }
 
 
@@ -223,7 +232,7 @@ def fit(
     fit_args = ([w.rung() for w in rungs], distance_ok, turn_ok, drift_ok, jitter_ok, short,
                 first_long)  # fmt: skip
     robust = robust_fit(*fit_args)
-    walk_se = walk_standard_errors(*fit_args)
+    walk_se, bias_se = standard_errors(*fit_args)
     # rounding noise of an error-free log (1e-17) is no error: write it as 0
     scale, turn_scale = _clean(robust.scale), _clean(robust.turn_scale)
     drift = _clean(robust.drift_rad_per_m)
@@ -264,6 +273,7 @@ def fit(
         fitted_windows=sum(len(w) for w in rungs),
         left_out=_left_out(rungs, robust),
         walk_variance_se=walk_se,
+        bias_se=bias_se,
     )
 
 
@@ -307,7 +317,9 @@ def calibrate(
     travel.
     """
     odometry, truth = truth_at_odometry(log)
-    whole = calibrate_tracks(odometry, truth, window_m, window_rad, sonar_relative_error)
+    whole = calibrate_tracks(
+        odometry, truth, window_m, window_rad, sonar_relative_error, check=False
+    )
     if whole is None:
         dist, rot = travelled(truth)
         # a truth that never overlaps the odometry is empty: it drives nothing
@@ -319,8 +331,11 @@ def calibrate(
             f"{n} complete window{'s' if n != 1 else ''} of "
             f"{window_m:g} m or {math.degrees(window_rad):g} deg; need at least {MIN_WINDOWS}"
         )
-    dist, _ = travelled(truth)
-    cut = int(np.searchsorted(dist, 0.5 * dist[-1]))
+    # halves of the travel in windows' worth (metres over the window, turns over its turn), so
+    # that a log that turns on the spot has halves too
+    dist, rot = travelled(truth)
+    travel = dist / window_m + rot / window_rad
+    cut = int(np.searchsorted(travel, 0.5 * travel[-1]))
     halves = [
         calibrate_tracks(o, t, window_m, window_rad, sonar_relative_error)
         for o, t in ((_part(odometry, 0, cut + 1), _part(truth, 0, cut + 1)),
@@ -329,7 +344,9 @@ def calibrate(
     h0, h1 = halves
     if h0 is not None and h1 is not None:
         whole = dataclasses.replace(whole, halves=(h0.model, h1.model))
-    return whole
+    # only the biases that hold across the log are written; the check on the positions then
+    # judges the random walks around the track those leave
+    return checked(held_biases(whole, h0, h1), odometry, truth)
 
 
 def calibrate_tracks(
@@ -338,9 +355,11 @@ def calibrate_tracks(
     window_m: float = DEFAULT_WINDOW_M,
     window_rad: float = DEFAULT_WINDOW_RAD,
     sonar_relative_error: float = DEFAULT_SONAR_RELATIVE_ERROR,
+    check: bool = True,
 ) -> Calibration | None:
     """:func:`fit` of the tracks (same stamps, shape (N,)) at the window and its
-    :data:`JITTER_LADDER`; None when fewer than :data:`MIN_WINDOWS` windows are complete."""
+    :data:`JITTER_LADDER`, and (``check``) the check on the positions; None when fewer than
+    :data:`MIN_WINDOWS` windows are complete."""
     if len(truth) < 2:
         return None
     windows = compare_windows(odometry, truth, window_m, window_rad)
@@ -354,7 +373,44 @@ def calibrate_tracks(
         for k in JITTER_LADDER
     ]
     ladder = [w for w in ladder if len(w) >= MIN_WINDOWS]
-    return checked(fit(windows, sonar_relative_error, ladder), odometry, truth)
+    cal = fit(windows, sonar_relative_error, ladder)
+    return checked(cal, odometry, truth) if check else cal
+
+
+#: The magnitude keys of :data:`~gridmap_cli.poses.odometry_error.BIAS_KEYS`, in their order.
+MAGNITUDE_KEYS = ("range_m_per_m", "bearing_rad_per_rad", "heading_drift_rad_per_m")
+
+
+def signed_biases(cal: Calibration) -> tuple[tuple[float, bool], ...]:
+    """The biases (signed, in the order of ``BIAS_KEYS``) and whether the log showed each."""
+    return (
+        (cal.scale_error, cal.distance_estimated),
+        (cal.turn_scale_error, cal.turn_estimated),
+        (cal.heading_drift_rad_per_m, cal.drift_estimated),
+    )
+
+
+def held_biases(
+    whole: Calibration, first: Calibration | None, second: Calibration | None
+) -> Calibration:
+    """``whole`` with each bias checked across the halves (:mod:`.bias_check`) and those that
+    do not hold dropped from its model, signed value and magnitude: the file then holds what
+    the calibration knows and no more."""
+    checks = []
+    model = whole.model
+    for k, key in enumerate(BIAS_KEYS):
+        shown = signed_biases(whole)[k][1]
+        b = getattr(model, key) if shown else 0.0
+        halves = halves_se = None
+        if first is not None and second is not None:
+            (b1, ok1), (b2, ok2) = signed_biases(first)[k], signed_biases(second)[k]
+            if ok1 and ok2:  # a half that could not show the term cannot check it
+                halves, halves_se = (b1, b2), (first.bias_se[k], second.bias_se[k])
+        check = check_bias(key, b, whole.bias_se[k], halves, halves_se)
+        checks.append(check)
+        if not check.applied:
+            model = dataclasses.replace(model, **{key: 0.0, MAGNITUDE_KEYS[k]: 0.0})
+    return dataclasses.replace(whole, model=model, bias_checks=tuple(checks))
 
 
 #: The random walks' keys, in the order of :attr:`Calibration.walk_checked`.

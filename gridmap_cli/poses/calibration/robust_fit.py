@@ -74,6 +74,10 @@ class Rung:
     key_turned_rad: FloatArray
     #: The reference's turn rate at the window's end less that at its start (rad/s).
     turn_rate_change: FloatArray
+    #: Where the window begins and ends in travel (key steps' worth of metres and turns):
+    #: the jackknife's blocks.
+    start_travel: FloatArray
+    end_travel: FloatArray
 
 
 @dataclass(frozen=True)
@@ -263,28 +267,47 @@ def walk_standard_errors(
     distance_rungs: int | None = None,
     heading_walk_from: int = 0,
 ) -> tuple[float, float, float]:
+    """Standard errors of the random walks' variances: :func:`standard_errors`' first half."""
+    return standard_errors(
+        rungs, distance_ok, turn_ok, drift_ok, jitter_ok, distance_rungs, heading_walk_from
+    )[0]
+
+
+Triple = tuple[float, float, float]
+
+
+def standard_errors(
+    rungs: list[Rung],
+    distance_ok: bool,
+    turn_ok: bool,
+    drift_ok: bool,
+    jitter_ok: bool,
+    distance_rungs: int | None = None,
+    heading_walk_from: int = 0,
+) -> tuple[Triple, Triple]:
     """Standard errors of the random walks' variances (``along_m_per_sqrt_m**2``,
-    ``heading_rad_per_sqrt_rad**2``, ``heading_rad_per_sqrt_m**2``) by a delete-a-block
-    jackknife: the travel cut into :data:`JACKKNIFE_BLOCKS` blocks, :func:`robust_fit` (same
-    arguments) made again without the windows that touch each block in turn. The overlapping
-    windows of one length are far from independent (fifty 50 m windows in 100 m of travel are
-    two), which a block jackknife sees and the fit's own weights do not. Infinite without
-    travel."""
-    end = max((float(np.max(r.start_m + r.driven_m)) for r in rungs if r.start_m.size), default=0)
+    ``heading_rad_per_sqrt_rad**2``, ``heading_rad_per_sqrt_m**2``) and of the biases (distance
+    scale, turn scale, heading drift per metre) by a delete-a-block jackknife: the travel cut
+    into :data:`JACKKNIFE_BLOCKS` blocks, :func:`robust_fit` (same arguments) made again
+    without the windows that touch each block in turn. The overlapping windows of one length
+    are far from independent (fifty 50 m windows in 100 m of travel are two), which a block
+    jackknife sees and the fit's own weights do not. Infinite without travel."""
+    inf = (math.inf, math.inf, math.inf)
+    end = max((float(np.max(r.end_travel)) for r in rungs if r.end_travel.size), default=0)
     if not end > 0.0:
-        return (math.inf, math.inf, math.inf)
+        return inf, inf
     values = []
     for b in range(JACKKNIFE_BLOCKS):
         lo, hi = b * end / JACKKNIFE_BLOCKS, (b + 1) * end / JACKKNIFE_BLOCKS
-        kept = [_subset(r, (r.start_m + r.driven_m <= lo) | (r.start_m >= hi)) for r in rungs]
+        kept = [_subset(r, (r.end_travel <= lo) | (r.start_travel >= hi)) for r in rungs]
         fit = robust_fit(
             kept, distance_ok, turn_ok, drift_ok, jitter_ok, distance_rungs, heading_walk_from
         )
-        values.append(_walk_variances(fit))
+        values.append((*_walk_variances(fit), fit.scale, fit.turn_scale, fit.drift_rad_per_m))
     v = np.array(values)
     n = JACKKNIFE_BLOCKS
     se = np.sqrt((n - 1) / n * np.sum((v - v.mean(axis=0)) ** 2, axis=0))
-    return (float(se[0]), float(se[1]), float(se[2]))
+    return (float(se[0]), float(se[1]), float(se[2])), (float(se[3]), float(se[4]), float(se[5]))
 
 
 def _walk_variances(fit: RobustFit) -> tuple[float, float, float]:

@@ -57,6 +57,11 @@ class Windows:
     #: The reference's turn rate at each window's end less that at its start (rad/s): what a
     #: stamp offset of the odometry turns into heading error.
     turn_rate_change: FloatArray | None = None
+    #: Where each window begins and ends in travel, counted in key steps' worth (metres over
+    #: the key step's, plus absolute radians turned over its turn): a log that turns on the
+    #: spot travels too.
+    start_travel: FloatArray | None = None
+    end_travel: FloatArray | None = None
 
     def __len__(self) -> int:
         return int(self.driven_m.shape[0])
@@ -77,6 +82,8 @@ class Windows:
             turn_rate_change=np.zeros(len(self))
             if self.turn_rate_change is None
             else self.turn_rate_change,
+            start_travel=self.start_m if self.start_travel is None else self.start_travel,
+            end_travel=self.start_m + self.driven_m if self.end_travel is None else self.end_travel,
         )
 
 
@@ -173,6 +180,7 @@ def compare_windows(
     e = np.asarray(ends, dtype=np.int64)
     key = key_turning(truth, signed_true, key_m, key_rad)
     rate = turn_rate(truth, signed_true)
+    travel = dist / key_m + rot / key_rad
     # a length is the same in every frame: no need to move each window into its start frame
     true_disp = np.hypot(truth.x_m[e] - truth.x_m[s], truth.y_m[e] - truth.y_m[s])
     odo_disp = np.hypot(odometry.x_m[e] - odometry.x_m[s], odometry.y_m[e] - odometry.y_m[s])
@@ -190,6 +198,8 @@ def compare_windows(
         start_m=dist[s],
         key_turned_rad=key[e] - key[s],
         turn_rate_change=rate[e] - rate[s],
+        start_travel=travel[s],
+        end_travel=travel[e],
     )
 
 

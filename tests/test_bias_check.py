@@ -1,0 +1,163 @@
+"""Only the biases that hold across their own log are written, and a laser log checks the file
+it is mapped with (poses/calibration/bias_check.py, log_check.py)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from gridmap_cli.poses.calibration.bias_check import (
+    APPLIED,
+    DISAGREE,
+    NONE,
+    NOT_SHOWN,
+    UNCHECKED,
+    check_bias,
+)
+from gridmap_cli.poses.calibration.calibrate import calibrate
+from gridmap_cli.poses.calibration.log_check import check_file
+from gridmap_cli.poses.odometry_error import OdometryError, save_odometry_error
+from gridmap_cli.readers import read_log
+from gridmap_cli.records import RangeLog
+from gridmap_cli.robot import load_robot
+from gridmap_cli.writers.csv_log import save_csv_log
+from tests.helpers import log_with_truth, run
+from tests.test_scan_match import room_world
+from tests.test_scan_match import run as simulate_run
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+DRIFT = "heading_drift_bias_rad_per_m"
+
+
+@pytest.mark.parametrize(
+    ("whole", "se", "halves", "halves_se", "reason"),
+    [
+        (0.02, 0.001, (0.019, 0.021), (0.002, 0.002), APPLIED),
+        # the halves differ by 4 of their own standard errors, yet the whole is larger than
+        # their difference: the bias varies a little and is still known
+        (0.02, 0.001, (0.01, 0.03), (0.0025, 0.0025), APPLIED),
+        # the halves differ by more than the whole: half their difference is its worth
+        (0.02, 0.001, (0.005, 0.035), (0.002, 0.002), DISAGREE),
+        # they agree, but the whole is 1 of its standard errors from 0
+        (0.002, 0.002, (0.001, 0.003), (0.003, 0.003), NOT_SHOWN),
+        (0.02, 0.001, None, None, UNCHECKED),
+        (0.0, 0.001, (0.0, 0.0), (0.001, 0.001), NONE),
+    ],
+)
+def test_the_verdicts(
+    whole: float,
+    se: float,
+    halves: tuple[float, float] | None,
+    halves_se: tuple[float, float] | None,
+    reason: str,
+) -> None:
+    check = check_bias(DRIFT, whole, se, halves, halves_se)
+    assert check.reason == reason
+    assert check.applied == (reason == APPLIED)
+
+
+def test_the_threshold_is_two_standard_errors_from_zero() -> None:
+    # the jackknife's standard error decides (0.001), then half the halves' difference (0.01)
+    assert check_bias(DRIFT, 0.0021, 0.001, (0.002, 0.0022), (0.001, 0.001)).applied
+    assert not check_bias(DRIFT, 0.0019, 0.001, (0.0018, 0.002), (0.001, 0.001)).applied
+    assert check_bias(DRIFT, 0.021, 0.001, (0.011, 0.031), (0.001, 0.001)).applied
+    late = check_bias(DRIFT, 0.019, 0.001, (0.009, 0.029), (0.001, 0.001))
+    assert late.reason == DISAGREE and late.disagreement == pytest.approx(0.02 / math.sqrt(2e-6))
+
+
+def drifting_line(first: float, second: float, metres: float = 40.0) -> RangeLog:
+    """A straight line in truth; the odometry's heading grows ``first`` rad per metre over the
+    first half of the metres and ``second`` over the second, with a little noise."""
+    steps = round(metres / 0.04)
+    truth = [(0.04 * k, 0.0, 0.0) for k in range(steps + 1)]
+    heading, odo = 0.0, []
+    for k in range(steps + 1):
+        odo.append((0.04 * k, 0.0, heading + 1e-4 * math.sin(7.3 * k)))
+        heading += 0.04 * (first if k < steps // 2 else second)
+    return log_with_truth(truth, odo)
+
+
+def test_a_drift_the_halves_agree_on_is_written() -> None:
+    c = calibrate(drifting_line(0.004, 0.004))
+    check = {b.key: b for b in c.bias_checks}[DRIFT]
+    assert check.applied and check.reason == APPLIED
+    assert c.model.heading_drift_bias_rad_per_m == pytest.approx(0.004, abs=1e-4)
+
+
+def test_a_drift_that_changes_within_the_log_is_not_written(tmp_path: Path) -> None:
+    c = calibrate(drifting_line(0.007, 0.001))
+    check = {b.key: b for b in c.bias_checks}[DRIFT]
+    assert check.reason == DISAGREE and check.halves is not None
+    assert check.halves[0] == pytest.approx(0.007, abs=3e-4)
+    assert check.halves[1] == pytest.approx(0.001, abs=3e-4)
+    # measured and printed, but neither corrected nor spread by build
+    assert c.heading_drift_rad_per_m == pytest.approx(0.004, abs=5e-4)
+    assert c.model.heading_drift_bias_rad_per_m == 0.0 and c.model.heading_drift_rad_per_m == 0.0
+    csv = tmp_path / "line.csv"
+    save_csv_log(drifting_line(0.007, 0.001), csv)
+    code, stdout, stderr = run("calibrate", str(csv), "--json")
+    assert code == 0, stderr
+    got = json.loads(stdout)["bias_check"][DRIFT]
+    assert got["applied"] is False and got["reason"] == DISAGREE
+    code, stdout, _ = run("calibrate", str(csv))
+    assert code == 0 and "heading drift: halves disagree, not written" in stdout
+
+
+@pytest.fixture(scope="module")
+def laser_log() -> RangeLog:
+    # perfect odometry, two laps of the room (the check on the positions needs starts 20 m
+    # and more before the end)
+    lap = [[2, 1.5], [10, 1.5], [10, 6.5], [2, 6.5]]
+    log = simulate_run(room_world(), [*lap, *lap, [2, 2]], 0.0)
+    log.metadata["robot"] = "p3at-lms200"
+    return log
+
+
+def test_a_laser_log_drops_a_bias_it_does_not_show_and_narrows_walks(laser_log: RangeLog) -> None:
+    wrong = OdometryError(
+        range_m_per_sqrt_m=0.05,
+        bearing_rad_per_sqrt_rad=0.05,
+        heading_rad_per_sqrt_m=0.02,
+        heading_drift_rad_per_m=0.01,
+        heading_drift_bias_rad_per_m=0.01,
+    )
+    check = check_file(laser_log, load_robot("p3at-lms200"), wrong)
+    assert check.checked
+    assert [d[0] for d in check.dropped] == [DRIFT]
+    assert check.model.heading_drift_bias_rad_per_m == 0.0
+    # the odometry is perfect: the walks come down to (near) what the laser shows, nothing
+    for walk in ("range_m_per_sqrt_m", "bearing_rad_per_sqrt_rad", "heading_rad_per_sqrt_m"):
+        assert getattr(check.model, walk) < 0.1 * getattr(wrong, walk), walk
+    assert "heading_drift_bias not corrected" in check.summary()
+    assert "narrowed to this log's own" in check.summary()
+
+
+def test_the_build_says_what_it_did_with_the_file(tmp_path: Path, laser_log: RangeLog) -> None:
+    csv = tmp_path / "laser.csv"
+    save_csv_log(dataclasses.replace(laser_log, truth=None), csv)
+    odo = tmp_path / "odo.yaml"
+    save_odometry_error(OdometryError(heading_drift_rad_per_m=0.01,
+                                      heading_drift_bias_rad_per_m=0.01), odo)  # fmt: skip
+    args = ["build", str(csv), "-o", str(tmp_path / "m.png"), "--robot", "p3at-lms200",
+            "--mode", "error-aware", "--odometry-error", str(odo), "--json"]  # fmt: skip
+    code, stdout, stderr = run(*args)
+    assert code == 0, stderr
+    summary = json.loads(stdout)
+    assert summary["odometry_check"]["checked"] is True
+    assert DRIFT in summary["odometry_check"]["biases_dropped"]
+    # standard mode stays drift-blind: no check
+    code, stdout, stderr = run(*args[:4], "--robot", "p3at-lms200", "--json", "--force")
+    assert code == 0, stderr
+    assert "odometry_check" not in json.loads(stdout)
+
+
+def test_a_sonar_log_keeps_the_file_and_says_so() -> None:
+    log = read_log(SAMPLES / "corridor_loop.csv")
+    model = OdometryError(range_m_per_sqrt_m=0.01, heading_drift_bias_rad_per_m=0.003)
+    check = check_file(log, load_robot("p3at"), model)
+    assert not check.checked and check.model == model
+    assert check.summary() == "odometry error not checked (no laser in the log)"
