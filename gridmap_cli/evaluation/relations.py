@@ -12,8 +12,8 @@ the benchmark's own evaluator does). A relation with a stamp outside the track's
 left out and counted.
 
 The relations name poses by the log's own stamps. Where the reader had to move stamps so that
-time increases (a CARMEN log whose stamps go back by up to a second: Intel, a third of its
-lines), the poses are looked up by the stamps their lines carried (:func:`on_logged_clock`);
+time increases (a CARMEN log whose stamps go back by up to a second, on as many as a third of
+its lines), the poses are looked up by the stamps their lines carried (:func:`on_logged_clock`);
 by the moved ones, a relation end would take the pose of another line, up to a second away.
 
 A log republished with times from its start and relations on the original clock differ by a
@@ -170,7 +170,7 @@ def on_logged_clock(track: PoseTrack, moved: MovedStamps) -> PoseTrack:
     order of those stamps (stable), so the relations find the poses they name.
 
     Equal stamps are spread over the step they were printed to (:func:`printed_step_ns`), in
-    their order: a log printed with six significant digits (the Intel log from 1,000 s on) gives
+    their order: a log printed with six significant digits (a Unix time from 1,000 s on) gives
     up to ten lines the same stamp, a 10 ms step standing for the moments within it, and the
     relations' stamps, to the microsecond, fall among them.
     """

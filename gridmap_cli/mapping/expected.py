@@ -177,8 +177,8 @@ def sample_bounds(casts: list[_Casts], offsets: SampledOffsets) -> tuple[float, 
     (None without moved readings): the readings' box per key pose (sensor positions, sonar
     sectors' disks, echoes' ends, as the models' bounds), moved by each sample's motion of
     that key pose (a rigid motion: the moved box's corners hold the moved readings). A grid
-    that covers it cuts no sample's readings (issue 19: a straight cut edge where the samples
-    left the standard build's grid)."""
+    that covers it cuts no sample's readings (the standard build's grid would cut a straight
+    edge where the samples leave it)."""
     keys = offsets.rot_rad.shape[1]
     lo = np.full((2, keys), np.inf)
     hi = np.full((2, keys), -np.inf)

@@ -285,7 +285,7 @@ def _sampled_grid(
 
 
 #: Cells of the largest map the fast expected map (:mod:`gridmap_cli.mapping.expected`) builds.
-#: It takes about 53 bytes a cell (ACES at 1 cm: 52 M cells, 2.7 GB), so past about 2 M cells it
+#: It takes about 53 bytes a cell (a 50 M cell map: 2.7 GB), so past about 2 M cells it
 #: would break the build's bound of 12 bytes a cell plus a fixed 160 MiB (README, "Speed");
 #: larger maps take the exact expected map, each track's standard map in row bands, at about
 #: the samples' count times the standard build's time.

@@ -13,12 +13,12 @@ Two covariances are kept, because the graph's marginals answer a question a map 
   trajectory --pose slam`` writes these.
 - :attr:`PoseBelief.shape_cov`, the marginals **with the common rigid motion taken out**: a
   whole map turned by a degree about its first pose is the same map, yet that turn moves a wall
-  30 m away by half a metre and the first-pose marginals count it (on the Intel lab: 0.33 m
-  median position spread, 0.06 m once the rigid motion is out). The rigid motion is the least
-  squares fit of the keyframe positions' error (a shift and a turn about their centroid);
-  taking it out is linear to first order, so ``shape_cov`` is exact for the linearised graph
-  (:func:`shape_covariance`). Error-aware mapping uses these: crisp where loops closed, grey
-  where the robot went once, not grey merely for being far from the start.
+  30 m away by half a metre and the first-pose marginals count it (on a real lab log the
+  median position spread falls about five-fold once the rigid motion is out). The rigid motion
+  is the least squares fit of the keyframe positions' error (a shift and a turn about their
+  centroid); taking it out is linear to first order, so ``shape_cov`` is exact for the
+  linearised graph (:func:`shape_covariance`). Error-aware mapping uses these: crisp where
+  loops closed, grey where the robot went once, not grey merely for being far from the start.
 
 The graph's edge noise is set by hand (:class:`~gridmap_cli.poses.correction.slam.SlamParams`), the
 same for every log. For a map it is **calibrated on the graph's own residuals**
