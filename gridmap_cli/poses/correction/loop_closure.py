@@ -40,9 +40,13 @@ class ClosureParams:
     """How closures are sought and judged; metres and radians. See the module text."""
 
     min_path_m: float = 8.0
+    #: the scan matcher's drift between the two passes: a few degrees of heading over a loop
+    #: of a hundred metres puts the second pass metres to the side
     drift_per_m: float = 0.05
     min_search_m: float = 1.0
-    max_search_m: float = 6.0
+    #: the window's cap (it bounds the correlative search's cost): 5 % of a 200 m revisit, what
+    #: a raw full-rate log with thousands of degrees turned drifts before its loop is caught
+    max_search_m: float = 10.0
     submap_m: float = 5.0
     source_m: float = 5.0
     thin_m: float = 0.2
@@ -57,10 +61,19 @@ class ClosureParams:
     coarse_sigma_m: float = 0.1
     coarse_window_rad: float = math.radians(15.0)
     coarse_step_rad: float = math.radians(1.0)
-    coarse_min_score: float = 0.5
+    #: the correlative search only finds GICP a start; acceptance is GICP's inlier test. A
+    #: true pose scores the overlap times the mean likelihood of the overlapping points, and a
+    #: point within the inlier band (``inlier_m``, sigma ``coarse_sigma_m``) scores down to
+    #: exp(-1.125) = 0.32, one half a cell off 0.88: a submap seen from the other direction that
+    #: passes with half its points inliers scores about 0.3, and a higher gate refuses it
+    coarse_min_score: float = 0.3
     coarse_points: int = 250
     coarse_range_m: float = 15.0
-    max_candidates_per_node: int = 1
+    #: keyframes offered per keyframe, the nearest at least 2 m of path apart: in an estimate
+    #: drifted by as much as the window, the nearest keyframe is often not the one whose submap
+    #: overlaps (another corridor, or the far end of the same one), and one try per keyframe
+    #: leaves a loop to the few keyframes where it happens to be
+    max_candidates_per_node: int = 3
     decimate_m: float = 1.0
     coarse_link_m: float = 5.0
 

@@ -1,0 +1,77 @@
+"""The loop-closure search where the estimate has drifted: several keyframes are offered, and a
+submap seen from the other direction still finds GICP a start."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
+from gridmap_cli.poses.correction.loop_closure import ClosureParams, candidates
+
+
+def _line(x0: float, y0: float, x1: float, y1: float, step_m: float = 0.5) -> np.ndarray:
+    n = max(2, round(math.hypot(x1 - x0, y1 - y0) / step_m) + 1)
+    th = math.atan2(y1 - y0, x1 - x0)
+    return np.column_stack([np.linspace(x0, x1, n), np.linspace(y0, y1, n), np.full(n, th)])
+
+
+def _a_pass_then_back() -> tuple[np.ndarray, int]:
+    """A 20 m pass, a long excursion, and a last keyframe 2 m beside the pass's middle."""
+    legs = [
+        _line(0, 0, 20, 0),  # the earlier pass
+        _line(20, 0, 20, 60),  # far away and back: the gap is long, the window wide
+        _line(20, 60, 10, 60),
+        _line(10, 60, 10, 2),
+    ]
+    return np.vstack(legs), sum(len(leg) for leg in legs) - 1
+
+
+def test_several_keyframes_of_a_drifted_return_are_offered() -> None:
+    poses, last = _a_pass_then_back()
+    path = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poses[:, :2], axis=0).T))])
+    pairs = [j for i, j in candidates(poses, np.array([last]), ClosureParams())]
+    # the nearest first, then the next nearest more than 2 m of path from those taken
+    assert len(pairs) == 3 and pairs[0] == 20
+    assert all(abs(path[a] - path[b]) > 2.0 for a, b in itertools.combinations(pairs, 2))
+    assert all(j <= 40 for j in pairs)  # all on the earlier pass
+    only = [
+        j for i, j in candidates(poses, np.array([last]), ClosureParams(max_candidates_per_node=1))
+    ]
+    assert only == [20]
+
+
+def _room(step_m: float = 0.05) -> np.ndarray:
+    corners = [(0, 0), (8, 0), (8, 3), (4, 3), (4, 7), (0, 7), (0, 0)]
+    walls = []
+    for (x0, y0), (x1, y1) in itertools.pairwise(corners):
+        n = max(2, int(math.hypot(x1 - x0, y1 - y0) / step_m))
+        walls.append(np.column_stack([np.linspace(x0, x1, n), np.linspace(y0, y1, n)]))
+    return np.vstack(walls)
+
+
+def test_a_submap_half_seen_by_the_target_finds_its_start() -> None:
+    # the source saw the room's lower half and walls beyond it the target never saw (the other
+    # direction of travel): half its points overlap the target
+    room = _room()
+    target = room[room[:, 1] <= 3.5]
+    rng = np.random.default_rng(5)
+    unseen = np.column_stack(
+        [rng.uniform(9.0, 14.0, len(target)), rng.uniform(0.0, 3.0, len(target))]
+    )
+    truth = (1.6, -1.1, math.radians(6.0))
+    seen = np.vstack([target, unseen])
+    c, s = math.cos(truth[2]), math.sin(truth[2])
+    d = seen - np.array(truth[:2])
+    source = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])[::4]
+    p = ClosureParams()
+    grid = LikelihoodGrid(target, p.coarse_resolution_m, p.coarse_sigma_m, 5, 4.0)
+    found = search(grid, source, (0.0, 0.0, 0.0), 4.0, p.coarse_window_rad, p.coarse_step_rad,
+                   p.coarse_min_score)  # fmt: skip
+    assert found is not None
+    assert math.hypot(found.x_m - truth[0], found.y_m - truth[1]) < 0.15
+    assert abs(found.theta_rad - truth[2]) < math.radians(1.5)
+    # the half overlap scores under one half: a gate at 0.5 would have refused the true pose
+    assert found.score < 0.5
