@@ -101,7 +101,9 @@ def test_error_aware_odometry_still_needs_the_odometry_error(
     loop_csv: Path, tmp_path: Path
 ) -> None:
     out = tmp_path / "m.png"
-    code, _, stderr = run("build", str(loop_csv), "--mode", "error-aware", "-o", str(out))
+    code, _, stderr = run(
+        "build", str(loop_csv), "--mode", "error-aware", "--pose", "odometry", "-o", str(out)
+    )
     assert code == 2 and "--odometry-error FILE" in stderr and names(tmp_path) == set()
 
 

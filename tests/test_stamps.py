@@ -52,7 +52,7 @@ def test_a_window_such_stamps_cannot_honour_is_refused(
     log = write(tmp_path, drive(stamps))
     out = tmp_path / "out"
     out.mkdir()
-    code, _, err = run("build", str(log), "-o", str(out / "map.png"), *window)
+    code, _, err = run("build", str(log), "-o", str(out / "map.png"), "--pose", "odometry", *window)
     assert code == 1
     assert err.startswith(f"Error: {log}: {' '.join(window)} cannot be honoured: ")
     assert len(err.strip().splitlines()) == 1
@@ -61,6 +61,8 @@ def test_a_window_such_stamps_cannot_honour_is_refused(
 
 def test_steady_stamps_say_nothing(tmp_path: Path) -> None:
     log = write(tmp_path, drive(STEADY))
-    code, _, err = run("build", str(log), "-o", str(tmp_path / "map.png"), "--end", "10")
+    code, _, err = run(
+        "build", str(log), "-o", str(tmp_path / "map.png"), "--pose", "odometry", "--end", "10"
+    )
     assert code == 0, err
     assert "Warning" not in err
