@@ -40,6 +40,7 @@ from gridmap_cli.cli.map_options import (
 )
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import MixedLogsError, NotRecordingFolderError, UsageError
+from gridmap_cli.evaluation.quality import map_quality, map_spread, quality_notes
 from gridmap_cli.heap import TRIM_EVERY_BATCHES, TrimEvery, keep_scratch_memory, release_free_memory
 from gridmap_cli.mapping.pipeline import BuildOptions, build_map, reference_spread_note
 from gridmap_cli.mapping.selection import Selection, apply_selection
@@ -51,8 +52,16 @@ from gridmap_cli.runs.executors import EXECUTORS, check_dask, fuse_dask, fuse_lo
 from gridmap_cli.runs.fuse import FuseJob, Partial, fused_map, parse_initial_pose
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, check_map_outputs, write_map
+from gridmap_cli.writers.spread_layer import (
+    SPREAD_TOPIC,
+    spread_levels,
+    spread_output,
+    spread_paths,
+)
 
 if TYPE_CHECKING:
+    from gridmap_cli.evaluation.quality import FloatArray
+    from gridmap_cli.poses.correction.pose_graph import Edge
     from gridmap_cli.poses.correction.scan_match import ScanMatch
     from gridmap_cli.poses.uncertainty.pose_belief import PoseBelief
     from gridmap_cli.writers.preview import DrawnTrack
@@ -203,6 +212,11 @@ def build(
     preview = output.with_name(f"{output.stem}_path.png") if draw_path else None
     if preview is not None:
         check_output(preview, force)
+    # the pose-spread layer beside a map that knows its poses' uncertainty
+    layered = not fuse and not to_stdout and (mode == "error-aware" or pose == "slam")
+    if layered and not to_mcap:
+        for path in spread_paths(output):
+            check_output(path, force)
     read_options = dataclasses.replace(topics, robot=robot_desc)
     if fuse:
         fuse_jobs = [
@@ -234,6 +248,7 @@ def build(
     match: ScanMatch | None = None
     slam_summary: dict[str, object] | None = None
     belief: PoseBelief | None = None
+    graph: tuple[FloatArray, list[Edge]] | None = None
     if pose == "scan-matched":
         from gridmap_cli.poses.correction.scan_match import (
             scan_matched_log,
@@ -247,11 +262,14 @@ def build(
         with StageBars(quiet) as bars:
             data, slam = slam_corrected_log(data, robot_desc, progress=bars)
         slam_summary = slam.summary()
-        if mode == "error-aware":  # the graph's marginals and draws, not the odometry's
-            from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
+        from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
 
-            belief = slam_belief(slam, settings.error_samples, settings.error_seed)
-            slam_summary["belief_noise_scale"] = [round(f, 3) for f in belief.scale]
+        # the graph's marginals (the spread layer) and, error-aware, its draws
+        samples = settings.error_samples if mode == "error-aware" else 0
+        belief = slam_belief(slam, samples, settings.error_seed)
+        slam_summary["belief_noise_scale"] = [round(f, 3) for f in belief.scale]
+        if slam.graph is not None:
+            graph = (slam.poses, slam.graph.edges)
         if slam.warning:
             warn((f"--pose slam: {slam.warning}",), quiet)
     else:
@@ -264,7 +282,8 @@ def build(
     selected = apply_selection(data, selection, robot_desc)
     warn(selected.notes, quiet)
     data = selected.log
-    options = dataclasses.replace(settings, jobs=jobs, pose_belief=belief)
+    mapped_belief = belief if mode == "error-aware" else None
+    options = dataclasses.replace(settings, jobs=jobs, pose_belief=mapped_belief)
     with progress_bar(data.reading_count, quiet, "mapping") as bar:
         trim = TrimEvery(TRIM_EVERY_BATCHES)
 
@@ -275,27 +294,33 @@ def build(
         result = build_map(data, robot_desc, options, mapped, release_free_memory)
     if mode == "error-aware" and map_mode == "trinary" and not to_mcap:
         warn(undecided_note(result.map.prob, occupied, free), quiet)
+    layer_options = dataclasses.replace(options, pose_belief=belief)
+    spread = map_spread(data, robot_desc, layer_options, result.map) if layered else None
     yaml_path: Path | None
     if to_mcap:
         # stamped at the last reading: the map is what the robot knew then
         stamp = data.reading_span()[1] if data.reading_count else 0
         from gridmap_cli.writers.map_mcap import write_map_mcap  # the MCAP writer only when asked
 
-        image_path = write_map_mcap(output, result.map, stamp_ns=stamp, force=force)
+        layers = [] if spread is None else [(SPREAD_TOPIC, spread_levels(spread[0]))]
+        image_path = write_map_mcap(output, result.map, stamp_ns=stamp, force=force,
+                                    layers=layers)  # fmt: skip
         yaml_path = None
     elif to_stdout:
         with stdout_file(f"map.{image_format}") as image:
             write_map(image, result.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free)
         image_path, yaml_path = STDIO, None
     else:
+        also = [] if spread is None else [spread_output(output, spread[0], result.map.spec)]
         image_path, yaml_path = write_map(
             output, result.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free,
-            force=force,
+            force=force, also=also,
         )  # fmt: skip
     if preview is not None:
         from gridmap_cli.writers.preview import write_preview  # only --draw-path draws
 
-        write_preview(preview, result.map, _tracks(whole, data, pose))
+        write_preview(preview, result.map, _tracks(whole, data, pose),
+                      None if spread is None else spread[0])  # fmt: skip
     elapsed = time.perf_counter() - started
     summary = build_summary(result, image_path, yaml_path, elapsed, occupied, free)
     if preview is not None:
@@ -306,7 +331,15 @@ def build(
         summary["slam"] = slam_summary
     if settings.correct_odometry:
         summary["odometry_corrected"] = True
-    report(summary, summary_line(summary), as_json, quiet)
+    if spread is not None:
+        summary["spread"] = str(output if to_mcap else spread_paths(output)[1])
+    line = summary_line(summary)
+    if as_json or spread is not None:
+        quality = map_quality(data, robot_desc, layer_options, result.map, (occupied, free),
+                              spread, graph, echoes=as_json)  # fmt: skip
+        summary["quality"] = quality.as_dict()
+        line += "".join(f"; {part}" for part in quality_notes(quality, pose, data, robot_desc))
+    report(summary, line, as_json, quiet)
 
 
 def _names(logs: tuple[Path, ...]) -> str:
