@@ -60,6 +60,7 @@ DELTA_M = 5.0
 @dataclass(frozen=True)
 class Row:
     source: str
+    ape_m: float
     nll: float
     echoes: EchoConsistency | None
     closures: ClosureConsistency | None
@@ -88,13 +89,13 @@ def run_log(name: str) -> list[Row]:
     rows = []
     for source in SOURCES:
         omap = build_map(logs[source], None, options).map
-        alignment = track_error(tracks[source], reference, DELTA_M).alignment
-        _, _, _, nll = map_scores(omap, ref_map, alignment)
+        error = track_error(tracks[source], reference, DELTA_M)
+        _, _, _, nll = map_scores(omap, ref_map, error.alignment)
         echoes = echo_consistency(omap, map_readings(logs[source], None, options), OCCUPIED, FREE)
         closures = None
         if source == "slam" and slam.graph is not None:
             closures = closure_consistency(slam.poses, slam.graph.edges)
-        rows.append(Row(source, nll, echoes, closures))
+        rows.append(Row(source, error.ape_rmse_m, nll, echoes, closures))
     return rows
 
 
@@ -105,9 +106,9 @@ def ranks(values: list[float]) -> list[int]:
 
 def table(results: dict[str, list[Row]]) -> tuple[list[str], int]:
     lines = [
-        "| log | map | NLL against the reference | rank | echoes | echoes in free cells | "
-        "rank | echoes in occupied cells | closures, median NEES |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| log | map | track APE m | NLL against the reference | rank | echoes | "
+        "echoes in free cells | rank | echoes in occupied cells | closures, median NEES |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     agree = 0
     for name, rows in results.items():
@@ -119,7 +120,7 @@ def table(results: dict[str, list[Row]]) -> tuple[list[str], int]:
             e = r.echoes
             c = r.closures
             lines.append(
-                f"| {name} | {r.source} | {r.nll:.4f} | {a} | "
+                f"| {name} | {r.source} | {r.ape_m:.2f} | {r.nll:.4f} | {a} | "
                 f"{e.echoes if e else 0:,} | {e.in_free if e else float('nan'):.4f} | {b} | "
                 f"{e.in_occupied if e else float('nan'):.3f} | "
                 + (f"{c.closures:,}, {c.median_nees:.2f} |" if c else "- |")

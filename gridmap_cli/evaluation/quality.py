@@ -318,7 +318,7 @@ def map_quality(
     leaves out the echo consistency (a pass over the readings)."""
     occupied, free = thresholds
     consistency = None
-    if echoes:
+    if echoes and has_laser(log, robot):
         consistency = echo_consistency(omap, map_readings(log, robot, options), occupied, free)
     return Quality(
         spread=None if spread is None else spread_summary(*spread),

@@ -112,6 +112,8 @@ class JobResult:
     readings: int = 0  # readings mapped
     warnings: tuple[str, ...] = ()
     built_at: str = ""  # UTC time the map was built (this run, or the run that built it)
+    #: what the log tells of the map (docs/quality.md); empty for a failed job
+    quality: dict[str, Any] = field(default_factory=dict)
 
     def as_json(self) -> str:
         return json.dumps(dataclasses.asdict(self), sort_keys=True)
@@ -231,6 +233,7 @@ def run_job(job: Job) -> JobResult:
                 readings=int(stored.get("readings") or 0),
                 warnings=tuple(str(w) for w in stored.get("warnings") or ()),
                 built_at=str(stored.get("built_at") or ""),
+                quality=dict(stored.get("quality") or {}),
             )
         built = build_job(job, key, seconds)
     except GridmapError as exc:
@@ -249,6 +252,7 @@ def run_job(job: Job) -> JobResult:
         readings=built.readings,
         warnings=built.warnings,
         built_at=built.built_at,
+        quality=built.quality or {},
     )
 
 

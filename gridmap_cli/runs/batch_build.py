@@ -24,6 +24,12 @@ from gridmap_cli.atomic import atomic_write
 from gridmap_cli.runs.content import content_hash
 
 if TYPE_CHECKING:
+    from gridmap_cli.evaluation.quality import FloatArray
+    from gridmap_cli.mapping.grid import OccupancyMap
+    from gridmap_cli.mapping.options import BuildOptions
+    from gridmap_cli.poses.correction.pose_graph import Edge
+    from gridmap_cli.records import RangeLog
+    from gridmap_cli.robot import RobotDescription
     from gridmap_cli.runs.batch import Job
 
 #: --pose values whose track the laser makes (the readings are held for it)
@@ -39,6 +45,8 @@ class Built:
     readings: int
     warnings: tuple[str, ...]
     built_at: str
+    #: what the log tells of the map (:meth:`gridmap_cli.evaluation.quality.Quality.as_dict`)
+    quality: dict[str, Any] | None = None
 
 
 def robot_file(job: Job, metadata: dict[str, str] | None) -> Path | None:
@@ -110,6 +118,8 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
         robot = robot_from_log(job.log, data.metadata)
     warnings: list[str] = []
     build = options.build
+    belief = None
+    graph = None
     if options.pose == "scan-matched":
         from gridmap_cli.poses.correction.scan_match import (
             scan_matched_log,
@@ -122,11 +132,15 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
         data, slam = slam_corrected_log(data, robot)
         if slam.warning:
             warnings.append(f"--pose slam: {slam.warning}")
-        if build.mode == "error-aware":  # the graph's marginals and draws, as build maps them
-            from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
+        from gridmap_cli.poses.uncertainty.pose_belief import slam_belief
 
-            belief = slam_belief(slam, build.error_samples, build.error_seed)
+        # the graph's marginals (the quality's spread) and, error-aware, its draws
+        samples = build.error_samples if build.mode == "error-aware" else 0
+        belief = slam_belief(slam, samples, build.error_seed)
+        if build.mode == "error-aware":
             build = dataclasses.replace(build, pose_belief=belief)
+        if slam.graph is not None:
+            graph = (slam.poses, slam.graph.edges)
     else:
         data = select_poses(data, options.pose)
         note = reference_spread_note(options.pose, build)
@@ -141,6 +155,8 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
     mark = time.perf_counter()
     write_map(job.output, result.map, mode=options.map_mode, occupied_thresh=options.occupied,
               free_thresh=options.free, force=True)  # fmt: skip
+    quality = _quality(selected.log, robot, dataclasses.replace(build, pose_belief=belief),
+                       result.map, (options.occupied, options.free), graph)  # fmt: skip
     prob = result.map.prob
     known = ~np.isnan(prob)
     built = Built(
@@ -154,6 +170,7 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
         readings=result.sync.used,
         warnings=tuple(warnings),
         built_at=datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        quality=quality,
     )
     thumbnail = thumbnail_png(prob, options.occupied, options.free)
     sidecar = {
@@ -166,12 +183,30 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
         "readings": built.readings,
         "warnings": list(built.warnings),
         "built_at": built.built_at,
+        "quality": built.quality,
         "thumbnail_png": base64.b64encode(thumbnail).decode("ascii"),
     }
     with atomic_write(job.sidecar, "the batch sidecar") as tmp:
         tmp.write_text(json.dumps(sidecar, sort_keys=True) + "\n", encoding="utf-8")
     seconds["write"] = time.perf_counter() - mark
     return built
+
+
+def _quality(
+    log: RangeLog,
+    robot: RobotDescription | None,
+    build: BuildOptions,
+    omap: OccupancyMap,
+    thresholds: tuple[float, float],
+    graph: tuple[FloatArray, list[Edge]] | None,
+) -> dict[str, Any]:
+    """The quality block ``gridmap build --json`` gives the same map."""
+    from gridmap_cli.evaluation.quality import map_quality, map_spread
+
+    spread = None
+    if build.mode == "error-aware" or build.pose_belief is not None:
+        spread = map_spread(log, robot, build, omap)
+    return map_quality(log, robot, build, omap, thresholds, spread, graph).as_dict()
 
 
 def sidecar_thumbnail(job: Job) -> bytes | None:
