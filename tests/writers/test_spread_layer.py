@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 from mcap.reader import make_reader
 
@@ -119,3 +120,33 @@ def test_an_mcap_map_carries_the_layer_on_its_own_topic(tmp_path: Path, room_csv
     assert code == 0, stderr
     with plain.open("rb") as handle:
         assert [c.topic for _, c, _ in make_reader(handle).iter_messages()] == ["/map"]
+
+
+def test_a_failed_layer_write_leaves_neither_the_map_nor_the_layer(
+    tmp_path: Path, room_csv: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import gridmap_cli.writers.spread_layer as layer_module
+
+    def full(_: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(layer_module, "spread_pixels", full)
+    cal = tmp_path / "odo.yaml"
+    cal.write_text(ODOMETRY)
+    code, _, stderr = run("build", str(room_csv), "-o", str(tmp_path / "m.png"), "--mode",
+                          "error-aware", "--odometry-error", str(cal))  # fmt: skip
+    assert code == 1
+    assert "cannot write the map: No space left on device" in stderr.strip().splitlines()[-1]
+    assert names(tmp_path) == {"room.csv", "odo.yaml"}  # no map, no layer, no temporary file
+
+
+def test_a_layer_path_that_is_a_folder_is_refused_before_reading(
+    tmp_path: Path, room_csv: Path
+) -> None:
+    cal = tmp_path / "odo.yaml"
+    cal.write_text(ODOMETRY)
+    (tmp_path / "m_spread.png").mkdir()
+    code, _, stderr = run("build", str(room_csv), "-o", str(tmp_path / "m.png"), "--mode",
+                          "error-aware", "--odometry-error", str(cal), "--force")  # fmt: skip
+    assert code == 2 and "m_spread.png is a directory" in stderr
+    assert names(tmp_path) == {"room.csv", "odo.yaml", "m_spread.png"}
