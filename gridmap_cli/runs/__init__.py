@@ -2,5 +2,5 @@
 recordings into one map, :mod:`.executors` runs either on local processes or a Dask cluster;
 :mod:`.content` keys a log by its content.
 
-May import: everything below the CLI (readers, poses, mapping, writers, the core).
+May import: everything below the CLI (readers, poses, mapping, evaluation, writers, the core).
 """
