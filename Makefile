@@ -7,7 +7,7 @@ DEMO_OUT := out/demo
 KERNELS := setup.py gridmap_cli/mapping/models/_ckernels.c gridmap_cli/readers/ros/_cwalk.c \
 	gridmap_cli/poses/correction/_cbranch.c
 
-.PHONY: install dev demo test lint format bench samples goldens doc-outputs experiment corpus overview-image clean
+.PHONY: install dev demo test lint format bench samples goldens doc-outputs experiment quality corpus overview-image clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -65,6 +65,11 @@ samples: install
 # change on a few logs: .venv/bin/python bench/real_logs.py --logs aces,intel --pose slam --no-doc
 experiment: dev
 	$(BIN)/python bench/experiment.py
+
+# the quality score without ground truth against the NLL with it, on the six shared CARMEN logs
+# (bench/quality_ranking.py); rewrites the table in docs/quality.md; 15 minutes on 2 cores
+quality: dev
+	$(BIN)/python bench/quality_ranking.py
 
 # regenerate samples/golden/ (the conformance test's expected dump and map checksums, and the
 # trinary map) from samples/corridor_loop.csv; only when a change to them is intended

@@ -150,3 +150,20 @@ def test_chromium_renders_it_from_a_static_server_and_every_link_resolves(
     statuses = links.group(1).split(",")
     # three maps' image and YAML, and the report
     assert statuses == ["200"] * 7, statuses
+
+
+def test_the_quality_block_reads_as_a_few_words() -> None:
+    from gridmap_cli.writers.overview import quality_text
+
+    quality = {
+        "spread": {"share_within_m": {"0.1": 0.25, "0.5": 0.9, "1": 1.0}},
+        "echo_consistency": {"echoes": 10, "in_free": 0.1234, "in_occupied": 0.5},
+        "closures": {"closures": 12, "median_nees": 0.05, "expected_median": 2.366},
+    }
+    assert quality_text(quality) == (
+        "pose spread within 0.1 m: 25 %, 0.5 m: 90 %, 1 m: 100 %; 12.3 % of laser echoes in free "
+        "cells; 12 closures, median NEES 0.05"
+    )
+    # a sonar log's standard map: nothing to say, no line on its card
+    assert quality_text({"spread": None, "echo_consistency": None, "closures": None}) == ""
+    assert quality_text(None) == ""

@@ -100,6 +100,23 @@ def test_the_logs_robot_line_is_applied(tmp_path: Path) -> None:
     assert np.array_equal(named.map.prob, given.map.prob, equal_nan=True)
 
 
+def test_a_built_map_gives_its_spread_layer_and_quality() -> None:
+    log = gridmap.read_log(CSV)
+    plain = gridmap.build(gridmap.MapOptions(resolution=0.2).request(log=log))
+    assert plain.spread() is None
+    aware = gridmap.MapOptions(resolution=0.2, mode="error-aware", error_samples=2,
+                               odometry_coefficients=("range_m_per_m=0.05",))  # fmt: skip
+    built = gridmap.build(aware.request(log=log))
+    spread = built.spread()
+    assert spread is not None
+    layer, _ = spread
+    assert layer.shape == built.map.prob.shape
+    assert np.array_equal(np.isnan(layer), np.isnan(built.map.prob))
+    quality = built.quality((0.65, 0.25), spread).as_dict()
+    assert quality["spread"]["known_cells"] == int(np.count_nonzero(~np.isnan(layer)))
+    assert quality["echo_consistency"] is None  # a sonar log: no laser echo is counted
+
+
 def shifted_poses(log: RangeLog, robot: RobotDescription | None, _: PoseSettings) -> PosedLog:
     """A pose source for the test below: the odometry moved 1 m along x."""
     poses = dataclasses.replace(log.poses, x_m=log.poses.x_m + 1.0)

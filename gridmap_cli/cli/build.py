@@ -42,18 +42,32 @@ from gridmap_cli.cli.map_options import (
 )
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import MixedLogsError, NotRecordingFolderError, UsageError
+from gridmap_cli.evaluation.quality import quality_notes
 from gridmap_cli.heap import TRIM_EVERY_BATCHES, TrimEvery, keep_scratch_memory, release_free_memory
 from gridmap_cli.mapping.options import BuildOptions
 from gridmap_cli.poses.sources import ODOMETRY_SOURCE, pose_source, source_names
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import load_robot, preset_names
-from gridmap_cli.runs.build import BuildHooks, BuildRequest, MapBuild, map_stage, pose_stage
+from gridmap_cli.runs.build import (
+    BuildHooks,
+    BuildRequest,
+    MapBuild,
+    has_spread_layer,
+    map_stage,
+    pose_stage,
+)
 from gridmap_cli.runs.executors import EXECUTORS, check_dask, fuse_dask, fuse_local
 from gridmap_cli.runs.fuse import FuseJob, Partial, fused_map, parse_initial_pose
 from gridmap_cli.runs.settings import MapOptions, map_settings
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, check_map_outputs, write_map
+from gridmap_cli.writers.spread_layer import (
+    SPREAD_TOPIC,
+    spread_levels,
+    spread_output,
+    spread_paths,
+)
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -181,6 +195,11 @@ def build(
     preview = output.with_name(f"{output.stem}_path.png") if draw_path else None
     if preview is not None:
         check_output(preview, force)
+    # the pose-spread layer beside a map that knows its poses' uncertainty
+    layered = not fuse and not to_stdout and has_spread_layer(settings, opts.pose)
+    if layered and not to_mcap:
+        for path in spread_paths(output):
+            check_output(path, force)
     if fuse:
         fuse_jobs = [
             FuseJob(log=log.resolve(), log_format=opts.log_format, read_options=opts.topics,
@@ -256,33 +275,45 @@ def _write_one(
     occupied, free, map_mode = opts.occupied, opts.free, opts.map_mode
     if opts.mode == "error-aware" and map_mode == "trinary" and not to_mcap:
         warn(undecided_note(built.map.prob, occupied, free), quiet)
+    spread = built.spread() if output != STDIO else None
     yaml_path: Path | None = None
     if to_mcap:
         # stamped at the last reading: the map is what the robot knew then
         stamp = built.log.reading_span()[1] if built.log.reading_count else 0
         from gridmap_cli.writers.map_mcap import write_map_mcap  # the MCAP writer only when asked
 
-        image_path = write_map_mcap(output, built.map, stamp_ns=stamp, force=force)
+        layers = [] if spread is None else [(SPREAD_TOPIC, spread_levels(spread[0]))]
+        image_path = write_map_mcap(output, built.map, stamp_ns=stamp, force=force,
+                                    layers=layers)  # fmt: skip
     elif output == STDIO:
         with stdout_file(f"map.{image_format}") as image:
             write_map(image, built.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free)
         image_path = STDIO
     else:
+        also = [] if spread is None else [spread_output(output, spread[0], built.map.spec)]
         image_path, yaml_path = write_map(
             output, built.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free,
-            force=force,
+            force=force, also=also,
         )  # fmt: skip
     if preview is not None and built.placed.read is not None:
         from gridmap_cli.writers.preview import write_preview  # only --draw-path draws
 
         tracks = _tracks(built.placed.read, built.log, built.placed.posed.source)
-        write_preview(preview, built.map, tracks)
+        write_preview(preview, built.map, tracks, None if spread is None else spread[0])
     elapsed = time.perf_counter() - started
     summary = build_summary(built.stats, image_path, yaml_path, elapsed, occupied, free)
     if preview is not None:
         summary["preview"] = str(preview)
     summary.update(built.summary)
-    report(summary, summary_line(summary), as_json, quiet)
+    if spread is not None:
+        summary["spread"] = str(output if to_mcap else spread_paths(output)[1])
+    line = summary_line(summary)
+    if as_json or spread is not None:
+        quality = built.quality((occupied, free), spread, echoes=as_json)
+        summary["quality"] = quality.as_dict()
+        notes = quality_notes(quality, built.placed.posed.source, built.log, built.placed.robot)
+        line += "".join(f"; {part}" for part in notes)
+    report(summary, line, as_json, quiet)
 
 
 def _names(logs: Sequence[Path]) -> str:

@@ -1,4 +1,5 @@
-"""``gridmap evaluate``: a map scored against the true world."""
+"""``gridmap evaluate``: a map scored against the true world, or without it by what the log it
+was built from tells (:mod:`gridmap_cli.evaluation.quality`)."""
 
 from __future__ import annotations
 
@@ -49,9 +50,10 @@ if TYPE_CHECKING:
 @click.option(
     "--truth",
     "truth_yaml",
-    required=True,
     type=click.Path(path_type=Path, readable=False),
-    help="Ground-truth world map (map_server YAML, e.g. samples/worlds/*.yaml).",
+    help="Ground-truth world map (map_server YAML, e.g. samples/worlds/*.yaml). Without it, "
+    "--log is required and the map is judged by what the log itself tells: its pose spread, "
+    "how many laser echoes it contradicts, and a pose graph's closures (docs/quality.md).",
 )
 @click.option(
     "--log",
@@ -100,13 +102,14 @@ if TYPE_CHECKING:
     "--odometry-error",
     "odometry_file",
     type=click.Path(path_type=Path, readable=False),
-    help="--spread-plot: the odometry-error file the map was built with (gridmap calibrate).",
+    help="--spread-plot, or without --truth: the odometry-error file the map was built with "
+    "(gridmap calibrate), whose pose spread is drawn or reported.",
 )
 @force_option("Overwrite existing --plot / --spread-plot outputs.")
 @handle_errors
 def evaluate(
     map_yaml: Path,
-    truth_yaml: Path,
+    truth_yaml: Path | None,
     log_path: Path | None,
     log_format: str | None,
     robot: str | None,
@@ -122,7 +125,8 @@ def evaluate(
     odometry_file: Path | None,
     force: bool,
 ) -> None:
-    """Score the map MAP.yaml against the ground-truth world of --truth.
+    """Score the map MAP.yaml against the ground-truth world of --truth, or without it, by what
+    the log it was built from tells (--log).
 
     Scores (docs/evaluation.md): NLL and Brier score of the true occupancy under the map's
     probabilities, reliability table and expected calibration error, occupied-cell precision,
@@ -136,17 +140,17 @@ def evaluate(
     """
     from gridmap_cli.evaluation import evaluate as ev
 
-    for given, what in ((map_yaml, "MAP"), (truth_yaml, "--truth")):
-        if given.suffix.lower() not in (".yaml", ".yml"):
-            raise UsageError(
-                f"{given}: {what} must be a map's YAML file (the image is named inside it)"
-            )
+    _check_names(map_yaml, truth_yaml, plot, spread_plot, frame, log_path)
     pose, frame = _pose_and_frame(pose, frame)
     selection = _check_options(pose, frame, log_path, (sensor_patterns, start, end), spread_plot,
-                               odometry_file)  # fmt: skip
+                               odometry_file, truth_yaml is None)  # fmt: skip
     _check_files(map_yaml, truth_yaml, log_path, odometry_file, plot, spread_plot, force)
     odometry = load_odometry_error(odometry_file) if odometry_file is not None else None
     robot_desc = load_robot(robot) if robot else None
+    if truth_yaml is None:
+        _quality_only(map_yaml, log_path, log_format, robot_desc, pose, odometry, selection,
+                      as_json, quiet)  # fmt: skip
+        return
     truth = ev.load_truth(truth_yaml)
     pmap = ev.load_probability_map(map_yaml)
     map_to_world, region, log_world, spread = (0.0, 0.0, 0.0), None, None, None
@@ -183,6 +187,32 @@ def evaluate(
         click.echo(f"gridmap: pose-spread plot written to {spread_plot}", err=True)
 
 
+def _check_names(
+    map_yaml: Path,
+    truth_yaml: Path | None,
+    plot: Path | None,
+    spread_plot: Path | None,
+    frame: str | None,
+    log_path: Path | None,
+) -> None:
+    """Without --truth, the log judges the map (--log, in the map's own frame, no plots); MAP
+    and --truth name maps' YAML files."""
+    if truth_yaml is None and log_path is None:
+        raise UsageError(
+            "give --truth WORLD.yaml to score the map against ground truth, or --log LOG (the "
+            "log it was built from) to judge it by what the log tells"
+        )
+    if truth_yaml is None and (plot is not None or spread_plot is not None):
+        raise UsageError("--plot and --spread-plot draw the map against --truth: give it")
+    if truth_yaml is None and frame == "world":
+        raise UsageError("without --truth the map is judged in its own frame: no --frame world")
+    for given, what in ((map_yaml, "MAP"), (truth_yaml, "--truth")):
+        if given is not None and given.suffix.lower() not in (".yaml", ".yml"):
+            raise UsageError(
+                f"{given}: {what} must be a map's YAML file (the image is named inside it)"
+            )
+
+
 def _check_options(
     pose: str,
     frame: str,
@@ -190,9 +220,11 @@ def _check_options(
     part: tuple[tuple[str, ...], str | None, str | None],
     spread_plot: Path | None,
     odometry_file: Path | None,
+    judged: bool = False,
 ) -> Selection:
     """Usage checks of the options against each other, before any file is read; the part of
-    --log to use (``part``: --sensors, --start, --end)."""
+    --log to use (``part``: --sensors, --start, --end). ``judged``: no --truth, the log judges
+    the map."""
     if frame == "odometry" and log_path is None:
         raise UsageError(
             "a map in the odometry frame needs --log (its first true pose places the frame in "
@@ -204,7 +236,7 @@ def _check_options(
     own_spread = pose_source(pose).belief  # the pose graph's, not the odometry error's
     if spread_plot is not None and own_spread and log_path is None:
         raise UsageError("--spread-plot draws the pose spread of the readings of --log: give it")
-    if spread_plot is not None and own_spread and odometry_file is not None:
+    if (spread_plot is not None or judged) and own_spread and odometry_file is not None:
         raise UsageError(
             f"--pose {pose}: the pose spread is the pose graph's own; --odometry-error is for "
             "odometry and scan-matched maps"
@@ -219,14 +251,14 @@ def _check_options(
             "--spread-plot is for maps built from odometry (--frame odometry): a map built with "
             "--pose global has no odometry spread"
         )
-    if odometry_file is not None and spread_plot is None:
-        raise UsageError("--odometry-error is for --spread-plot")
+    if odometry_file is not None and spread_plot is None and not judged:
+        raise UsageError("--odometry-error is for --spread-plot, or for evaluate without --truth")
     return selection
 
 
 def _check_files(
     map_yaml: Path,
-    truth_yaml: Path,
+    truth_yaml: Path | None,
     log_path: Path | None,
     odometry_file: Path | None,
     plot: Path | None,
@@ -239,7 +271,8 @@ def _check_files(
     if odometry_file is not None:
         check_input(odometry_file, folder_ok=False)
     for given in (map_yaml, truth_yaml):
-        check_input(given, folder_ok=False)
+        if given is not None:
+            check_input(given, folder_ok=False)
     for out, flag in ((plot, "--plot"), (spread_plot, "--spread-plot")):
         if out is None:
             continue
@@ -334,6 +367,42 @@ def _draw(
             title=f"{map_name}: where its uncertainty comes from",
             max_heading_deg=limit if math.isfinite(limit) else None,
         )
+
+
+def _quality_only(
+    map_yaml: Path,
+    log_path: Path | None,
+    log_format: str | None,
+    robot: RobotDescription | None,
+    pose: str,
+    odometry: OdometryError | None,
+    selection: Selection,
+    as_json: bool,
+    quiet: bool,
+) -> None:
+    """Evaluate without ground truth (docs/quality.md): the log, posed as the map was built,
+    judges the map read back from its file."""
+    assert log_path is not None  # the usage checks ask for it
+    from gridmap_cli.evaluation.quality import log_quality, quality_table
+    from gridmap_cli.mapping.grid import OccupancyMap
+    from gridmap_cli.mapping.mapfile import load_map
+    from gridmap_cli.mapping.options import BuildOptions
+
+    loaded = load_map(map_yaml)
+    omap = OccupancyMap(loaded.spec, loaded.stored_probability())
+    data = resolve_format(log_path, log_format).read(log_path)
+    if robot is None:
+        robot = robot_from_log(log_path, data.metadata)
+    selected = apply_selection(data, selection, robot)
+    warn(selected.notes)
+    options = BuildOptions(odometry_error=odometry)
+    thresholds = (loaded.occupied_thresh, loaded.free_thresh)
+    quality = log_quality(omap, selected.log, robot, pose, options, thresholds)
+    if as_json:
+        doc = {"map": str(map_yaml), "log": str(log_path), "pose": pose, **quality.as_dict()}
+        click.echo(json_text(doc))
+    elif not quiet:
+        click.echo(quality_table(str(map_yaml), log_path.name, pose, quality))
 
 
 def _pose_and_frame(pose: str | None, frame: str | None) -> tuple[str, str]:

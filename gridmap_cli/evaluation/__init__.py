@@ -1,6 +1,7 @@
 """Map quality against ground truth: :mod:`.evaluate` scores a map against a world or a
 reference map, :mod:`.metrics` holds the measures, :mod:`.spread_map` draws the error-aware
-spread, :mod:`.plot` the figures (matplotlib, the ``plot`` extra), :mod:`.relations`
+spread (and the layer written beside a map), :mod:`.quality` what a log tells of its map without
+ground truth, :mod:`.plot` the figures (matplotlib, the ``plot`` extra), :mod:`.relations`
 scores a track against the SLAM benchmark's ground-truth relations.
 
 May import: the core, :mod:`gridmap_cli.robot`, :mod:`gridmap_cli.poses`,

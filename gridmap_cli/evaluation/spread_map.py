@@ -8,16 +8,20 @@ deviation of theta). In an error-aware map a cell that only poorly placed readin
 grey however many of them there were. This module draws, per cell, the *smallest* position spread of
 the readings whose beam crossed the cell (and the heading spread of those readings), so a user
 can tell a region that is grey because the pose was lost there from one that is grey because the
-sensors disagree. No file I/O: :mod:`gridmap_cli.cli.evaluate` reads the log and the odometry
-error, :mod:`gridmap_cli.evaluation.plot` draws the result.
+sensors disagree. :func:`spread_layer` gives every cell the mean position spread of the
+readings whose beams crossed it, weighted by how many crossed it: the layer ``gridmap build``
+writes beside an error-aware or a pose graph's map. No file I/O: :mod:`gridmap_cli.cli.evaluate`
+reads the log and the odometry error, :mod:`gridmap_cli.evaluation.plot` draws the result.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from scipy import ndimage
 
 from gridmap_cli.mapping.grid import GridSpec, SpanSums
 from gridmap_cli.mapping.models.ray import RaySegments, row_runs
@@ -141,3 +145,47 @@ def pose_spread_map(
         position[new] = float(np.min(f[members]))
         heading[new] = float(np.min(g[members]))
     return PoseSpreadMap(spec, position, heading, step_f, step_g)
+
+
+def spread_layer(
+    spec: GridSpec,
+    chunks: Iterable[SensorReadings],
+    uncertainty: PoseUncertainty,
+    known: npt.NDArray[np.bool_] | None = None,
+) -> FloatArray:
+    """Per cell of ``spec`` (shape ``spec.shape``, row 0 at the bottom): the mean position spread
+    (metres, one standard deviation along the covariance ellipse's long axis) of the readings
+    whose beam crossed the cell, each counted as often as its rays crossed it, so a cell seen
+    mostly from well placed poses is well placed; NaN where no ray crossed it.
+
+    ``chunks``: the map's readings (its frame), in any cut: the sums are whole millimetres in
+    integers, so the layer does not depend on the cut. ``known`` (``spec.shape``): the map's
+    known cells; when given, the layer is NaN outside them, and a known cell no ray crossed
+    (between a sonar cone's rays, or reached only by a sampled track) takes the value of the
+    nearest crossed cell.
+    """
+    total = SpanSums(spec, np.int64)
+    count = SpanSums(spec, np.int64)
+    for readings in chunks:
+        spread_m, _ = reading_spreads(readings, uncertainty)
+        spread_mm = np.rint(spread_m * 1000.0).astype(np.int64)
+        for lo in range(0, len(readings), _READINGS_PER_CHUNK):
+            part = select_readings(readings, slice(lo, lo + _READINGS_PER_CHUNK))
+            index, rays = _beam_rays(part, spec)
+            runs = row_runs(spec, rays)
+            owner = index[runs.segment] + lo
+            total.add(runs.row, runs.col0, runs.col1, spread_mm[owner])
+            count.add(runs.row, runs.col0, runs.col1, np.ones(owner.shape[0], np.int64))
+    crossed = count.total()
+    sums = total.total()
+    layer = np.full(spec.shape, np.nan)
+    hit = crossed > 0
+    layer[hit] = sums[hit] / crossed[hit] / 1000.0
+    if known is None:
+        return layer
+    if hit.any() and (known & ~hit).any():
+        _, (rows, cols) = ndimage.distance_transform_edt(~hit, return_indices=True)
+        gap = known & ~hit
+        layer[gap] = layer[rows[gap], cols[gap]]
+    layer[~known] = np.nan
+    return layer

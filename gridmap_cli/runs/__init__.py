@@ -3,5 +3,5 @@ and :mod:`.settings` the map options as one value; many builds at once: :mod:`.b
 folder of logs, :mod:`.fuse` maps several recordings into one map, :mod:`.executors` runs
 either on local processes or a Dask cluster; :mod:`.content` keys a log by its content.
 
-May import: everything below the CLI (readers, poses, mapping, writers, the core).
+May import: everything below the CLI (readers, poses, mapping, evaluation, writers, the core).
 """

@@ -31,7 +31,7 @@ from collections import Counter
 from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 from gridmap_cli import __version__
 from gridmap_cli.atomic import atomic_write
@@ -64,6 +64,8 @@ class JobResult:
     readings: int = 0  # readings mapped
     warnings: tuple[str, ...] = ()
     built_at: str = ""  # UTC time the map was built (this run, or the run that built it)
+    #: what the log tells of the map (docs/quality.md); empty for a failed job
+    quality: dict[str, Any] = field(default_factory=dict)
 
     def as_json(self) -> str:
         return json.dumps(dataclasses.asdict(self), sort_keys=True)
@@ -183,6 +185,7 @@ def run_job(job: Job) -> JobResult:
                 readings=int(stored.get("readings") or 0),
                 warnings=tuple(str(w) for w in stored.get("warnings") or ()),
                 built_at=str(stored.get("built_at") or ""),
+                quality=dict(stored.get("quality") or {}),
             )
         built = build_job(job, key, seconds)
     except GridmapError as exc:
@@ -201,6 +204,7 @@ def run_job(job: Job) -> JobResult:
         readings=built.readings,
         warnings=built.warnings,
         built_at=built.built_at,
+        quality=built.quality or {},
     )
 
 

@@ -5,7 +5,7 @@ same bytes), written, and the sidecar saying what it was built from.
 The sidecar (``.<map>.batch.json``) holds the key (:func:`gridmap_cli.runs.content.build_key`),
 the robot file the map used with its SHA-256 (an edited robot file rebuilds the map, even one a
 log names beside itself), and what the overview page shows of a map this run did not build:
-readings, cells, warnings, when it was built and its thumbnail.
+readings, cells, warnings, when it was built, its quality and its thumbnail.
 """
 
 from __future__ import annotations
@@ -91,6 +91,8 @@ class Built:
     readings: int
     warnings: tuple[str, ...]
     built_at: str
+    #: what the log tells of the map (:meth:`gridmap_cli.evaluation.quality.Quality.as_dict`)
+    quality: dict[str, Any] | None = None
 
 
 def robot_file(job: Job, metadata: dict[str, str] | None) -> Path | None:
@@ -159,6 +161,8 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
     mark = time.perf_counter()
     write_map(job.output, result.map, mode=options.map_mode, occupied_thresh=options.occupied,
               free_thresh=options.free, force=True)  # fmt: skip
+    thresholds = (options.occupied, options.free)
+    quality = result.quality(thresholds, result.spread()).as_dict()  # as build --json gives it
     prob = result.map.prob
     known = ~np.isnan(prob)
     built = Built(
@@ -176,6 +180,7 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
             *((result.placed.posed.motion,) if result.placed.posed.motion else ()),
         ),
         built_at=datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        quality=quality,
     )
     thumbnail = thumbnail_png(prob, options.occupied, options.free)
     sidecar = {
@@ -188,6 +193,7 @@ def build_job(job: Job, key: str, seconds: dict[str, float]) -> Built:
         "readings": built.readings,
         "warnings": list(built.warnings),
         "built_at": built.built_at,
+        "quality": built.quality,
         "thumbnail_png": base64.b64encode(thumbnail).decode("ascii"),
     }
     with atomic_write(job.sidecar, "the batch sidecar") as tmp:

@@ -37,6 +37,7 @@ from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RobotDescription
 
 if TYPE_CHECKING:
+    from gridmap_cli.evaluation.quality import FloatArray, Quality
     from gridmap_cli.mapping.grid import OccupancyMap
     from gridmap_cli.poses.uncertainty.pose_belief import PoseBelief
     from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty
@@ -109,10 +110,10 @@ class MapBuild:
 
     ``map``: the grid (probabilities, NaN unknown) and its placement; ``poses``: the track it
     was built with; ``belief``: the pose graph's belief about it, when the pose source has one
-    and the map asked for it; ``options``: the map options used; ``stats``: readings and cell
-    updates; ``summary``: fields for a report (the pose source's, ``odometry_corrected``);
-    ``warnings``: what the user should read; ``seconds``: "read" (read, poses, selection) and
-    "map"."""
+    (its marginals; draws too for an error-aware map); ``options``: the map options used;
+    ``stats``: readings and cell updates; ``summary``: fields for a report (the pose source's,
+    ``odometry_corrected``); ``warnings``: what the user should read; ``seconds``: "read"
+    (read, poses, selection) and "map"."""
 
     map: OccupancyMap
     placed: Placed
@@ -145,6 +146,46 @@ class MapBuild:
 
         return propagate(self.poses, StepNoise.of(self.options.odometry_error))
 
+    def spread(self) -> tuple[FloatArray, PoseUncertainty] | None:
+        """The pose-spread layer of a map that knows its poses' uncertainty
+        (:func:`has_spread_layer`): per cell of :attr:`map`, the position spread of the readings
+        that crossed it (metres, NaN where the map knows nothing), and the covariance it was
+        drawn from; None for another map."""
+        if not has_spread_layer(self.options, self.placed.posed.source):
+            return None
+        from gridmap_cli.evaluation.quality import map_spread
+
+        return map_spread(self.log, self.placed.robot, self._judged(), self.map)
+
+    def quality(
+        self,
+        thresholds: tuple[float, float],
+        spread: tuple[FloatArray, PoseUncertainty] | None = None,
+        echoes: bool = True,
+    ) -> Quality:
+        """What the log tells of the map, without ground truth: ``thresholds`` (occupied, free)
+        classify its cells; ``spread`` from :meth:`spread`; the pose graph's closures when the
+        source built one; ``echoes`` False leaves out the echo consistency (a pass over the
+        readings)."""
+        from gridmap_cli.evaluation.quality import map_quality
+
+        slam = self.placed.posed.slam
+        graph = None if slam is None or slam.graph is None else (slam.poses, slam.graph.edges)
+        return map_quality(self.log, self.placed.robot, self._judged(), self.map, thresholds,
+                           spread, graph, echoes)  # fmt: skip
+
+    def _judged(self) -> BuildOptions:
+        """The options with the pose source's belief, which a standard map is not built with
+        but its spread is drawn from."""
+        return dataclasses.replace(self.options, pose_belief=self.belief)
+
+
+def has_spread_layer(options: BuildOptions, pose: str) -> bool:
+    """Whether a map built with ``options`` by the pose source ``pose`` knows its poses'
+    uncertainty, so a pose-spread layer goes beside it: an error-aware map, or a map of a source
+    that knows its own (a pose graph)."""
+    return options.mode == "error-aware" or pose_source(pose).belief
+
 
 def pose_stage(request: BuildRequest, hooks: BuildHooks | None = None) -> Placed:
     """The pose stage of :func:`build`: the log read (or taken), its robot, placed by the pose
@@ -164,9 +205,9 @@ def pose_stage(request: BuildRequest, hooks: BuildHooks | None = None) -> Placed
     if source.chooses and whole.stream is not None and has_laser(whole, robot):
         whole = _read(request, True, robot, hooks)
     mode = request.options.mode
-    settings = PoseSettings(
+    settings = PoseSettings(  # the belief's marginals (the spread) and, error-aware, its draws
         progress=hooks.stages,
-        belief_samples=request.options.error_samples if mode == "error-aware" else None,
+        belief_samples=request.options.error_samples if mode == "error-aware" else 0,
         belief_seed=request.options.error_seed,
         odometry_model=request.options.odometry_error_given,
     )
@@ -224,7 +265,8 @@ def _chosen_options(request: BuildRequest, placed: Placed) -> BuildOptions:
     has one; for a source that chose by the log, no odometry correction of another track, and
     the error-aware map's need of an odometry error where the choice was the odometry."""
     options = request.options
-    if placed.posed.belief is not None:  # the graph's marginals and draws, not the odometry's
+    if placed.posed.belief is not None and options.mode == "error-aware":
+        # the graph's marginals and draws, not the odometry's
         return dataclasses.replace(options, pose_belief=placed.posed.belief)
     if not pose_source(request.pose).chooses:
         return options

@@ -1,7 +1,8 @@
 """Writers: the end of the flow, turning a finished map or a log into files.
 
 Map images with their map_server YAML (:mod:`.map_image`), the map as an MCAP OccupancyGrid
-(:mod:`.map_mcap`), the preview with tracks (:mod:`.preview`), logs as CSV, ARIA or MCAP
+(:mod:`.map_mcap`), the pose-spread layer beside a map (:mod:`.spread_layer`), the preview with
+tracks (:mod:`.preview`), logs as CSV, ARIA or MCAP
 (:mod:`.csv_log`, :mod:`.aria_log`, :mod:`.mcap_log`, with :mod:`.convert` choosing among them)
 and tracks as TUM or CSV (:mod:`.trajectory`). Every file is written beside its target and
 renamed (:mod:`gridmap_cli.atomic`).

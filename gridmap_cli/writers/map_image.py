@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +50,10 @@ RAW_UNKNOWN_GREY = 255
 #: (p = 1) occupied, with strict or inclusive comparisons alike.
 TRINARY_YAML_OCCUPIED_THRESH = 0.65
 TRINARY_YAML_FREE_THRESH = 0.196
+
+#: Files written with a map in one atomic block (:func:`write_map`'s ``also``): their targets,
+#: and a function writing them to the temporary paths it is given, in the same order.
+ExtraOutput = tuple[tuple[Path, ...], Callable[[list[Path]], None]]
 
 # An image name that YAML reads back as the same plain string without any quoting.
 _PLAIN_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]*")
@@ -248,8 +253,12 @@ def write_map(
     occupied_thresh: float = 0.65,
     free_thresh: float = 0.25,
     force: bool = False,
+    also: Sequence[ExtraOutput] = (),
 ) -> tuple[Path, Path]:
     """Write ``omap`` as ``image_path`` plus the YAML beside it; return (image, yaml) paths.
+
+    ``also``: more files that belong with the map (a layer beside it), written in the same
+    atomic block, so that all are written or none; the caller checks them beforehand.
 
     ``occupied_thresh`` / ``free_thresh`` are probabilities in [0, 1]: in ``trinary`` mode they
     classify cells and the YAML gets 0.65 / 0.196 regardless; in ``scale`` and ``raw`` modes they
@@ -272,16 +281,21 @@ def write_map(
         yaml_occupied, yaml_free = occupied_thresh, free_thresh
     text = map_yaml_text(image_out.name, mode, omap.spec, yaml_occupied, yaml_free)
 
+    targets = [image_out, yaml_out] + [path for paths, _ in also for path in paths]
     temps: list[Path] = []
     try:
-        with atomic_outputs([image_out, yaml_out]) as temps:
-            tmp_image, tmp_yaml = temps
+        with atomic_outputs(targets) as temps:
+            tmp_image, tmp_yaml = temps[:2]
             # the temporary name keeps the target's suffix, so Pillow picks PPM (P5) or PNG;
             # uint8 (H, W) becomes mode L and (H, W, 2) mode LA
             Image.fromarray(pixels).save(tmp_image)
             tmp_yaml.write_text(text, encoding="utf-8")
+            at = 2
+            for paths, write in also:
+                write(temps[at : at + len(paths)])
+                at += len(paths)
     except OSError as exc:
-        failed = _output_named_by(exc, list(zip(temps, (image_out, yaml_out), strict=False)))
+        failed = _output_named_by(exc, list(zip(temps, targets, strict=False)))
         raise GridmapError(
             f"{failed or image_out}: cannot write the map: {exc.strerror or exc}"
         ) from exc

@@ -10,6 +10,7 @@ image's last row), as OccupancyGrid defines it.
 from __future__ import annotations
 
 import struct
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -45,7 +46,7 @@ def occupancy_values(prob: npt.NDArray[np.float64]) -> npt.NDArray[np.int8]:
     return values
 
 
-def _with_cells(empty: bytes, omap: OccupancyMap) -> bytes:
+def _with_cells(empty: bytes, cells: npt.NDArray[np.int8]) -> bytes:
     """The CDR of an OccupancyGrid whose ``data`` was encoded empty, with the cells filled in.
 
     ``data`` is the message's last field: a uint32 count then one byte per cell, so the count 0
@@ -54,17 +55,24 @@ def _with_cells(empty: bytes, omap: OccupancyMap) -> bytes:
     """
     if empty[-4:] != b"\0\0\0\0":
         raise AssertionError("an OccupancyGrid encoded with empty data must end in a zero count")
-    cells = occupancy_values(omap.prob).ravel()
-    return empty[:-4] + struct.pack("<I", cells.size) + cells.tobytes()
+    flat = cells.ravel()
+    return empty[:-4] + struct.pack("<I", flat.size) + flat.tobytes()
 
 
 def write_map_mcap(
-    path: Path, omap: OccupancyMap, *, stamp_ns: int = 0, force: bool = False
+    path: Path,
+    omap: OccupancyMap,
+    *,
+    stamp_ns: int = 0,
+    force: bool = False,
+    layers: Sequence[tuple[str, npt.NDArray[np.int8]]] = (),
 ) -> Path:
     """Write ``omap`` as an MCAP holding one OccupancyGrid stamped ``stamp_ns`` (integer ns).
 
     ``info.origin`` is the lower-left corner of cell (0, 0) with identity orientation;
-    ``info.resolution`` is the cell size (float32 in the message). Written atomically.
+    ``info.resolution`` is the cell size (float32 in the message). ``layers``: more grids of
+    the map's geometry, each (topic, cell values of shape ``omap.spec.shape``, row 0 at the
+    bottom), one message each on its own topic. Written atomically.
     """
     check_output(path, force)
     spec = omap.spec
@@ -86,17 +94,24 @@ def write_map_mcap(
         "data": [],
     }
     text = message_definition(MAP_SCHEMA)
-    data = _with_cells(serialize_dynamic(MAP_SCHEMA, text)[MAP_SCHEMA](message), omap)
+    empty = serialize_dynamic(MAP_SCHEMA, text)[MAP_SCHEMA](message)
+    grids = [(MAP_TOPIC, occupancy_values(omap.prob))]
+    for topic, cells in layers:
+        if cells.shape != spec.shape:
+            raise ValueError(f"layer {topic} of shape {cells.shape} for a grid of {spec.shape}")
+        grids.append((topic, cells))
     with atomic_write(path, "the map") as tmp, open(tmp, "wb") as handle:
         writer = mcap_writer(handle)
         writer.start(profile="ros2", library=LIBRARY)
         schema_id = writer.register_schema(MAP_SCHEMA, "ros2msg", text.encode("utf-8"))
-        channel_id = writer.register_channel(
-            MAP_TOPIC,
-            "cdr",
-            schema_id,
-            metadata={"offered_qos_profiles": qos_profiles_yaml(1, "transient_local")},
-        )
-        writer.add_message(channel_id, int(stamp_ns), data, int(stamp_ns))
+        for topic, cells in grids:
+            channel_id = writer.register_channel(
+                topic,
+                "cdr",
+                schema_id,
+                metadata={"offered_qos_profiles": qos_profiles_yaml(1, "transient_local")},
+            )
+            data = _with_cells(empty, cells)
+            writer.add_message(channel_id, int(stamp_ns), data, int(stamp_ns))
         writer.finish()  # type: ignore[no-untyped-call]
     return path

@@ -169,6 +169,9 @@ def _card(
     if isinstance(seconds, Mapping) and "total" in seconds:
         verb = "checked in" if status == "skipped" else "took"
         facts.append(("time", f"{verb} {float(seconds['total']):.1f} s"))
+    quality = quality_text(record.get("quality"))
+    if quality:
+        facts.append(("quality", quality))
     if record.get("built_at"):
         facts.append(("built", str(record["built_at"]).replace("T", " ").replace("Z", " UTC")))
     facts_html = "".join(f"<dt>{_text(k)}</dt><dd>{_text(v)}</dd>" for k, v in facts)
@@ -187,6 +190,29 @@ def _card(
         + (f'<p class="error">{_text(record["error"])}</p>\n' if record.get("error") else "")
         + f"<nav>{' '.join(links)}</nav>\n</div>\n</article>"
     )
+
+
+def quality_text(quality: object) -> str:
+    """A map's quality block (docs/quality.md) in a few words; empty when it says nothing."""
+    if not isinstance(quality, Mapping):
+        return ""
+    parts = []
+    spread = quality.get("spread")
+    if isinstance(spread, Mapping) and isinstance(spread.get("share_within_m"), Mapping):
+        shares = spread["share_within_m"]
+        parts.append(
+            "pose spread within "
+            + ", ".join(f"{k} m: {100 * float(v):.0f} %" for k, v in shares.items())
+        )
+    echoes = quality.get("echo_consistency")
+    if isinstance(echoes, Mapping) and echoes.get("in_free") is not None:
+        parts.append(f"{100 * float(echoes['in_free']):.1f} % of laser echoes in free cells")
+    closures = quality.get("closures")
+    if isinstance(closures, Mapping) and closures.get("median_nees") is not None:
+        parts.append(
+            f"{closures['closures']} closures, median NEES {float(closures['median_nees']):.2f}"
+        )
+    return "; ".join(parts)
 
 
 def _name(record: Mapping[str, Any]) -> str:

@@ -153,7 +153,6 @@ def test_cells_appended_by_hand_equal_the_generic_cdr_encoder(width: int, height
     from gridmap_cli.writers.map_mcap import _with_cells
     from gridmap_cli.writers.ros2_msgdefs import message_definition
 
-    spec = GridSpec(0.5, -0.25, 0.1, width, height)
     prob = np.linspace(0.0, 1.0, width * height).reshape(height, width)
     prob[0, 0] = np.nan
     encode = serialize_dynamic(
@@ -164,5 +163,5 @@ def test_cells_appended_by_hand_equal_the_generic_cdr_encoder(width: int, height
         "info": {"resolution": 0.1, "width": width, "height": height},
     }
     generic = encode({**message, "data": occupancy_values(prob).ravel().tolist()})
-    by_hand = _with_cells(encode({**message, "data": []}), OccupancyMap(spec, prob))
+    by_hand = _with_cells(encode({**message, "data": []}), occupancy_values(prob))
     assert by_hand == generic

@@ -1,0 +1,199 @@
+"""Quality without ground truth (gridmap_cli.evaluation.quality): the log's own score ranks the
+maps of one log as their NLL against the truth does, and its parts are what they say."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gridmap_cli.evaluation.evaluate import (
+    ProbabilityMap,
+    evaluate_map,
+    odometry_frame_in_world,
+    sensed_region,
+)
+from gridmap_cli.evaluation.quality import (
+    EchoConsistency,
+    closure_consistency,
+    echo_consistency,
+    map_readings,
+    spread_summary,
+    spread_timeline,
+)
+from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
+from gridmap_cli.mapping.pipeline import BuildOptions, build_map
+from gridmap_cli.poses.correction.pose_graph import Edge
+from gridmap_cli.poses.correction.scan_match import corrected_track, match_log
+from gridmap_cli.poses.sync import sensors_for_log
+from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty
+from gridmap_cli.records import RangeLog
+from tests.test_scan_match import laser_robot, room_world
+from tests.test_scan_match import run as simulate_run
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+LOOP = [[2, 1.5], [10, 1.5], [10, 6.5], [2, 6.5], [2, 1.5]]
+SOURCES = ("odometry", "scan-matched", "slam")
+
+
+def posed_logs(log: RangeLog) -> dict[str, RangeLog]:
+    """The log with the poses of each source, as build --pose maps it."""
+    from gridmap_cli.poses.correction.slam import slam_log
+
+    robot = laser_robot()
+    slam = slam_log(log, robot)
+    match = match_log(log, robot)
+    return {
+        "odometry": log,
+        "scan-matched": dataclasses.replace(log, poses=corrected_track(log.poses, match)),
+        "slam": dataclasses.replace(log, poses=corrected_track(log.poses, slam.match)),
+    }
+
+
+@pytest.fixture(scope="module")
+def scored() -> dict[str, tuple[float, EchoConsistency]]:
+    """Per pose source: NLL against the simulated world, and the echo consistency."""
+    log = simulate_run(room_world(), LOOP, drift=3.0)
+    world = room_world()
+    robot = laser_robot()
+    assert log.truth is not None
+    region = sensed_region(world, log.truth, sensors_for_log(log, robot))
+    placed = odometry_frame_in_world(log)
+    out = {}
+    options = BuildOptions()
+    for source, posed in posed_logs(log).items():
+        omap = build_map(posed, robot, options).map
+        pmap = ProbabilityMap.from_occupancy_map(omap, 0.65)
+        nll = evaluate_map(pmap, world.occupied, world.spec, region, placed).nll
+        echoes = echo_consistency(omap, map_readings(posed, robot, options), 0.65, 0.25)
+        assert echoes is not None
+        out[source] = (nll, echoes)
+    return out
+
+
+def test_the_echo_share_ranks_the_maps_as_the_truth_does(
+    scored: dict[str, tuple[float, EchoConsistency]],
+) -> None:
+    nll = {s: scored[s][0] for s in SOURCES}
+    share = {s: scored[s][1].in_free for s in SOURCES}
+    # the simulated loop drifts: the odometry's map is the worst against the truth, and by the
+    # log alone, with no truth
+    assert nll["odometry"] > max(nll["scan-matched"], nll["slam"]), nll
+    assert share["odometry"] > max(share["scan-matched"], share["slam"]), (share, nll)
+    # the two corrected maps are ranked alike wherever the truth tells them apart
+    if abs(nll["scan-matched"] - nll["slam"]) > 0.1 * nll["slam"]:
+        assert sorted(SOURCES, key=nll.__getitem__) == sorted(SOURCES, key=share.__getitem__)
+
+
+def test_echoes_are_looked_up_where_they_end() -> None:
+    """Laser echoes ending in a free cell, an occupied one, an unknown one and outside the map,
+    and a no-echo reading: only the first two count."""
+    from gridmap_cli.poses.sync import SensorReadings
+    from gridmap_cli.robot import RangeSensor
+
+    spec = GridSpec(0.0, 0.0, 1.0, 4, 1)
+    omap = OccupancyMap(spec, np.array([[0.1, 0.5, 0.9, np.nan]]))
+    laser = RangeSensor("laser_0", 0.0, 0.0, 0.0, 0.0, 0.1, 10.0, kind="laser")
+    n = 5
+    readings = SensorReadings(
+        stamp_ns=np.arange(n, dtype=np.int64),
+        sensor=np.zeros(n, np.int32),
+        range_m=np.array([0.5, 2.0, 3.5, 5.0, 10.0]),
+        x_m=np.zeros(n),
+        y_m=np.full(n, 0.5),
+        theta_rad=np.zeros(n),
+        sensors=(laser,),
+    )
+    e = echo_consistency(omap, iter([readings]), 0.65, 0.25)
+    assert e is not None
+    assert (e.echoes, e.in_free, e.in_occupied) == (2, 0.5, 0.5)
+
+
+def test_closures_are_whitened_by_their_own_noise() -> None:
+    poses = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
+    # a closure that says node 2 lies 2.2 m from node 0, with 0.1 m noise: residual 2 sigma in x
+    closure = Edge(0, 2, 2.2, 0.0, 0.0, 0.1, 0.1, closure=True)
+    chain = Edge(0, 1, 1.0, 0.0, 0.0, 0.1, 0.1)
+    c = closure_consistency(poses, [chain, closure])
+    assert c is not None and c.closures == 1
+    assert c.median_nees == pytest.approx(4.0, rel=1e-6)
+    assert closure_consistency(poses, [chain]) is None
+
+
+def test_the_spread_summary_says_when_the_spread_passes_each_threshold() -> None:
+    stamps = np.array([0, 60, 120, 180], dtype=np.int64) * 1_000_000_000
+    sigma = np.array([0.0, 0.3, 0.8, 1.5])
+    cov = np.zeros((4, 3, 3))
+    cov[:, 0, 0] = sigma**2
+    cov[:, 1, 1] = (0.5 * sigma) ** 2
+    unc = PoseUncertainty(stamps, np.zeros(4), np.zeros(4), cov)
+    crossing, duration, largest = spread_timeline(unc)
+    assert crossing == pytest.approx((60.0, 120.0, 180.0)) and duration == pytest.approx(180.0)
+    assert largest == pytest.approx(1.5)
+    layer = np.array([[0.05, 0.2, np.nan], [0.7, 2.0, 0.1]])
+    summary = spread_summary(layer, unc)
+    assert summary.known_cells == 5 and summary.shares == (0.4, 0.6, 0.8)
+    assert "beyond 3.0 min of 3.0 min the position spread exceeds 1 m" in summary.line()
+
+
+@pytest.mark.skipif(not (DATA / "carmen").is_dir(), reason="../shared/data is not present")
+def test_on_aces_the_pose_graph_contradicts_fewer_echoes_than_the_odometry() -> None:
+    """A real log: the map of the raw odometry contradicts more of its own echoes than the
+    pose graph's (whose NLL against the corrected-pose reference is the lower, docs/quality.md)."""
+    from gridmap_cli.readers import read_logs
+    from gridmap_cli.readers.options import ReadOptions
+
+    log = read_logs((DATA / "carmen" / "aces-corrected.log.gz",), None, ReadOptions())
+    from gridmap_cli.poses.correction.slam import slam_log
+
+    slam = slam_log(log, None)
+    options = BuildOptions()
+    shares = {}
+    for source, posed in (
+        ("odometry", log),
+        ("slam", dataclasses.replace(log, poses=corrected_track(log.poses, slam.match))),
+    ):
+        omap = build_map(posed, None, options).map
+        e = echo_consistency(omap, map_readings(posed, None, options), 0.65, 0.25)
+        assert e is not None
+        shares[source] = e.in_free
+    assert shares["odometry"] > shares["slam"] + 0.1, shares
+
+
+def test_evaluate_without_truth_reports_what_the_log_tells(tmp_path: Path, room_csv: Path) -> None:
+    from tests.helpers import run
+
+    cal = tmp_path / "odo.yaml"
+    cal.write_text("gridmap-odometry-error: 1\nrange_m_per_sqrt_m: 0.05\n")
+    out = tmp_path / "m.png"
+    code, _, stderr = run("build", str(room_csv), "-o", str(out), "--map-mode", "scale")
+    assert code == 0, stderr
+    yaml_path = str(out.with_suffix(".yaml"))
+    code, stdout, stderr = run("evaluate", yaml_path, "--log", str(room_csv), "--odometry-error",
+                               str(cal), "--json")  # fmt: skip
+    assert code == 0, stderr
+    doc = json.loads(stdout)
+    assert doc["pose"] == "odometry" and doc["spread"]["known_cells"] > 0
+    assert doc["echo_consistency"] is None and doc["closures"] is None  # sonar, no graph
+    code, stdout, _ = run("evaluate", yaml_path, "--log", str(room_csv))
+    assert code == 0 and "pose spread           n/a" in stdout and "echo consistency" in stdout
+
+
+def test_evaluate_without_truth_needs_the_log_and_draws_nothing(
+    tmp_path: Path, room_csv: Path
+) -> None:
+    from tests.helpers import names, run
+
+    out = tmp_path / "m.png"
+    assert run("build", str(room_csv), "-o", str(out))[0] == 0
+    before = names(tmp_path)
+    code, _, stderr = run("evaluate", str(out.with_suffix(".yaml")))
+    assert code == 2 and "give --truth WORLD.yaml" in stderr and "or --log LOG" in stderr
+    plot = tmp_path / "p.png"
+    code, _, stderr = run("evaluate", str(out.with_suffix(".yaml")), "--log", str(room_csv),
+                          "--plot", str(plot))  # fmt: skip
+    assert code == 2 and "--plot and --spread-plot draw the map against --truth" in stderr
+    assert names(tmp_path) == before
