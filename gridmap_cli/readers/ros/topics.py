@@ -118,17 +118,33 @@ class Survey:
 
 class Refusals:
     """Errors that stop a build: a strict read (``build``) raises the first one at once; a lenient
-    read (``inspect``) keeps it in :attr:`first` and reads on to show what the file holds."""
+    read (``inspect``) keeps them all in :attr:`errors` and reads on to show what the file
+    holds (and every problem build would meet, not only the first)."""
 
     def __init__(self, strict: bool = True) -> None:
         self.strict = strict
-        self.first: GridmapError | None = None
+        self.errors: list[GridmapError] = []
+        self.mounts_only = True  # every error kept is a sensor's unknown mounting
 
-    def refuse(self, error: GridmapError) -> None:
+    @property
+    def first(self) -> GridmapError | None:
+        return self.errors[0] if self.errors else None
+
+    def refuse(self, error: GridmapError, mount: bool = False) -> None:
+        """``mount``: the error is a sensor's unknown mounting, which leaves the rest of the
+        log as build reads it (its later checks still say something new)."""
         if self.strict:
             raise error
-        if self.first is None:
-            self.first = error
+        if any(_subject(error) == _subject(e) for e in self.errors):
+            return  # the same thing missing, seen again at a later stage of the read
+        self.errors.append(error)
+        self.mounts_only = self.mounts_only and mount
+
+
+def _subject(error: GridmapError) -> str:
+    """What an error is about: its detail up to the first colon ("no odometry")."""
+    detail = error.detail if isinstance(error, InputFileError) else str(error)
+    return detail.partition(":")[0]
 
 
 @dataclass(frozen=True)

@@ -183,7 +183,7 @@ class _Ranges(_Mounts):
                             "laser")
                 for n, r in zip(names, robot_names, strict=True)
             ]  # fmt: skip
-        x, y, yaw = mount or self._unmounted(base, frame)
+        x, y, yaw = mount or self._given_mount(base, frame) or self._unmounted(base, frame)
         yaws = wrap_angle(yaw + first + np.arange(len(names)) * step).tolist()
         return [
             RangeSensor(name, x, y, beam_yaw, 0.0, rmin, rmax, "laser")
@@ -207,6 +207,25 @@ class _Ranges(_Mounts):
             return None
         beams = next(iter(lasers.values()))
         return beams if len(beams) == scan.count else None
+
+    def _given_mount(self, base: str, frame: str) -> tuple[float, float, float] | None:
+        """A laser's mounting without beams: the robot's of the frame's name; else, for the
+        recording's only laser left without one, ``--laser-mount`` or the robot's only such
+        mounting (named after no frame of the recording)."""
+        mounts = {m.name: m for m in self.robot.mounts} if self.robot is not None else {}
+        mount = mounts.get(frame)
+        if mount is None:
+            if self._beamless(base) != [frame]:
+                return None
+            if self.laser_mount is not None:
+                self.mount_from[frame] = "--laser-mount"
+                return self.laser_mount
+            spare = [m for name, m in mounts.items() if name not in self.scans]
+            if len(spare) != 1 or (self.robot is not None and self.robot.lasers()):
+                return None
+            mount = spare[0]
+        self.mount_from[frame] = "robot"
+        return mount.x_m, mount.y_m, mount.yaw_rad
 
     def _cloud_sonars(self) -> list[RangeSensor]:
         assert self.robot is not None
