@@ -281,7 +281,9 @@ def build(
         stamp = data.reading_span()[1] if data.reading_count else 0
         from gridmap_cli.writers.map_mcap import write_map_mcap  # the MCAP writer only when asked
 
-        image_path = write_map_mcap(output, result.map, stamp_ns=stamp, force=force)
+        image_path = write_map_mcap(
+            output, result.map, stamp_ns=stamp, force=force, thresholds=(occupied, free)
+        )
         yaml_path = None
     elif to_stdout:
         with stdout_file(f"map.{image_format}") as image:
@@ -451,7 +453,9 @@ def _write_fused(
     if to_mcap:
         from gridmap_cli.writers.map_mcap import write_map_mcap  # the MCAP writer only when asked
 
-        image_path = write_map_mcap(output, omap, stamp_ns=0, force=force)
+        image_path = write_map_mcap(
+            output, omap, stamp_ns=0, force=force, thresholds=(occupied, free)
+        )
     else:
         image_path, yaml_path = write_map(
             output, omap, mode=map_mode, occupied_thresh=occupied, free_thresh=free, force=force
