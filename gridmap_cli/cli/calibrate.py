@@ -24,6 +24,7 @@ from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import InputFileError, UsageError
 from gridmap_cli.mapping.selection import Selection, apply_selection
 from gridmap_cli.readers import STDIN_NAME, format_names
+from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
 from gridmap_cli.writers import check_output
 
@@ -144,9 +145,9 @@ def calibrate(
     if output is not None:
         check_output(output, force)
         check_output_folder(output)
-    with reading(log.name, quiet):
-        data = read_input([log], log_format)
     laser = pose != "odometry" or reference != "truth"
+    with reading(log.name, quiet):  # the tracks alone unless a laser corrects one
+        data = read_input([log], log_format, ReadOptions(poses_only=not laser))
     data = apply_selection(data, selection, None, need_readings=laser).log
     if reference == "truth" and data.truth is None:
         _no_reference(log, data, robot)
@@ -244,7 +245,7 @@ def _corrected(path: Path, data: RangeLog, robot: str | None, quiet: bool, pose:
             from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
 
             track = slam_corrected_log(data, description, progress=bars)[0].poses
-    return dataclasses.replace(data, poses=track)
+    return dataclasses.replace(data, poses=track, odometry_missing=None)
 
 
 def _calibration_table(log: str, c: Calibration, output: Path | None) -> str:

@@ -83,7 +83,11 @@ def build_part(
         frames = {}
         odom_topic = None
     elif fmt.name == "carmen":
-        odometry = "ODOM lines: the chain of their increments (the robot's own odometry)"
+        odometry = (
+            "ODOM lines: the chain of their increments (the robot's own odometry)"
+            if log.odometry_missing is None
+            else f"none: {log.odometry_missing.removeprefix('missing: ')}"
+        )
         lasers = sorted({n.rpartition("_")[0] for n in log.sensor_names})
         ranges = [f"{laser} ({sum(n.startswith(laser + '_') for n in log.sensor_names)} beams)"
                   for laser in lasers]  # fmt: skip
