@@ -24,8 +24,8 @@ from gridmap_cli.cli.build_report import (
 from gridmap_cli.cli.common import (
     STDIO,
     check_input,
+    check_map_folder,
     check_not_folder,
-    check_output_folder,
     handle_errors,
     progress_bar,
     read_input,
@@ -199,7 +199,7 @@ def build(
         check_output(output, force)
     elif not to_stdout:
         check_map_outputs(output, map_mode, force)
-    check_output_folder(output)
+    check_map_folder(output)
     preview = output.with_name(f"{output.stem}_path.png") if draw_path else None
     if preview is not None:
         check_output(preview, force)
@@ -276,6 +276,8 @@ def build(
     if mode == "error-aware" and map_mode == "trinary" and not to_mcap:
         warn(undecided_note(result.map.prob, occupied, free), quiet)
     yaml_path: Path | None
+    if not to_stdout:
+        output.parent.mkdir(parents=True, exist_ok=True)  # checked: a folder, or none yet
     if to_mcap:
         # stamped at the last reading: the map is what the robot knew then
         stamp = data.reading_span()[1] if data.reading_count else 0
@@ -450,6 +452,7 @@ def _write_fused(
 ) -> None:
     omap = fused_map(total)
     yaml_path: Path | None = None
+    output.parent.mkdir(parents=True, exist_ok=True)  # checked: a folder, or none yet
     if to_mcap:
         from gridmap_cli.writers.map_mcap import write_map_mcap  # the MCAP writer only when asked
 

@@ -214,6 +214,18 @@ def check_output_folder(output: Path) -> None:
         raise GridmapError(f"{output}: directory {folder} does not exist")
 
 
+def check_map_folder(output: Path) -> None:
+    """A map's folder may be missing (``-o maps/run.png``, ``-f maps/run``: build makes it, as
+    ``mkdir -p`` would, when it writes); a file where a folder should be is an error now."""
+    if output == STDIO:
+        return
+    folder = output.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise GridmapError(f"{output}: {folder} is not a directory")
+
+
 #: The options :func:`topic_options` adds, named as :class:`ReadOptions` fields.
 TOPIC_FIELDS = (
     "odom_topic", "range_topics", "odom_frame", "base_frame", "pose_topic", "map_frame",

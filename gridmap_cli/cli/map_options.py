@@ -26,14 +26,15 @@ from gridmap_cli.mapping.pipeline import MAPPING_MODES, MAX_RESOLUTION_M, BuildO
 from gridmap_cli.poses.odometry_error import OdometryError, load_odometry_error
 from gridmap_cli.poses.sync import POSE_SOURCES
 from gridmap_cli.readers import format_names
+from gridmap_cli.robot import preset_names
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, MAP_MODES
 
 F = TypeVar("F", bound=Callable[..., object])
 
 robot_option = click.option(
     "--robot",
-    help="Robot preset (p3at, p3dx), robot YAML file or ARIA .p file; default: the log's own "
-    "'# robot:' line.",
+    help=f"Robot preset ({', '.join(preset_names())}), robot YAML file or ARIA .p file; "
+    "default: the log's own '# robot:' line.",
 )
 format_option = click.option(
     "--format", "log_format", type=click.Choice(format_names()), help="Log format."

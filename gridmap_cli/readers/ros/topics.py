@@ -104,8 +104,13 @@ class Survey:
     files: tuple[tuple[str, int], ...] = ()  # (file, bytes) of each file read
 
     def topic(self, name: str) -> ChannelInfo | None:
+        """The channel of topic ``name``; a name without its leading ``/`` (``sonar``) is the
+        root namespace's topic (``/sonar``), as ROS resolves it, when no topic is spelled so."""
         for channel in self.channels:
             if channel.topic == name:
+                return channel
+        for channel in self.channels:
+            if channel.topic.lstrip("/") == name.lstrip("/"):
                 return channel
         return None
 
@@ -264,7 +269,7 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
                     f"{path}: --range-topic {name} is {chosen.type_name or 'untyped'}, not a "
                     f"range type ({', '.join(RANGE_TYPES)})"
                 )
-            ranges.append(name)
+            ranges.append(chosen.topic)
         range_topics = tuple(dict.fromkeys(ranges))
     else:
         range_topics = tuple(c.topic for c in by_role.get("range", []))
