@@ -75,3 +75,20 @@ def test_a_file_that_is_no_log_says_what_was_found(tmp_path: Path) -> None:
     assert code == 2 and err.count("\n") == 1
     assert "its first line 'Buy milk and eggs' is no CSV header (time,x,y,theta,...)" in err
     assert names(tmp_path) == {"notes.txt"}
+
+
+def test_a_one_row_log_warns_that_no_cell_passes_the_thresholds(tmp_path: Path) -> None:
+    lines = CSV.read_text().splitlines()
+    header = [ln for ln in lines if ln.startswith("#")]
+    rows = [ln for ln in lines if not ln.startswith("#")]
+    one = tmp_path / "one.csv"
+    one.write_text("\n".join([*header, *rows[:2]]) + "\n")  # the column names and one row
+    out = tmp_path / "one.png"
+    code, _, err = run("build", str(one), "-o", str(out))
+    assert code == 0 and out.is_file()
+    warning, summary = err.strip().splitlines()
+    assert warning.startswith("Warning: none of the ")
+    assert "passes --occupied 0.65 or --free 0.25: the evidence is too weak" in warning
+    assert summary.startswith("gridmap: 16 of 16 readings mapped")
+    code, _, err = run("build", str(CSV), "-o", str(tmp_path / "whole.png"))
+    assert code == 0 and "Warning" not in err  # a whole run's map has walls and free space

@@ -206,3 +206,19 @@ def test_rosaria_sonar_without_a_robot_names_both_ways_out(
     ]
     assert not out.exists()
     assert f1(folder, bag, "slam", "--range-topic", "/scan") >= 0.70
+
+
+@pytest.mark.parametrize("range_max", [float("nan"), float("inf")])
+def test_a_scan_without_a_finite_range_max_is_refused_in_one_line(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path, range_max: float
+) -> None:
+    _, log = pioneer
+    bag = write_pioneer_bag(log, tmp_path / "bad.bag", range_max=range_max)
+    out = tmp_path / "map.png"
+    code, _, stderr = run("build", str(bag), "-o", str(out))
+    assert code == 1 and stderr.count("\n") == 1, stderr
+    assert stderr.startswith(f"Error: {bag}: /scan at log time ")
+    assert stderr.strip().endswith(
+        f"laser 'laser': need 0 <= range_min < range_max, range_max finite, got 0.0 and {range_max}"
+    )
+    assert not out.exists() and not out.with_suffix(".yaml").exists()

@@ -273,7 +273,10 @@ def build(
             trim()
 
         result = build_map(data, robot_desc, options, mapped, release_free_memory)
-    if mode == "error-aware" and map_mode == "trinary" and not to_mcap:
+    weak = result.map.weak_evidence_note(occupied, free) if map_mode == "trinary" else None
+    if weak is not None and not to_mcap:
+        warn((weak,), quiet)
+    elif mode == "error-aware" and map_mode == "trinary" and not to_mcap:
         warn(undecided_note(result.map.prob, occupied, free), quiet)
     yaml_path: Path | None
     if not to_stdout:

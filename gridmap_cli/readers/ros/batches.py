@@ -24,7 +24,7 @@ from gridmap_cli.readers.ros.frames import (
     yaw_of,
 )
 from gridmap_cli.readers.ros.messages import MessageAccumulator
-from gridmap_cli.readers.ros.messages.fields import _f32
+from gridmap_cli.readers.ros.messages.fields import _f32, scan_limits_problem
 from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar, _Track
 
 #: Poses whose headings are computed at a time (yaw_of is per pose, on Python floats).
@@ -143,6 +143,13 @@ def _scans(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
     first = _first_rows(index, len(frames))
     count = a["count"].astype(np.int64)
     amin, ainc = a["angle_min"].astype(np.float64), a["angle_increment"].astype(np.float64)
+    rmin, rmax = a["range_min"].astype(np.float64), a["range_max"].astype(np.float64)
+    with np.errstate(invalid="ignore"):
+        unusable = ~((rmin >= 0.0) & (rmin < rmax) & np.isfinite(rmax))
+    if unusable.any():
+        row = int(np.argmax(unusable))
+        problem = scan_limits_problem(frames[int(index[row])], float(rmin[row]), float(rmax[row]))
+        raise InputFileError(acc.message_path, f"{_where(acc, topic, cols, row)}: {problem}")
     known: list[_Scan] = []
     for i, frame in enumerate(frames):
         row = int(first[i])

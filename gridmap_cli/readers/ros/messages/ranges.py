@@ -14,7 +14,12 @@ from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.limits import MAX_LASER_SAMPLES, too_many_beams
 from gridmap_cli.readers.ros.frames import frame_name
-from gridmap_cli.readers.ros.messages.fields import _classify, _f32, float32_decimal
+from gridmap_cli.readers.ros.messages.fields import (
+    _classify,
+    _f32,
+    float32_decimal,
+    scan_limits_problem,
+)
 from gridmap_cli.readers.ros.messages.mounts import _Mounts
 from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar
 from gridmap_cli.robot import RangeSensor
@@ -80,6 +85,9 @@ class _Ranges(_Mounts):
         if geometry.count > MAX_LASER_SAMPLES:
             where = f"{self._where(topic, log_time)}: laser '{frame}': "
             raise too_many_beams(self.message_path, geometry.count, where=where)
+        problem = scan_limits_problem(frame, geometry.range_min, geometry.range_max)
+        if problem is not None:
+            raise InputFileError(self.message_path, f"{self._where(topic, log_time)}: {problem}")
         known = self.scans.setdefault(frame, geometry)
         if (known.angle_min, known.angle_increment, known.count) != (
             geometry.angle_min,
