@@ -35,17 +35,22 @@ MAP_TOPIC = "/map"
 MAP_FRAME = "map"
 
 
-def occupancy_values(prob: npt.NDArray[np.float64]) -> npt.NDArray[np.int8]:
+def occupancy_values(
+    prob: npt.NDArray[np.float64],
+    occupied_thresh: float | None = None,
+    free_thresh: float | None = None,
+) -> npt.NDArray[np.int8]:
     """OccupancyGrid cell values of a probability map, same shape (height, width), row 0 bottom:
-    round(100 p) with halves to even, -1 for NaN (unknown). ``ValueError`` as
+    round(100 p) with halves to even, -1 for NaN (unknown); with the thresholds, 100 and 0 for
+    the cells the map calls occupied and free, as a raw map holds them. ``ValueError`` as
     :func:`~gridmap_cli.writers.map_image.occupancy_percent` raises it."""
-    percent, unknown = occupancy_percent(prob)
+    percent, unknown = occupancy_percent(prob, occupied_thresh, free_thresh)
     values = percent.view(np.int8)  # 0..100: the same bytes
     values[unknown] = -1
     return values
 
 
-def _with_cells(empty: bytes, omap: OccupancyMap) -> bytes:
+def _with_cells(empty: bytes, omap: OccupancyMap, thresholds: tuple[float, float] | None) -> bytes:
     """The CDR of an OccupancyGrid whose ``data`` was encoded empty, with the cells filled in.
 
     ``data`` is the message's last field: a uint32 count then one byte per cell, so the count 0
@@ -54,17 +59,24 @@ def _with_cells(empty: bytes, omap: OccupancyMap) -> bytes:
     """
     if empty[-4:] != b"\0\0\0\0":
         raise AssertionError("an OccupancyGrid encoded with empty data must end in a zero count")
-    cells = occupancy_values(omap.prob).ravel()
+    cells = occupancy_values(omap.prob, *(thresholds or (None, None))).ravel()
     return empty[:-4] + struct.pack("<I", cells.size) + cells.tobytes()
 
 
 def write_map_mcap(
-    path: Path, omap: OccupancyMap, *, stamp_ns: int = 0, force: bool = False
+    path: Path,
+    omap: OccupancyMap,
+    *,
+    stamp_ns: int = 0,
+    force: bool = False,
+    thresholds: tuple[float, float] | None = None,
 ) -> Path:
     """Write ``omap`` as an MCAP holding one OccupancyGrid stamped ``stamp_ns`` (integer ns).
 
     ``info.origin`` is the lower-left corner of cell (0, 0) with identity orientation;
-    ``info.resolution`` is the cell size (float32 in the message). Written atomically.
+    ``info.resolution`` is the cell size (float32 in the message). ``thresholds`` (occupied,
+    free): the cells the map calls occupied are 100 and free 0, as Nav2's costmap and AMCL read
+    only those as walls and free space. Written atomically.
     """
     check_output(path, force)
     spec = omap.spec
@@ -86,7 +98,7 @@ def write_map_mcap(
         "data": [],
     }
     text = message_definition(MAP_SCHEMA)
-    data = _with_cells(serialize_dynamic(MAP_SCHEMA, text)[MAP_SCHEMA](message), omap)
+    data = _with_cells(serialize_dynamic(MAP_SCHEMA, text)[MAP_SCHEMA](message), omap, thresholds)
     with atomic_write(path, "the map") as tmp, open(tmp, "wb") as handle:
         writer = mcap_writer(handle)
         writer.start(profile="ros2", library=LIBRARY)

@@ -72,12 +72,13 @@ def write_pioneer_bag(
     laser_name: str = "laser1",
     sonar: bool = False,
     second_odometry: str | None = None,
+    range_max: float = 8.0,
 ) -> Path:
     """``log`` (a simulated run with one laser, ``laser_name``, beams ``laser_name_0``...) as a
     ROSARIA + SICK bag at ``target``. ``mounting``: the ``base_link -> laser`` transform (x, y,
     yaw) published on ``/tf``, or None for a bag without it. ``sonar``: write the log's sonars
     (``sonar0``...) as RosAria's point cloud; ``second_odometry``: a topic to repeat the odometry
-    on."""
+    on; ``range_max``: the scans' ``range_max`` field (a driver's bad one, say)."""
     beams = [i for i, name in enumerate(log.sensor_names) if name.startswith(f"{laser_name}_")]
     order = np.argsort([int(log.sensor_names[i].rsplit("_", 1)[1]) for i in beams])
     beam_of = np.full(len(log.sensor_names), -1)
@@ -145,7 +146,7 @@ def write_pioneer_bag(
                 time_increment=0.0,
                 scan_time=0.1,
                 range_min=0.0,
-                range_max=8.0,
+                range_max=range_max,
                 ranges=ranges,
                 intensities=np.zeros(0, dtype=np.float32),
             )

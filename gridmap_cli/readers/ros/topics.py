@@ -104,8 +104,13 @@ class Survey:
     files: tuple[tuple[str, int], ...] = ()  # (file, bytes) of each file read
 
     def topic(self, name: str) -> ChannelInfo | None:
+        """The channel of topic ``name``; a name without its leading ``/`` (``sonar``) is the
+        root namespace's topic (``/sonar``), as ROS resolves it, when no topic is spelled so."""
         for channel in self.channels:
             if channel.topic == name:
+                return channel
+        for channel in self.channels:
+            if channel.topic.lstrip("/") == name.lstrip("/"):
                 return channel
         return None
 
@@ -118,17 +123,33 @@ class Survey:
 
 class Refusals:
     """Errors that stop a build: a strict read (``build``) raises the first one at once; a lenient
-    read (``inspect``) keeps it in :attr:`first` and reads on to show what the file holds."""
+    read (``inspect``) keeps them all in :attr:`errors` and reads on to show what the file
+    holds (and every problem build would meet, not only the first)."""
 
     def __init__(self, strict: bool = True) -> None:
         self.strict = strict
-        self.first: GridmapError | None = None
+        self.errors: list[GridmapError] = []
+        self.mounts_only = True  # every error kept is a sensor's unknown mounting
 
-    def refuse(self, error: GridmapError) -> None:
+    @property
+    def first(self) -> GridmapError | None:
+        return self.errors[0] if self.errors else None
+
+    def refuse(self, error: GridmapError, mount: bool = False) -> None:
+        """``mount``: the error is a sensor's unknown mounting, which leaves the rest of the
+        log as build reads it (its later checks still say something new)."""
         if self.strict:
             raise error
-        if self.first is None:
-            self.first = error
+        if any(_subject(error) == _subject(e) for e in self.errors):
+            return  # the same thing missing, seen again at a later stage of the read
+        self.errors.append(error)
+        self.mounts_only = self.mounts_only and mount
+
+
+def _subject(error: GridmapError) -> str:
+    """What an error is about: its detail up to the first colon ("no odometry")."""
+    detail = error.detail if isinstance(error, InputFileError) else str(error)
+    return detail.partition(":")[0]
 
 
 @dataclass(frozen=True)
@@ -248,7 +269,7 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
                     f"{path}: --range-topic {name} is {chosen.type_name or 'untyped'}, not a "
                     f"range type ({', '.join(RANGE_TYPES)})"
                 )
-            ranges.append(name)
+            ranges.append(chosen.topic)
         range_topics = tuple(dict.fromkeys(ranges))
     else:
         range_topics = tuple(c.topic for c in by_role.get("range", []))

@@ -14,7 +14,12 @@ from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.limits import MAX_LASER_SAMPLES, too_many_beams
 from gridmap_cli.readers.ros.frames import frame_name
-from gridmap_cli.readers.ros.messages.fields import _classify, _f32, float32_decimal
+from gridmap_cli.readers.ros.messages.fields import (
+    _classify,
+    _f32,
+    float32_decimal,
+    scan_limits_problem,
+)
 from gridmap_cli.readers.ros.messages.mounts import _Mounts
 from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar
 from gridmap_cli.robot import RangeSensor
@@ -80,6 +85,9 @@ class _Ranges(_Mounts):
         if geometry.count > MAX_LASER_SAMPLES:
             where = f"{self._where(topic, log_time)}: laser '{frame}': "
             raise too_many_beams(self.message_path, geometry.count, where=where)
+        problem = scan_limits_problem(frame, geometry.range_min, geometry.range_max)
+        if problem is not None:
+            raise InputFileError(self.message_path, f"{self._where(topic, log_time)}: {problem}")
         known = self.scans.setdefault(frame, geometry)
         if (known.angle_min, known.angle_increment, known.count) != (
             geometry.angle_min,
@@ -183,7 +191,7 @@ class _Ranges(_Mounts):
                             "laser")
                 for n, r in zip(names, robot_names, strict=True)
             ]  # fmt: skip
-        x, y, yaw = mount or self._unmounted(base, frame)
+        x, y, yaw = mount or self._given_mount(base, frame) or self._unmounted(base, frame)
         yaws = wrap_angle(yaw + first + np.arange(len(names)) * step).tolist()
         return [
             RangeSensor(name, x, y, beam_yaw, 0.0, rmin, rmax, "laser")
@@ -207,6 +215,25 @@ class _Ranges(_Mounts):
             return None
         beams = next(iter(lasers.values()))
         return beams if len(beams) == scan.count else None
+
+    def _given_mount(self, base: str, frame: str) -> tuple[float, float, float] | None:
+        """A laser's mounting without beams: the robot's of the frame's name; else, for the
+        recording's only laser left without one, ``--laser-mount`` or the robot's only such
+        mounting (named after no frame of the recording)."""
+        mounts = {m.name: m for m in self.robot.mounts} if self.robot is not None else {}
+        mount = mounts.get(frame)
+        if mount is None:
+            if self._beamless(base) != [frame]:
+                return None
+            if self.laser_mount is not None:
+                self.mount_from[frame] = "--laser-mount"
+                return self.laser_mount
+            spare = [m for name, m in mounts.items() if name not in self.scans]
+            if len(spare) != 1 or (self.robot is not None and self.robot.lasers()):
+                return None
+            mount = spare[0]
+        self.mount_from[frame] = "robot"
+        return mount.x_m, mount.y_m, mount.yaw_rad
 
     def _cloud_sonars(self) -> list[RangeSensor]:
         assert self.robot is not None
