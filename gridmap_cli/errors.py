@@ -61,10 +61,11 @@ class MixedLogsError(UsageError):
 class UnknownFormatError(UsageError):
     """No reader claims the file: not the same thing as a file that is broken."""
 
-    def __init__(self, path: str | Path, known: str) -> None:
+    def __init__(self, path: str | Path, known: str, sniffed: str = "") -> None:
         self.path = str(path)
         self.known = known
-        super().__init__(f"{self.path}: not a log format gridmap reads (known: {known})")
+        what = f": {sniffed}" if sniffed else ""
+        super().__init__(f"{self.path}: not a log format gridmap reads{what} (known: {known})")
 
 
 class RobotDescriptionError(InputFileError):

@@ -141,7 +141,9 @@ def map_outputs(log: RangeLog, robot: RobotDescription | None, folder: Path) -> 
         path = folder / name
         if mode is None:
             stamp = int(log.readings.stamp_ns[-1])
-            out[name] = write_map_mcap(path, result.map, stamp_ns=stamp, force=True).read_bytes()
+            written = write_map_mcap(path, result.map, stamp_ns=stamp, force=True,
+                                     thresholds=(0.65, 0.25))  # fmt: skip
+            out[name] = written.read_bytes()
             continue
         image, yaml_path = write_map(path, result.map, mode=mode, force=True)
         out[name] = image.read_bytes()

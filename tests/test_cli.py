@@ -153,9 +153,11 @@ def test_usage_errors_exit_2(room_csv: Path, tmp_path: Path, args: list[str], me
     assert names(tmp_path) == {"room.csv"}
 
 
-def test_output_folder_must_exist(room_csv: Path, tmp_path: Path) -> None:
+def test_output_folder_is_made_unless_a_file_is_in_the_way(room_csv: Path, tmp_path: Path) -> None:
     code, _, stderr = run("build", str(room_csv), "-o", str(tmp_path / "no" / "m.png"))
-    assert code == 1 and "directory" in stderr and "does not exist" in stderr
+    assert code == 0 and (tmp_path / "no" / "m.png").is_file(), stderr
+    code, _, stderr = run("build", str(room_csv), "-o", str(tmp_path / "room.csv" / "m.png"))
+    assert code == 1 and "is not a directory" in stderr
 
 
 def test_debug_shows_the_traceback(tmp_path: Path) -> None:

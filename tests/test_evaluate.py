@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from gridmap_cli.evaluation.evaluate import (
     EvaluationError,
@@ -27,7 +28,7 @@ from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor
 from gridmap_cli.sim.world import World
 from gridmap_cli.writers.csv_log import save_csv_log
-from gridmap_cli.writers.map_image import write_map
+from gridmap_cli.writers.map_image import map_yaml_text, write_map
 from tests.helpers import log_with_truth, names, run
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
@@ -179,8 +180,12 @@ def _write_world(folder: Path, walls: np.ndarray, spec: GridSpec) -> Path:
 
 def test_cli_three_by_three_from_files(tmp_path: Path) -> None:
     world = _write_world(tmp_path, WALLS3, WORLD3)
-    # raw maps store round(100 p): these probabilities come back exactly
-    write_map(tmp_path / "map.pgm", OccupancyMap(WORLD3, PROB3), mode="raw")
+    # a raw map whose values are round(100 p), as another tool may write one: these
+    # probabilities come back exactly (gridmap's own raw maps write the cells they call
+    # occupied and free as 100 and 0, which Nav2's costmap and AMCL read as walls and free)
+    percent = np.where(np.isnan(PROB3), 255, np.rint(100 * np.nan_to_num(PROB3)))
+    Image.fromarray(percent.astype(np.uint8)[::-1]).save(tmp_path / "map.pgm")
+    (tmp_path / "map.yaml").write_text(map_yaml_text("map.pgm", "raw", WORLD3, 0.65, 0.25))
     code, out, err = run(
         "evaluate", str(tmp_path / "map.yaml"), "--truth", str(world), "--frame", "world", "--json"
     )

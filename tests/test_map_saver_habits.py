@@ -21,9 +21,7 @@ def build(*args: str) -> tuple[int, str]:
 
 
 def test_f_basename_writes_a_pgm_and_yaml_like_o(tmp_path: Path) -> None:
-    assert build("-o", str(tmp_path / "a" / "map.pgm"))[0] == 1  # folder a/ does not exist
-    (tmp_path / "a").mkdir()
-    (tmp_path / "b").mkdir()
+    # folders a/ and b/ do not exist yet: -o and -f alike make them
     assert build("-o", str(tmp_path / "a" / "map.pgm")) == (0, "")
     assert build("-f", str(tmp_path / "b" / "map")) == (0, "")
     assert names(tmp_path / "b") == {"map.pgm", "map.yaml"}
@@ -150,3 +148,32 @@ def test_several_text_logs_point_to_batch_and_fuse(tmp_path: Path) -> None:
         "and build --fuse maps several runs through one place into one map\n",
     )
     assert names(tmp_path) == set()
+
+
+def nav2_static_layer(occupancy: np.ndarray) -> np.ndarray:
+    """Costs Nav2's static layer gives a loaded map with its defaults (``trinary_costmap: true``,
+    ``lethal_cost_threshold: 100``, ``track_unknown_space: true``): 254 lethal, 255 no
+    information, 0 free. AMCL likewise reads only 100 as occupied and only 0 as free."""
+    return np.where(occupancy == -1, 255, np.where(occupancy >= 100, 254, 0))
+
+
+def test_raw_and_scale_walls_are_lethal_where_trinary_ones_are(tmp_path: Path) -> None:
+    """The cells a built map calls occupied load as 100 in every mode and on every loader, so
+    Nav2 with its default costmap parameters, AMCL and ROS 1 map_server see the same walls."""
+    from gridmap_cli.mapping.mapfile import LOADER_FLAVOURS, load_map
+
+    loaded = {}
+    for mode, suffix in (("trinary", "pgm"), ("raw", "pgm"), ("scale", "png")):
+        code, err = build("-o", str(tmp_path / f"{mode}.{suffix}"), "--map-mode", mode)
+        assert code == 0, err
+        for flavour in LOADER_FLAVOURS:
+            loaded[mode, flavour] = load_map(tmp_path / f"{mode}.yaml", flavour).occupancy
+    for flavour in LOADER_FLAVOURS:
+        walls = loaded["trinary", flavour] == 100
+        assert walls.sum() > 100  # the corridor's walls
+        for mode in ("raw", "scale"):
+            occupancy = loaded[mode, flavour]
+            assert np.array_equal(nav2_static_layer(occupancy) == 254, walls), (mode, flavour)
+            # free loads as free (Nav2's scale mode also rounds cells just above the free
+            # threshold to 0: round(100 ratio))
+            assert (occupancy[loaded["trinary", flavour] == 0] == 0).all(), (mode, flavour)

@@ -72,8 +72,14 @@ def ref_pixel(p: float, mode: str, occupied: float, free: float) -> tuple[int, i
     if mode == "trinary":
         return (0 if p >= occupied else 254 if p <= free else 205), 255
     if mode == "scale":
-        return round(255 * (1 - p)), 255
-    return round(100 * p), 255
+        # a cell the map calls occupied or free: a grey every loader reads as such
+        grey = round(255 * (1 - p))
+        if p >= occupied:
+            grey = min(grey, max(g for g in range(256) if (255 - g) / 255 > occupied))
+        if p <= free:
+            grey = max(grey, min(g for g in range(256) if (255 - g) / 255 < free))
+        return grey, 255
+    return (100 if p >= occupied else 0 if p <= free else min(99, max(1, round(100 * p)))), 255
 
 
 def ref_load(grey: int, alpha: int, mode: str, flavour: str, occupied: float, free: float) -> int:
@@ -268,10 +274,16 @@ def test_round_trip_gives_the_predicted_occupancy(
                 assert want == -1  # never observed loads as unknown on every loader
         at_free_thresh[flavour] = int(loaded.occupancy[0, 4])
     if mode == "scale" and free == 0.2:
-        # p = 0.2 is stored as grey 204, p = 0.2 exactly: between the thresholds for ROS 1
-        # (1 + 98 * 0), free for Jazzy; the loaders really do disagree on the boundary
-        assert grey[0, 4] == 204
-        assert (at_free_thresh["ros1"], at_free_thresh["nav2-jazzy"]) == (1, 0)
+        # p = 0.2 would be grey 204, p = 0.2 exactly: between the thresholds for ROS 1
+        # (1 + 98 * 0), free for Jazzy; a cell the map calls free is stored as 205 instead,
+        # free on every loader
+        assert grey[0, 4] == 205
+        assert set(at_free_thresh.values()) == {0}
+    if mode != "trinary":
+        # every cell the map calls occupied loads as 100, free as 0, on every loader
+        for flavour in LOADER_FLAVOURS:
+            loaded = load_map(meta, flavour).occupancy
+            assert (loaded[prob >= occupied] == 100).all() and (loaded[prob <= free] == 0).all()
 
 
 def test_grey_204_with_free_0_2_is_unknown_strictly_and_free_inclusively(tmp_path: Path) -> None:

@@ -97,9 +97,95 @@ def test_a_laser_with_no_mounting_anywhere_is_refused_in_one_line(
     assert code == 1
     assert stderr.strip().splitlines() == [
         f"Error: {bag}: sensor frame 'laser' (/scan): mounting pose unknown: no transform from "
-        "'base_link' to it on /tf, and robot 'p3at' has no sensor named 'laser'"
+        "'base_link' to it on /tf, and robot 'p3at' has no laser named 'laser': give its pose "
+        "on 'base_link' with --laser-mount X,Y,YAW_DEG (metres, degrees), or --robot FILE "
+        "holding the two lines 'gridmap-robot: 1' and 'sensors: [{name: laser, kind: laser, "
+        "x_m: X, y_m: Y, yaw_deg: YAW_DEG}]' (its beams and range come from the scans; "
+        "docs/robot-format.md)"
     ]
     assert not out.exists() and not out.with_suffix(".yaml").exists()
+
+
+def test_from_python_an_unmounted_laser_names_the_read_option_in_radians(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    """The flag takes degrees; the Python read option takes radians, and the error says so."""
+    from gridmap_cli import GridmapError, read_log
+
+    _, log = pioneer
+    bag = write_pioneer_bag(log, tmp_path / "bare.bag", mounting=None)
+    with pytest.raises(GridmapError) as caught:
+        read_log(bag)
+    message = str(caught.value)
+    assert "ReadOptions(laser_mount=(X, Y, YAW_RAD)) (metres, radians)" in message
+    assert "no robot describing it" in message and "robot='FILE'" in message
+    assert "--" not in message
+
+
+def test_a_bag_without_tf_for_its_laser_maps_with_one_flag_or_a_two_line_robot_file(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    """The scans give the beams (angles, count, range): the mounting alone is missing, and
+    either way of giving it maps the bag exactly as its TF mounting does."""
+    _, log = pioneer
+    bare = write_pioneer_bag(log, tmp_path / "bare.bag", mounting=None)
+    with_tf = write_pioneer_bag(log, tmp_path / "tf.bag", mounting=(0.16, 0.0, 0.0))
+    robot = tmp_path / "laser.yaml"
+    robot.write_text(
+        "gridmap-robot: 1\nsensors: [{name: laser, kind: laser, x_m: 0.16, y_m: 0, yaw_deg: 0}]\n"
+    )
+    maps = {}
+    for name, bag, extra in (
+        ("tf", with_tf, ()),
+        ("flag", bare, ("--laser-mount", "0.16,0,0")),
+        ("file", bare, ("--robot", str(robot))),
+    ):
+        out = tmp_path / f"{name}.pgm"
+        code, _, stderr = run("build", str(bag), "-o", str(out), "--quiet", *extra)
+        assert code == 0, stderr
+        maps[name] = out.read_bytes()
+    assert maps["flag"] == maps["tf"] and maps["file"] == maps["tf"]
+    described = json.loads(run("inspect", str(bare), "--laser-mount", "0.16,0,0", "--json")[1])
+    assert described["build"]["ready"]
+    assert {s["mounting_from"] for s in described["log"]["sensors"]} == {"--laser-mount"}
+
+
+def test_a_robot_laser_of_another_beam_count_is_refused_naming_both_counts(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    _, log = pioneer
+    bag = write_pioneer_bag(log, tmp_path / "bare.bag", mounting=None)
+    robot = tmp_path / "bot.yaml"
+    robot.write_text(
+        "gridmap-robot: 1\nname: bot\nsensors:\n  - {name: laser, kind: laser, x_m: 0.16, "
+        "y_m: 0, yaw_deg: 0, first_deg: -90, last_deg: 90, samples: 180, max_range_m: 8}\n"
+    )
+    out = tmp_path / "map.png"
+    code, _, stderr = run("build", str(bag), "-o", str(out), "--robot", str(robot))
+    assert code == 1
+    assert stderr.strip().splitlines() == [
+        f"Error: {bag}: sensor frame 'laser' (/scan): mounting pose unknown: no transform from "
+        "'base_link' to it on /tf, and robot 'bot' describes laser 'laser' with 180 beams where "
+        "the scans on /scan have 181: leave first_deg, last_deg and samples out of its entry and "
+        "the scans give them"
+    ]
+    assert not out.exists() and not out.with_suffix(".yaml").exists()
+
+
+def test_a_bad_laser_mount_is_a_usage_error(pioneer: tuple[Path, RangeLog], tmp_path: Path) -> None:
+    folder, _ = pioneer
+    out = tmp_path / "map.png"
+    for value in ("0.16,0", "a,b,c", "0,0,nan"):
+        code, _, stderr = run("build", str(folder / "run.bag"), "-o", str(out), "--laser-mount",
+                              value)  # fmt: skip
+        assert code == 2 and "--laser-mount" in stderr and stderr.count("\n") <= 3, stderr
+    code, _, stderr = run("build", str(folder / "run.csv"), "-o", str(out), "--laser-mount",
+                          "0.16,0,0")  # fmt: skip
+    assert (code, stderr.strip()) == (
+        2, "Error: --laser-mount only applies to ROS recordings (MCAP, bag, rosbag2), not to CSV "
+        "logs"
+    )  # fmt: skip
+    assert not out.exists()
 
 
 def test_two_odometry_topics_are_an_error_naming_both(
@@ -136,3 +222,19 @@ def test_rosaria_sonar_without_a_robot_names_both_ways_out(
     ]
     assert not out.exists()
     assert f1(folder, bag, "slam", "--range-topic", "/scan") >= 0.70
+
+
+@pytest.mark.parametrize("range_max", [float("nan"), float("inf")])
+def test_a_scan_without_a_finite_range_max_is_refused_in_one_line(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path, range_max: float
+) -> None:
+    _, log = pioneer
+    bag = write_pioneer_bag(log, tmp_path / "bad.bag", range_max=range_max)
+    out = tmp_path / "map.png"
+    code, _, stderr = run("build", str(bag), "-o", str(out))
+    assert code == 1 and stderr.count("\n") == 1, stderr
+    assert stderr.startswith(f"Error: {bag}: /scan at log time ")
+    assert stderr.strip().endswith(
+        f"laser 'laser': need 0 <= range_min < range_max, range_max finite, got 0.0 and {range_max}"
+    )
+    assert not out.exists() and not out.with_suffix(".yaml").exists()

@@ -41,6 +41,13 @@ _NO_ARGS_IS_HELP: tuple[type[BaseException], ...] = tuple(
 )
 
 
+#: Command names people try from other tools, and the command that does what they meant.
+_COMMAND_HINTS = {
+    name: ("inspect LOG", "to see what a log holds and what build would use, run")
+    for name in ("info", "show", "describe", "stat", "stats")
+}
+
+
 class GridmapGroup(click.Group):
     """click's group, with commands imported on first use and click's own usage errors on one
     line too.
@@ -52,6 +59,15 @@ class GridmapGroup(click.Group):
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return list(COMMANDS)
+
+    def resolve_command(
+        self, ctx: click.Context, args: list[str]
+    ) -> tuple[str | None, click.Command | None, list[str]]:
+        name = args[0] if args else ""
+        if name in _COMMAND_HINTS and name not in COMMANDS:
+            command, what = _COMMAND_HINTS[name]
+            ctx.fail(f"No such command '{name}'; {what}: gridmap {command}")
+        return super().resolve_command(ctx, args)
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         if cmd_name not in COMMANDS:
@@ -79,6 +95,8 @@ class GridmapGroup(click.Group):
                 sys.exit(exc.exit_code)
             from gridmap_cli.cli.common import one_line  # only now: --version loads no command
 
+            if isinstance(exc, click.NoSuchOption):
+                exc = _suggest_longer(exc)
             click.echo(f"Error: {one_line(exc.format_message())}", err=True)
             sys.exit(exc.exit_code)
         except (click.exceptions.Abort, EOFError, KeyboardInterrupt):
@@ -88,6 +106,21 @@ class GridmapGroup(click.Group):
             click.echo(f"Error: {stop.format_message()}", err=True)
             sys.exit(stop.exit_code)
         sys.exit(code if isinstance(code, int) else 0)
+
+
+def _suggest_longer(exc: click.NoSuchOption) -> click.NoSuchOption:
+    """The error suggesting the options an unknown one begins (``--res``: ``--resolution``),
+    which click's close-spelling suggestions leave out; ``exc`` when it begins none."""
+    if exc.ctx is None or not exc.option_name.startswith("--"):
+        return exc
+    longer = sorted(
+        o for p in exc.ctx.command.params for o in p.opts if o.startswith(exc.option_name)
+    )
+    if not longer:
+        return exc
+    named = ", ".join(repr(o) for o in longer)
+    message = f"No such option {exc.option_name!r}. Did you mean {named}?"
+    return click.NoSuchOption(exc.option_name, message=message, ctx=exc.ctx)
 
 
 @click.group(cls=GridmapGroup, context_settings={"help_option_names": ["-h", "--help"]})

@@ -24,8 +24,8 @@ from gridmap_cli.cli.build_report import (
 from gridmap_cli.cli.common import (
     STDIO,
     check_input,
+    check_map_folder,
     check_not_folder,
-    check_output_folder,
     force_option,
     handle_errors,
     json_option,
@@ -191,7 +191,7 @@ def build(
         check_output(output, force)
     elif not to_stdout:
         check_map_outputs(output, opts.map_mode, force)
-    check_output_folder(output)
+    check_map_folder(output)
     preview = output.with_name(f"{output.stem}_path.png") if draw_path else None
     if preview is not None:
         check_output(preview, force)
@@ -273,18 +273,25 @@ def _write_one(
 ) -> None:
     """Write the map (and its preview) where the command line says, and report it."""
     occupied, free, map_mode = opts.occupied, opts.free, opts.map_mode
-    if opts.mode == "error-aware" and map_mode == "trinary" and not to_mcap:
+    weak = built.map.weak_evidence_note(occupied, free) if map_mode == "trinary" else None
+    if weak is not None and not to_mcap:
+        warn((weak,), quiet)
+    elif opts.mode == "error-aware" and map_mode == "trinary" and not to_mcap:
         warn(undecided_note(built.map.prob, occupied, free), quiet)
     spread = built.spread() if output != STDIO else None
     yaml_path: Path | None = None
+    if output != STDIO:
+        output.parent.mkdir(parents=True, exist_ok=True)  # checked: a folder, or none yet
     if to_mcap:
         # stamped at the last reading: the map is what the robot knew then
         stamp = built.log.reading_span()[1] if built.log.reading_count else 0
         from gridmap_cli.writers.map_mcap import write_map_mcap  # the MCAP writer only when asked
 
         layers = [] if spread is None else [(SPREAD_TOPIC, spread_levels(spread[0]))]
-        image_path = write_map_mcap(output, built.map, stamp_ns=stamp, force=force,
-                                    layers=layers)  # fmt: skip
+        image_path = write_map_mcap(
+            output, built.map, stamp_ns=stamp, force=force, layers=layers,
+            thresholds=(occupied, free),
+        )  # fmt: skip
     elif output == STDIO:
         with stdout_file(f"map.{image_format}") as image:
             write_map(image, built.map, mode=map_mode, occupied_thresh=occupied, free_thresh=free)
@@ -456,10 +463,13 @@ def _write_fused(
 ) -> None:
     omap = fused_map(total)
     yaml_path: Path | None = None
+    output.parent.mkdir(parents=True, exist_ok=True)  # checked: a folder, or none yet
     if to_mcap:
         from gridmap_cli.writers.map_mcap import write_map_mcap  # the MCAP writer only when asked
 
-        image_path = write_map_mcap(output, omap, stamp_ns=0, force=force)
+        image_path = write_map_mcap(
+            output, omap, stamp_ns=0, force=force, thresholds=(opts.occupied, opts.free)
+        )
     else:
         image_path, yaml_path = write_map(output, omap, mode=opts.map_mode,
                                           occupied_thresh=opts.occupied, free_thresh=opts.free,

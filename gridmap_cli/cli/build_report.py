@@ -114,6 +114,7 @@ def summary_line(s: dict[str, Any]) -> str:
         f"({m['width'] * m['resolution']:.1f} x {m['height'] * m['resolution']:.1f} m) "
         f"in {s['seconds']:.1f} s -> {s['image']}"
         + (f", {s['yaml']}" if s["yaml"] else "")
+        + (f", {s['preview']} (the tracks drawn on the map)" if s.get("preview") else "")
         + matched
         + ("; the odometry's calibrated biases corrected" if s.get("odometry_corrected") else "")
         + (f"; {s['motion']}" if s.get("motion") else "")

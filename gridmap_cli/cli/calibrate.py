@@ -34,6 +34,7 @@ from gridmap_cli.poses.sources import (
     pose_source,
 )
 from gridmap_cli.readers import STDIN_NAME
+from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
 from gridmap_cli.writers import check_output
 
@@ -156,9 +157,9 @@ def calibrate(
     if output is not None:
         check_output(output, force)
         check_output_folder(output)
-    with reading(log.name, quiet):
-        data = read_input([log], log_format)
     laser = corrected or reference != "truth"
+    with reading(log.name, quiet):  # the tracks alone unless a laser corrects one
+        data = read_input([log], log_format, ReadOptions(poses_only=not laser))
     data = apply_selection(data, selection, None, need_readings=laser).log
     if reference == "truth" and data.truth is None:
         _no_reference(log, data, robot)
@@ -246,7 +247,7 @@ def _corrected(path: Path, data: RangeLog, robot: str | None, quiet: bool, pose:
     track = posed.log.poses
     if posed.slam is None and posed.match is not None:
         track = posed.match.track
-    return dataclasses.replace(data, poses=track)
+    return dataclasses.replace(data, poses=track, odometry_missing=None)
 
 
 def _coefficient_rows(c: Calibration) -> list[tuple[str, str, str]]:

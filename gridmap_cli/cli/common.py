@@ -23,6 +23,7 @@ from gridmap_cli.mapping.selection import EXCLUDE
 from gridmap_cli.readers import STDIN_NAME, format_names, read_bytes, read_logs
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import RangeLog
+from gridmap_cli.robot import parse_mount
 from gridmap_cli.runs.settings import STDIO as STDIO
 from gridmap_cli.runs.settings import check_input as check_input
 
@@ -185,8 +186,32 @@ def check_output_folder(output: Path) -> None:
         raise GridmapError(f"{output}: directory {folder} does not exist")
 
 
+def check_map_folder(output: Path) -> None:
+    """A map's folder may be missing (``-o maps/run.png``, ``-f maps/run``: build makes it, as
+    ``mkdir -p`` would, when it writes); a file where a folder should be is an error now."""
+    if output == STDIO:
+        return
+    folder = output.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise GridmapError(f"{output}: {folder} is not a directory")
+
+
 #: The options :func:`topic_options` adds, named as :class:`ReadOptions` fields.
-TOPIC_FIELDS = ("odom_topic", "range_topics", "odom_frame", "base_frame", "pose_topic", "map_frame")
+TOPIC_FIELDS = (
+    "odom_topic", "range_topics", "odom_frame", "base_frame", "pose_topic", "map_frame",
+    "laser_mount",
+)  # fmt: skip
+
+
+def _laser_mount(
+    ctx: click.Context, param: click.Parameter, value: str | None
+) -> tuple[float, float, float] | None:
+    try:
+        return None if value is None else parse_mount(value)
+    except UsageError as exc:
+        raise click.BadParameter(str(exc).removeprefix(f"--laser-mount {value!r}: ")) from exc
 
 
 def topic_options(func: Callable[..., R]) -> Callable[..., R]:
@@ -226,6 +251,13 @@ def topic_options(func: Callable[..., R]) -> Callable[..., R]:
             "else TF map -> base, else the one PoseWithCovarianceStamped topic.",
         ),
         click.option("--map-frame", help="ROS: the reference track's frame in TF [default: map]."),
+        click.option(
+            "--laser-mount",
+            metavar="X,Y,YAW_DEG",
+            callback=_laser_mount,
+            help="ROS: the pose on the base frame (metres, degrees) of the recording's laser "
+            "that TF does not mount; its beams and range come from its LaserScan messages.",
+        ),
     ]
     for option in reversed(options):
         gathered = option(gathered)

@@ -24,6 +24,7 @@ from gridmap_cli.cli.common import (
 from gridmap_cli.cli.progress import reading
 from gridmap_cli.errors import UsageError
 from gridmap_cli.mapping.selection import Selection
+from gridmap_cli.poses.sources import DEFAULT_SOURCE, pose_source
 from gridmap_cli.readers import STDIN_NAME, held_text, resolve_format
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.robot import load_robot
@@ -68,7 +69,11 @@ def inspect(
     robot_desc = load_robot(robot) if robot else None
     for log in logs:
         check_input(log)
-    read_options = dataclasses.replace(topics, robot=robot_desc)
+    # read as build reads it by default: its automatic choice takes the motion from a laser's
+    # scans where a recording has no odometry
+    read_options = dataclasses.replace(
+        topics, robot=robot_desc, odometry_optional=pose_source(DEFAULT_SOURCE).uses_laser
+    )
     held = None
     if STDIO in logs:  # as build reads it: a text log, its format from --format or its head
         if len(logs) > 1:

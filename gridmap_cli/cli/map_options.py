@@ -24,6 +24,7 @@ from gridmap_cli.mapping.models.ray import LASER_NO_ECHO_FREE_M
 from gridmap_cli.mapping.models.standard import StandardSonarParams
 from gridmap_cli.mapping.options import MAPPING_MODES, BuildOptions
 from gridmap_cli.poses.sources import DEFAULT_SOURCE, pose_help, source_names
+from gridmap_cli.robot import preset_names
 from gridmap_cli.runs.settings import MapOptions
 from gridmap_cli.writers.map_image import IMAGE_FORMATS, MAP_MODES
 
@@ -31,8 +32,8 @@ F = TypeVar("F", bound=Callable[..., object])
 
 robot_option = click.option(
     "--robot",
-    help="Robot preset (p3at, p3dx), robot YAML file or ARIA .p file; default: the log's own "
-    "'# robot:' line.",
+    help=f"Robot preset ({', '.join(preset_names())}), robot YAML file or ARIA .p file; "
+    "default: the log's own '# robot:' line.",
 )
 
 

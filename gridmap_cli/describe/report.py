@@ -51,34 +51,40 @@ def describe_log(
     path = paths[0]
     size = held[1] if held is not None else sum(_bytes(p) for p in paths)
     out: dict[str, Any] = {"file": " + ".join(map(str, paths)), "format": fmt.name, "bytes": size}
-    problem: str | None = None
+    problems: list[str] = []  # every error build would meet, in the order it would meet them
     mcap: RecordingRead | None = None
     sources = None if held else recording_sources(paths, fmt.name if len(paths) == 1 else None)
     if held is not None:
         log = held[0]
     elif sources is not None:
         mcap = read_recording(sources, options, strict=False, every_topic=True)
-        problem = None if mcap.problem is None else str(mcap.problem)
+        problems += [str(p) for p in mcap.problems]
         log = mcap.log
         out["mcap"] = recording_part(mcap)
     else:
         log = fmt.read(path, options)
     robot, robot_source, robot_problem = robot_for(path, log, options)
-    problem = problem or robot_problem  # build reads the log before it loads the robot
+    if robot_problem is not None:  # build reads the log before it loads the robot
+        problems.append(robot_problem)
     try:
         selected = apply_selection(log, selection or Selection(), robot)
     except InputFileError as exc:  # the log cannot be mapped: described whole, build's error
-        problem = problem or str(exc)
+        problems.append(str(exc))
         out["selection"], out["notes"] = None, []
     else:
         log = selected.log
         out["selection"] = selection_part(selection, selected) if selection else None
         out["notes"] = list(selected.notes)
-    if problem is None:
-        problem = build_problem(log, robot)
+        # build's own checks on what was read: a recording with a laser of unknown mounting
+        # may also be one whose recordings do not overlap in time (after other problems they
+        # would only say again what those said)
+        if not problems or (mcap is not None and mcap.mounts_only and not robot_problem):
+            later = build_problem(log, robot)
+            if later is not None and later not in problems:
+                problems.append(later)
     during = during_odometry(log)
     out["log"] = _log_part(log, during, robot, mcap.mount_from if mcap is not None else None)
-    out["build"] = build_part(fmt, log, mcap, robot, robot_source, problem)
+    out["build"] = build_part(fmt, log, mcap, robot, robot_source, problems)
     return out
 
 

@@ -4,8 +4,9 @@ would run.
 The verdict is build's own: :func:`build_problem` runs
 :func:`~gridmap_cli.mapping.pipeline.plan_build` with build's default options and
 :func:`robot_for` finds the robot as build does, so ``build.problem`` is the first error build
-would stop at, word for word, not a parallel set of rules. :func:`build_part` is the ``build``
-part of the description, :func:`build_lines` its text.
+would stop at, word for word, not a parallel set of rules, and ``build.problems`` every one it
+would meet once the one before is fixed, as far as the read can tell. :func:`build_part` is
+the ``build`` part of the description, :func:`build_lines` its text.
 """
 
 from __future__ import annotations
@@ -59,7 +60,7 @@ def build_part(
     mcap: RecordingRead | None,
     robot: RobotDescription | None,
     robot_source: str | None,
-    problem: str | None,
+    problems: list[str],
 ) -> dict[str, Any]:
     """What build would read each input from, its robot, and whether it would run."""
     if mcap is not None:
@@ -82,7 +83,11 @@ def build_part(
         frames = {}
         odom_topic = None
     elif fmt.name == "carmen":
-        odometry = "ODOM lines: the chain of their increments (the robot's own odometry)"
+        odometry = (
+            "ODOM lines: the chain of their increments (the robot's own odometry)"
+            if log.odometry_missing is None
+            else f"none: {log.odometry_missing.removeprefix('missing: ')}"
+        )
         lasers = sorted({n.rpartition("_")[0] for n in log.sensor_names})
         ranges = [f"{laser} ({sum(n.startswith(laser + '_') for n in log.sensor_names)} beams)"
                   for laser in lasers]  # fmt: skip
@@ -106,6 +111,8 @@ def build_part(
         odom_topic = None
     mounted = {s.name for s in log.sensors or () if not math.isnan(s.x_m)}
     described_by_log = bool(log.sensor_names) and mounted >= set(log.sensor_names)
+    if mcap is not None and "robot" in mcap.mount_from.values():
+        described_by_log = False  # the robot gave a mounting the recording lacks
     return {
         "odometry": odometry,
         "odometry_topic": odom_topic,
@@ -117,8 +124,9 @@ def build_part(
         "robot": None
         if robot is None
         else {"name": robot.name, "from": robot_source, "needed": not described_by_log},
-        "ready": problem is None,
-        "problem": problem,
+        "ready": not problems,
+        "problem": problems[0] if problems else None,  # the error build stops at
+        "problems": problems,
     }
 
 
@@ -147,6 +155,7 @@ def build_lines(d: dict[str, Any]) -> list[str]:
         lines.append("  -> ready to build")
     else:
         # the file name and topic list are shown above already
-        problem = b["problem"].removeprefix(f"{d['file']}: ").split("; topics: ")[0]
-        lines.append(f"  -> build would fail: {problem}")
+        for i, problem in enumerate(b["problems"]):
+            problem = problem.removeprefix(f"{d['file']}: ").split("; topics: ")[0]
+            lines.append(f"  -> build would fail: {problem}" if i == 0 else f"     and: {problem}")
     return lines

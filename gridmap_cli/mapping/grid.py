@@ -123,6 +123,21 @@ class OccupancyMap:
         observed, high, low = (int(c) for c in counts)
         return observed, high, low
 
+    def weak_evidence_note(self, occupied: float, free: float) -> str | None:
+        """Why a trinary image of this map would be all unknown though readings were mapped:
+        no observed cell reaches either threshold (a log of a few readings: each cell holds
+        one reading's evidence, which moves p from 0.5 by less than the thresholds ask). None
+        when a cell does, or none was observed."""
+        observed, high, low = self.cell_counts(occupied, free)
+        if observed == 0 or high or low:
+            return None
+        return (
+            f"none of the {observed:,} observed cells passes --occupied {occupied:g} or --free "
+            f"{free:g}: the evidence is too weak for any cell to be called occupied or free, so "
+            "the trinary map is all unknown (more readings, or --map-mode scale to see the "
+            "probabilities)"
+        )
+
 
 def logodds(p: float) -> float:
     """log(p / (1 - p))."""

@@ -274,7 +274,27 @@ def resolve_format(path: Path, name: str | None = None) -> LogFormat:
         for f in FORMATS
         if f.name != "rosbag2"
     )
-    raise UnknownFormatError(path, f"{known}, rosbag2 (a folder with {ROSBAG2_METADATA})")
+    raise UnknownFormatError(
+        path, f"{known}, rosbag2 (a folder with {ROSBAG2_METADATA})", _sniffed(head)
+    )
+
+
+def _sniffed(head: bytes) -> str:
+    """What the first bytes of a file no reader claims were, for its error."""
+    if not head.strip():
+        return "the file is empty"
+    try:
+        text = head.decode("utf-8")
+    except UnicodeDecodeError:
+        text = ""
+    if not text or "\0" in text:
+        return f"its first bytes {head[:8]!r} are no MCAP or ROS bag magic"
+    line = next(ln.strip() for ln in text.splitlines() if ln.strip())
+    shown = line if len(line) <= 40 else line[:37] + "..."
+    return (
+        f"its first line {shown!r} is no CSV header (time,x,y,theta,...), ARIA log line or "
+        "CARMEN message"
+    )
 
 
 def read_log(

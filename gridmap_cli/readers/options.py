@@ -27,6 +27,8 @@ class ReadOptions:
     from the file at each pass (:attr:`gridmap_cli.records.RangeLog.stream`): for a caller that
     goes through them by :meth:`~gridmap_cli.records.RangeLog.reading_chunks` and cuts no time
     window. CSV files do it above :data:`gridmap_cli.readers.text.csv_stream.STREAM_FROM_BYTES`.
+    ``laser_mount``: ``--laser-mount``, the mounting (x_m, y_m, yaw_rad) of the recording's
+    only laser that TF and the robot leave without one; its beams come from its scans.
     ``poses_only``: the caller wants the tracks alone (``gridmap trajectory --pose odometry`` or
     ``global``), so a recording without range topics is read rather than refused.
     ``odometry_optional``: the caller can make the motion from the laser scans (``--pose
@@ -40,6 +42,7 @@ class ReadOptions:
     base_frame: str | None = None
     pose_topic: str | None = None
     map_frame: str | None = None
+    laser_mount: tuple[float, float, float] | None = None
     robot: RobotDescription | None = None
     stream: bool = False
     poses_only: bool = False
@@ -60,6 +63,8 @@ class ReadOptions:
             given.append("--pose-topic")
         if self.map_frame is not None:
             given.append("--map-frame")
+        if self.laser_mount is not None:
+            given.append("--laser-mount")
         return given
 
     def refuse_topic_flags(self, format_name: str) -> None:

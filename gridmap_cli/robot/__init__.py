@@ -21,7 +21,9 @@ from gridmap_cli.robot.beams import BeamBook as BeamBook
 from gridmap_cli.robot.description import SENSOR_KINDS as SENSOR_KINDS
 from gridmap_cli.robot.description import RangeSensor as RangeSensor
 from gridmap_cli.robot.description import RobotDescription as RobotDescription
+from gridmap_cli.robot.description import SensorMount as SensorMount
 from gridmap_cli.robot.description import laser_beams as laser_beams
+from gridmap_cli.robot.description import parse_mount as parse_mount
 from gridmap_cli.robot.robot_yaml import parse_robot_yaml as parse_robot_yaml
 
 

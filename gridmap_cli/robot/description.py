@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from gridmap_cli.errors import UsageError
+
 SENSOR_KINDS = ("sonar", "laser")
 
 
@@ -34,11 +36,26 @@ class RangeSensor:
 
 
 @dataclass(frozen=True)
+class SensorMount:
+    """Where a laser sits on the base, without its beams: a ROS recording's LaserScan messages
+    carry the beam angles, count and range limits themselves, so a robot file (or
+    ``--laser-mount``) need give only this. ``name`` is the laser's frame; empty for the
+    mounting of whichever laser is the recording's only one without a mounting."""
+
+    name: str
+    x_m: float
+    y_m: float
+    yaw_rad: float
+
+
+@dataclass(frozen=True)
 class RobotDescription:
-    """A named robot and its range sensors, in a fixed order."""
+    """A named robot, its range sensors in a fixed order, and the lasers it gives only the
+    mounting of (``mounts``: their beams come from the recording)."""
 
     name: str
     sensors: tuple[RangeSensor, ...]
+    mounts: tuple[SensorMount, ...] = ()
 
     def names(self) -> tuple[str, ...]:
         return tuple(s.name for s in self.sensors)
@@ -55,6 +72,20 @@ class RobotDescription:
             if s.kind == "laser" and stem and index.isdigit():
                 beams.setdefault(stem, []).append((int(index), s.name))
         return {stem: [n for _, n in sorted(b)] for stem, b in beams.items()}
+
+
+def parse_mount(text: str, flag: str = "--laser-mount") -> tuple[float, float, float]:
+    """``X,Y,YAW_DEG`` (metres, degrees) -> (x_m, y_m, yaw_rad); :class:`UsageError` else."""
+    try:
+        x, y, yaw = (float(p) for p in text.split(","))
+    except ValueError:
+        raise UsageError(
+            f"{flag} {text!r}: expected X,Y,YAW_DEG (metres, degrees, the laser's pose on the "
+            "robot's base frame), e.g. 0.2,0,0"
+        ) from None
+    if not all(math.isfinite(v) for v in (x, y, yaw)):
+        raise UsageError(f"{flag} {text!r}: not finite")
+    return x, y, math.radians(yaw)
 
 
 def laser_beams(

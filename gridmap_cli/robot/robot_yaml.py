@@ -10,7 +10,13 @@ import yaml
 
 from gridmap_cli.errors import RobotDescriptionError
 from gridmap_cli.limits import MAX_LASER_SAMPLES
-from gridmap_cli.robot.description import SENSOR_KINDS, RangeSensor, RobotDescription, laser_beams
+from gridmap_cli.robot.description import (
+    SENSOR_KINDS,
+    RangeSensor,
+    RobotDescription,
+    SensorMount,
+    laser_beams,
+)
 from gridmap_cli.yamlfile import yaml_problem
 
 _SENSOR_KEYS = {
@@ -27,6 +33,9 @@ _SENSOR_KEYS = {
     "samples",
 }
 _LASER_ONLY = ("first_deg", "last_deg", "samples")
+#: What a laser entry that gives only its mounting leaves to the recording's scans (an entry
+#: with one of them describes its beams, and needs the rest).
+_FROM_SCANS = ("first_deg", "last_deg", "samples", "min_range_m", "max_range_m")
 
 
 def _number(source: str, where: str, value: Any, line: int | None) -> float:
@@ -51,7 +60,8 @@ def parse_robot_yaml(text: str, source: str) -> RobotDescription:
         raise RobotDescriptionError(source, "expected a mapping with 'name' and 'sensors'")
     if doc.get("gridmap-robot") != 1:
         raise RobotDescriptionError(source, "missing 'gridmap-robot: 1' (format version)")
-    name = doc.get("name")
+    # a file holding one laser's mounting needs no name: its own serves
+    name = doc.get("name", source.rpartition("/")[2].rpartition(".")[0] or source)
     if not isinstance(name, str) or not name:
         raise RobotDescriptionError(source, "'name' must be a non-empty string")
     defaults = doc.get("defaults") or {}
@@ -62,6 +72,7 @@ def parse_robot_yaml(text: str, source: str) -> RobotDescription:
         raise RobotDescriptionError(source, "'sensors' must be a non-empty list")
     lines = _sensor_lines(node)
     sensors: list[RangeSensor] = []
+    mounts: list[SensorMount] = []
     for i, entry in enumerate(raw):
         line = lines[i] if i < len(lines) else None
         if not isinstance(entry, dict):
@@ -75,6 +86,13 @@ def parse_robot_yaml(text: str, source: str) -> RobotDescription:
             raise RobotDescriptionError(
                 source, f"sensor {i}: kind must be one of {SENSOR_KINDS}, got {kind!r}", line
             )
+        if (
+            kind == "laser"
+            and not any(k in merged for k in _LASER_ONLY)
+            and not any(k in entry for k in ("beam_width_deg", *_FROM_SCANS))
+        ):
+            mounts.append(_mount(source, line, i, merged, entry))
+            continue
         required = {"name", "x_m", "y_m", "yaw_deg", "max_range_m"}
         required |= set(_LASER_ONLY) if kind == "laser" else {"beam_width_deg"}
         missing = sorted(required - set(merged))
@@ -108,7 +126,7 @@ def parse_robot_yaml(text: str, source: str) -> RobotDescription:
                 source, f"sensor '{sname}': beam_width_deg must be in [0, 180)", line
             )
         sensors.append(RangeSensor(sname, x, y, yaw, math.radians(width), rmin, rmax, kind))
-    names = [s.name for s in sensors]
+    names = [s.name for s in sensors] + [m.name for m in mounts]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         # the line of the entry that repeats a name, when the entries themselves repeat it
@@ -120,7 +138,23 @@ def parse_robot_yaml(text: str, source: str) -> RobotDescription:
                 where = lines[i] if i < len(lines) else None
             seen.add(name)
         raise RobotDescriptionError(source, f"duplicate sensor names {dup}", where)
-    return RobotDescription(name=name, sensors=tuple(sensors))
+    return RobotDescription(name=name, sensors=tuple(sensors), mounts=tuple(mounts))
+
+
+def _mount(
+    source: str, line: int | None, i: int, merged: dict[str, Any], entry: dict[str, Any]
+) -> SensorMount:
+    """A laser entry without beams: its mounting alone, the beams from a recording's scans."""
+    missing = sorted({"name", "x_m", "y_m", "yaw_deg"} - set(merged))
+    if missing:
+        raise RobotDescriptionError(source, f"sensor {i}: missing keys {missing}", line)
+    sname = merged["name"]
+    if not isinstance(sname, str) or not sname:
+        raise RobotDescriptionError(source, f"sensor {i}: 'name' must be a string", line)
+    x = _number(source, f"sensor '{sname}' x_m", merged["x_m"], line)
+    y = _number(source, f"sensor '{sname}' y_m", merged["y_m"], line)
+    yaw = math.radians(_number(source, f"sensor '{sname}' yaw_deg", merged["yaw_deg"], line))
+    return SensorMount(sname, x, y, yaw)
 
 
 def _sensor_lines(node: yaml.Node | None) -> list[int]:

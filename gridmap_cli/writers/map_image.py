@@ -11,6 +11,15 @@ raw ones:
 - ``scale``: grey = 255 (1 - p) with an alpha channel (PNG only); unknown cells transparent.
 - ``raw``: grey = 100 p (the occupancy percentage itself), unknown 255.
 
+In ``scale`` and ``raw`` a cell the map calls occupied (p >= the occupied threshold) loads as
+occupied (100) and one it calls free (p <= the free threshold) as free (0) on every loader:
+Nav2's costmap with its defaults (``trinary_costmap``, ``lethal_cost_threshold: 100``) and
+AMCL take only 100 as a wall and only 0 as free, and the map's probabilities are clamped below
+1 (``DEFAULT_CLAMP_P``), so a plain 100 p would never reach 100. A raw occupied cell is written
+100, a free one 0, the others round(100 p) kept within 1..99; a scale cell's grey is moved, where
+rounding would leave it on the wrong side of a loading threshold, to the nearest grey that is on
+the right side under the strict comparisons of ROS 1 and Nav2 Humble.
+
 The image is written top row first (image row 0 is map row height-1); both files are written
 together through :func:`~gridmap_cli.atomic.atomic_outputs`, so a failure leaves neither behind.
 """
@@ -120,14 +129,17 @@ def transparent_grey(occupied_thresh: float, free_thresh: float) -> int:
 
 def occupancy_percent(
     prob: npt.NDArray[np.float64],
+    occupied_thresh: float | None = None,
+    free_thresh: float | None = None,
 ) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.bool_]]:
     """Occupancy percentages of a probability map and its unknown cells, both shaped as ``prob``.
 
     ``prob``: shape (height, width), values in [0, 1], NaN unknown. Returns round(100 p) (half to
     even; 0 under unknown cells) as uint8 and the mask of NaN cells: what a ``raw`` image and an
-    OccupancyGrid hold. Raises ``ValueError`` for an array that is not 2-D or holds values outside
-    [0, 1], which would otherwise wrap around in the 8-bit result. Computed in row strips: the
-    temporaries stay a few MiB whatever the map's size.
+    OccupancyGrid hold. With the thresholds, cells the map calls occupied are 100 and free 0, the
+    others within 1..99 (:func:`raw_percent`). Raises ``ValueError`` for an array that is not 2-D
+    or holds values outside [0, 1], which would otherwise wrap around in the 8-bit result.
+    Computed in row strips: the temporaries stay a few MiB whatever the map's size.
     """
     prob = _checked(prob)
     percent = np.empty(prob.shape, dtype=np.uint8)
@@ -135,8 +147,35 @@ def occupancy_percent(
     for rows in _strips(prob):
         part = prob[rows]
         unknown[rows] = np.isnan(part)
-        percent[rows] = np.rint(100.0 * np.where(unknown[rows], 0.0, part)).astype(np.uint8)
+        p = np.where(unknown[rows], 0.0, part)
+        if occupied_thresh is None or free_thresh is None:
+            percent[rows] = np.rint(100.0 * p).astype(np.uint8)
+        else:
+            percent[rows] = raw_percent(p, occupied_thresh, free_thresh)
     return percent, unknown
+
+
+def raw_percent(
+    p: npt.NDArray[np.float64], occupied_thresh: float, free_thresh: float
+) -> npt.NDArray[np.uint8]:
+    """A raw cell's value: 100 where the map calls it occupied, 0 where free, else round(100 p)
+    within 1..99, so that the loaders that read only 100 as a wall and 0 as free (Nav2's
+    costmap, AMCL) read the map's own classes."""
+    between = np.clip(np.rint(100.0 * p), 1.0, 99.0)
+    out = np.where(p >= occupied_thresh, 100.0, np.where(p <= free_thresh, 0.0, between))
+    return out.astype(np.uint8)
+
+
+def scale_grey_bounds(occupied_thresh: float, free_thresh: float) -> tuple[int, int]:
+    """The largest grey that loads as occupied and the smallest that loads as free, under the
+    strict comparisons (ROS 1, Nav2 Humble: p = (255 - grey) / 255 > occupied, < free), which
+    the inclusive ones (Nav2 Jazzy) then take too. 0 and 255 when no grey is strictly beyond a
+    threshold (1 and 0)."""
+    greys = np.arange(256)
+    p = (255 - greys) / 255
+    occupied = greys[p > occupied_thresh]
+    free = greys[p < free_thresh]
+    return (int(occupied.max()) if occupied.size else 0), (int(free.min()) if free.size else 255)
 
 
 #: Cells of a map turned into pixels at a time.
@@ -172,8 +211,10 @@ def map_pixels(
     alpha) for ``scale``:
 
     - trinary: p >= occupied_thresh -> 0, p <= free_thresh -> 254, otherwise and NaN -> 205;
-    - scale: grey round(255 (1 - p)) with alpha 255; NaN -> alpha 0 (grey :func:`transparent_grey`);
-    - raw: grey round(100 p); NaN -> 255.
+    - scale: grey round(255 (1 - p)) with alpha 255, moved for a cell the map calls occupied or
+      free to a grey every loader reads as such (:func:`scale_grey_bounds`); NaN -> alpha 0
+      (grey :func:`transparent_grey`);
+    - raw: :func:`raw_percent` (100 occupied, 0 free, else round(100 p) within 1..99); NaN -> 255.
 
     Rounding is half to even. Raises :class:`UsageError` unless 0 <= free < occupied <= 1, and
     ``ValueError`` for an array that is not 2-D or holds values outside [0, 1]. The image is the
@@ -186,6 +227,7 @@ def map_pixels(
     height, width = prob.shape
     image = np.empty((height, width, 2) if mode == "scale" else (height, width), dtype=np.uint8)
     hidden = transparent_grey(occupied_thresh, free_thresh)
+    wall_grey, free_grey = scale_grey_bounds(occupied_thresh, free_thresh)
     for rows in _strips(prob):
         part = prob[rows]
         unknown = np.isnan(part)
@@ -198,10 +240,12 @@ def map_pixels(
             grey[unknown] = UNKNOWN_GREY
             pixels: npt.NDArray[np.uint8] = grey
         elif mode == "raw":
-            pixels = np.rint(100.0 * p).astype(np.uint8)
+            pixels = raw_percent(p, occupied_thresh, free_thresh)
             pixels[unknown] = RAW_UNKNOWN_GREY
         else:
-            grey = np.rint(255.0 * (1.0 - p)).astype(np.uint8)
+            grey = np.rint(255.0 * (1.0 - p))
+            grey = np.where(p >= occupied_thresh, np.minimum(grey, wall_grey), grey)
+            grey = np.where(p <= free_thresh, np.maximum(grey, free_grey), grey).astype(np.uint8)
             grey[unknown] = hidden
             alpha = np.where(unknown, 0, 255).astype(np.uint8)
             pixels = np.stack([grey, alpha], axis=-1)

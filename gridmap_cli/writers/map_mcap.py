@@ -36,11 +36,16 @@ MAP_TOPIC = "/map"
 MAP_FRAME = "map"
 
 
-def occupancy_values(prob: npt.NDArray[np.float64]) -> npt.NDArray[np.int8]:
+def occupancy_values(
+    prob: npt.NDArray[np.float64],
+    occupied_thresh: float | None = None,
+    free_thresh: float | None = None,
+) -> npt.NDArray[np.int8]:
     """OccupancyGrid cell values of a probability map, same shape (height, width), row 0 bottom:
-    round(100 p) with halves to even, -1 for NaN (unknown). ``ValueError`` as
+    round(100 p) with halves to even, -1 for NaN (unknown); with the thresholds, 100 and 0 for
+    the cells the map calls occupied and free, as a raw map holds them. ``ValueError`` as
     :func:`~gridmap_cli.writers.map_image.occupancy_percent` raises it."""
-    percent, unknown = occupancy_percent(prob)
+    percent, unknown = occupancy_percent(prob, occupied_thresh, free_thresh)
     values = percent.view(np.int8)  # 0..100: the same bytes
     values[unknown] = -1
     return values
@@ -66,13 +71,16 @@ def write_map_mcap(
     stamp_ns: int = 0,
     force: bool = False,
     layers: Sequence[tuple[str, npt.NDArray[np.int8]]] = (),
+    thresholds: tuple[float, float] | None = None,
 ) -> Path:
     """Write ``omap`` as an MCAP holding one OccupancyGrid stamped ``stamp_ns`` (integer ns).
 
     ``info.origin`` is the lower-left corner of cell (0, 0) with identity orientation;
-    ``info.resolution`` is the cell size (float32 in the message). ``layers``: more grids of
-    the map's geometry, each (topic, cell values of shape ``omap.spec.shape``, row 0 at the
-    bottom), one message each on its own topic. Written atomically.
+    ``info.resolution`` is the cell size (float32 in the message). ``thresholds`` (occupied,
+    free): the cells the map calls occupied are 100 and free 0, as Nav2's costmap and AMCL read
+    only those as walls and free space. ``layers``: more grids of the map's geometry, each
+    (topic, cell values of shape ``omap.spec.shape``, row 0 at the bottom), one message each on
+    its own topic. Written atomically.
     """
     check_output(path, force)
     spec = omap.spec
@@ -95,7 +103,7 @@ def write_map_mcap(
     }
     text = message_definition(MAP_SCHEMA)
     empty = serialize_dynamic(MAP_SCHEMA, text)[MAP_SCHEMA](message)
-    grids = [(MAP_TOPIC, occupancy_values(omap.prob))]
+    grids = [(MAP_TOPIC, occupancy_values(omap.prob, *(thresholds or (None, None))))]
     for topic, cells in layers:
         if cells.shape != spec.shape:
             raise ValueError(f"layer {topic} of shape {cells.shape} for a grid of {spec.shape}")

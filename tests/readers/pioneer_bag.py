@@ -76,6 +76,7 @@ def write_pioneer_bag(
     interleave: int = 1,
     turning: bool = True,
     skewed: int = -1,
+    range_max: float = 8.0,
 ) -> Path:
     """``log`` (a simulated run with one laser, ``laser_name``, beams ``laser_name_0``...) as a
     ROSARIA + SICK bag at ``target``. ``mounting``: the ``base_link -> laser`` transform (x, y,
@@ -89,7 +90,8 @@ def write_pioneer_bag(
     simulation's beams: ``log``'s laser must have ``180 * interleave + 1`` beams over 180
     degrees, of which scan ``j`` of a turn takes beams ``j``, ``j + interleave``, ...;
     ``turning`` False gives every scan the first start angle (the same laser, constant). Scan
-    number ``skewed`` gets an ``angle_max`` ten steps off its ranges."""
+    number ``skewed`` gets an ``angle_max`` ten steps off its ranges. ``range_max``: the scans'
+    ``range_max`` field (a driver's bad one, say)."""
     beams = [i for i, name in enumerate(log.sensor_names) if name.startswith(f"{laser_name}_")]
     order = np.argsort([int(log.sensor_names[i].rsplit("_", 1)[1]) for i in beams])
     beam_of = np.full(len(log.sensor_names), -1)
@@ -174,7 +176,7 @@ def write_pioneer_bag(
                 time_increment=0.0,
                 scan_time=0.1,
                 range_min=0.0,
-                range_max=8.0,
+                range_max=range_max,
                 ranges=ranges,
                 intensities=np.zeros(0, dtype=np.float32),
             )

@@ -121,3 +121,24 @@ def test_inspect_describes_split_bags_as_the_recording_build_reads() -> None:
     ]
     assert doc["mcap"]["compression"] == "none"
     assert len(doc["mcap"]["files"]) == 2
+
+
+def test_inspect_of_two_tiago_bags_lists_every_problem_build_would_meet(tmp_path: Path) -> None:
+    """Odometry and scans recorded minutes apart, and no TF for the laser: the verdict names
+    both, the mounting first (build's own error) and the time spans after it; with the mounting
+    given, the time spans alone remain."""
+    odometry, scans = BAGS / "tiago_odometry.bag", BAGS / "tiago_scan_lidar.bag"
+    code, stdout, stderr = run("inspect", str(odometry), str(scans), "--json")
+    assert code == 1
+    problems = json.loads(stdout)["build"]["problems"]
+    assert len(problems) == 2
+    assert "mounting pose unknown" in problems[0] and "--laser-mount X,Y,YAW_DEG" in problems[0]
+    assert "no odometry during the range readings" in problems[1]
+    assert "14:34:28.832 UTC to 14:34:47.032 UTC" in problems[1]  # the scans' span
+    assert "14:40:06.965 UTC to 14:40:32.965 UTC" in problems[1]  # the odometry's
+    assert stderr.strip() == f"Error: {problems[0]}"  # the line build would stop at
+    code, stdout, _ = run("inspect", str(odometry), str(scans), "--laser-mount", "0.2,0,0")
+    assert code == 1
+    verdict = stdout.splitlines()[-1]
+    assert verdict.startswith("  -> build would fail: no odometry during the range readings")
+    assert "mounting" not in stdout.split("What build would use:")[1]

@@ -71,3 +71,34 @@ def test_inspect_says_the_odometry_is_missing(tmp_path: Path) -> None:
     assert code == 0, err
     assert "  odometry    missing: the 20 ODOM lines only repeat" in out  # the header, key a line
     assert "build would fail" not in out
+
+
+def no_odom_lines() -> list[str]:
+    """Laser lines alone: their poses may be a corrected log's or the robot's odometry."""
+    return [flaser(RANGES, (0.3 * i, 0.01 * i, 0.0), 1.0 + i) for i in range(20)]
+
+
+def test_without_odom_lines_the_laser_poses_are_the_reference_never_odometry(
+    tmp_path: Path,
+) -> None:
+    """build and inspect say the same: --pose odometry is refused in one line naming why,
+    --pose global maps with the laser lines' poses, and calibrate does not compare the
+    reference with itself."""
+    log = write(tmp_path, no_odom_lines())
+    out = tmp_path / "out"
+    out.mkdir()
+    code, _, err = run("build", str(log), "-o", str(out / "map.png"), "--pose", "odometry")
+    assert code == 1 and err.count("\n") == 1
+    assert err.startswith(f"Error: {log}: --pose odometry: odometry missing: the log has no ODOM ")
+    assert "--pose global maps with them" in err
+    assert names(out) == set()
+    code, out_text, _ = run("inspect", str(log))
+    assert code == 0  # build's automatic choice maps the laser with the pose graph
+    assert "  odometry  none: the log has no ODOM lines" in out_text  # the plan
+    assert "  odometry    no ODOM lines: none the log can vouch for" in out_text  # the header
+    assert "ODOM lines: the chain of their increments" not in out_text
+    code, _, err = run("build", str(log), "-o", str(out / "map.png"), "--pose", "global", "-q")
+    assert code == 0, err
+    code, _, err = run("calibrate", str(log))
+    assert code == 1
+    assert err.startswith(f"Error: {log}: calibrate compares the odometry with the reference")

@@ -187,3 +187,18 @@ def test_tiago_odometry_alone_has_no_range_topic() -> None:
     ]
     with pytest.raises(InputFileError, match="no range readings"):
         plan_topics(survey, ReadOptions())
+
+
+def test_calibrate_needs_no_range_readings(tmp_path: Path) -> None:
+    """The TurtleBot recording holds odometry and a localiser's track, no ranges: enough to
+    calibrate the odometry against the track (which build refuses: nothing to map)."""
+    import json
+
+    out = tmp_path / "odometry.yaml"
+    code, stdout, err = run("calibrate", str(TURTLEBOT), "-o", str(out), "--json")
+    assert code == 0, err
+    doc = json.loads(stdout)
+    assert doc["windows"]["total"] >= 20 and doc["estimated"]["distance"]
+    assert out.is_file()
+    code, _, err = run("build", str(TURTLEBOT), "-o", str(tmp_path / "map.png"))
+    assert code == 1 and "no range readings" in err

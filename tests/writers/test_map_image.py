@@ -123,9 +123,25 @@ def test_scale_unknown_grey_lies_between_the_loading_thresholds() -> None:
         assert free < p < occupied, (occupied, free, grey)
 
 
-def test_raw_pixels_are_percentages() -> None:
-    prob = np.array([[0.0, 0.004, 0.005, 0.015, 0.42, 1.0, NAN]])
-    assert map_pixels(prob, "raw", 0.65, 0.25).tolist() == [[0, 0, 0, 2, 42, 100, 255]]
+def test_raw_pixels_are_percentages_with_the_maps_classes_at_0_and_100() -> None:
+    # occupied (p >= 0.65) is 100 and free (p <= 0.25) 0, the values Nav2's costmap and AMCL
+    # read as a wall and as free; the rest round(100 p), half to even
+    prob = np.array([[0.0, 0.25, 0.2501, 0.425, 0.6449, 0.65, 0.7, NAN]])
+    assert map_pixels(prob, "raw", 0.65, 0.25).tolist() == [[0, 0, 25, 42, 64, 100, 100, 255]]
+    # a cell between the thresholds never reads as free or as a wall, however it rounds
+    prob = np.array([[0.004, 0.0051, 0.994, 0.995]])
+    assert map_pixels(prob, "raw", 0.995, 0.005).tolist() == [[0, 1, 99, 100]]
+
+
+def test_scale_walls_and_free_cells_load_as_such_under_strict_thresholds() -> None:
+    # p = 0.65 rounds to grey 89 (p 0.651) but p = 0.6501 with occupied 0.6505 would round to a
+    # grey below the threshold: a cell the map calls occupied gets a grey strictly beyond it
+    for occupied, free in [(0.65, 0.25), (0.6505, 0.2), (0.7, 0.2), (0.9, 0.05)]:
+        p = np.array([[occupied, occupied + 1e-4, free, free - 1e-4, 1.0, 0.0]])
+        grey = map_pixels(np.minimum(p, 1.0), "scale", occupied, free)[0, :, 0].astype(int)
+        loaded = (255 - grey) / 255
+        assert (loaded[[0, 1, 4]] > occupied).all(), (occupied, grey)
+        assert (loaded[[2, 3, 5]] < free).all(), (free, grey)
 
 
 @pytest.mark.parametrize(

@@ -100,8 +100,10 @@ def test_a_built_map_matches_the_raw_image_cell_by_cell(tmp_path: Path) -> None:
     expected = image[::-1].astype(np.int16)
     expected[expected == 255] = -1
     assert np.array_equal(cells, expected)
-    # unknown, free (clamped at p 0.12) and occupied cells all occur
-    assert (cells == -1).any() and (cells == 12).any() and (cells > 65).any()
+    # unknown, free and occupied cells all occur, free as 0 and occupied as 100 (the only
+    # values Nav2's costmap and AMCL read as free and as a wall), whatever the clamp
+    assert (cells == -1).any() and (cells == 0).any() and (cells == 100).any()
+    assert not ((cells > 65) & (cells < 100)).any()
     # origin as in the image's YAML
     yaml_text = (tmp_path / "raw.yaml").read_text()
     origin = f"origin: [{grid.info.origin.position.x!r}, {grid.info.origin.position.y!r}, 0.0]"
@@ -162,6 +164,6 @@ def test_cells_appended_by_hand_equal_the_generic_cdr_encoder(width: int, height
         "header": {"frame_id": "map"},
         "info": {"resolution": 0.1, "width": width, "height": height},
     }
-    generic = encode({**message, "data": occupancy_values(prob).ravel().tolist()})
-    by_hand = _with_cells(encode({**message, "data": []}), occupancy_values(prob))
+    generic = encode({**message, "data": occupancy_values(prob, 0.65, 0.25).ravel().tolist()})
+    by_hand = _with_cells(encode({**message, "data": []}), occupancy_values(prob, 0.65, 0.25))
     assert by_hand == generic

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.errors import GridmapError
+from gridmap_cli.errors import GridmapError, InputFileError
 from gridmap_cli.poses.calibration.bias_check import BiasCheck, check_bias
 from gridmap_cli.poses.calibration.consistency import consistency
 from gridmap_cli.poses.calibration.robust_fit import RobustFit, robust_fit, standard_errors
@@ -316,6 +316,12 @@ def calibrate(
     :class:`CalibrationError` for one with fewer than :data:`MIN_WINDOWS` complete windows of
     travel.
     """
+    if log.odometry_missing is not None:
+        raise InputFileError(
+            log.source,
+            f"calibrate compares the odometry with the reference track: odometry "
+            f"{log.odometry_missing.split('; --pose global')[0]}",
+        )
     odometry, truth = truth_at_odometry(log)
     whole = calibrate_tracks(
         odometry, truth, window_m, window_rad, sonar_relative_error, check=False

@@ -21,14 +21,14 @@ from gridmap_cli.readers.ros.frames import (
     bad_rotations,
     frame_name,
     rotation_problem,
-    yaw_of,
+    yaws_of,
 )
 from gridmap_cli.readers.ros.messages import MessageAccumulator
-from gridmap_cli.readers.ros.messages.fields import _f32
+from gridmap_cli.readers.ros.messages.fields import _f32, scan_limits_problem
 from gridmap_cli.readers.ros.messages.ranges import scan_angles_error
 from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar, _Track, scan_angles_disagree
 
-#: Poses whose headings are computed at a time (yaw_of is per pose, on Python floats).
+#: Poses whose headings are computed at a time (each atan2 on a Python float).
 _YAW_ROWS = 1 << 14
 
 
@@ -144,7 +144,13 @@ def _scans(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
     first = _first_rows(index, len(frames))
     count = a["count"].astype(np.int64)
     amin, ainc = a["angle_min"].astype(np.float64), a["angle_increment"].astype(np.float64)
-    rmin, rmax = a["range_min"], a["range_max"]
+    rmin, rmax = a["range_min"].astype(np.float64), a["range_max"].astype(np.float64)
+    with np.errstate(invalid="ignore"):
+        unusable = ~((rmin >= 0.0) & (rmin < rmax) & np.isfinite(rmax))
+    if unusable.any():
+        row = int(np.argmax(unusable))
+        problem = scan_limits_problem(frames[int(index[row])], float(rmin[row]), float(rmax[row]))
+        raise InputFileError(acc.message_path, f"{_where(acc, topic, cols, row)}: {problem}")
     too_many = count > MAX_LASER_SAMPLES
     bad = scan_angles_disagree(amin, a["angle_max"].astype(np.float64), ainc, count) | too_many
     bad_row = int(np.argmax(bad)) if bad.any() else n
@@ -262,9 +268,7 @@ def _poses(acc: MessageAccumulator, track: _Track, topic: str, cols: Columns) ->
         thetas = np.empty(len(stamps))
         for start in range(0, len(stamps), _YAW_ROWS):  # a slice at a time: no 4 whole lists
             part = slice(start, start + _YAW_ROWS)
-            quats = zip(a["qx"][part].tolist(), a["qy"][part].tolist(),
-                        a["qz"][part].tolist(), a["qw"][part].tolist(), strict=True)  # fmt: skip
-            thetas[part] = [yaw_of(q) for q in quats]
+            thetas[part] = yaws_of(a["qx"][part], a["qy"][part], a["qz"][part], a["qw"][part])
     finite = np.isfinite(a["x"]) & np.isfinite(a["y"]) & np.isfinite(thetas)
     n = len(stamps) if finite.all() else int(np.argmax(~finite))
     if track is acc.odom:

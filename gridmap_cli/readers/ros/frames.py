@@ -71,6 +71,28 @@ def yaw_of(q: Quaternion) -> float:
     return (yaw + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def yaws_of(
+    qx: npt.NDArray[np.float64],
+    qy: npt.NDArray[np.float64],
+    qz: npt.NDArray[np.float64],
+    qw: npt.NDArray[np.float64],
+) -> npt.NDArray[np.float64]:
+    """:func:`yaw_of` of each row, to the bit: each atan2 in Python's ``math`` (numpy's arctan2
+    may take SIMD code paths that round otherwise), the wrap in numpy (the same fmod-based
+    remainder as the scalar's), with no Python call a row."""
+    x, y, z, w = (np.asarray(v, dtype=np.float64) for v in (qx, qy, qz, qw))
+    atan2 = math.atan2
+    if not (x.any() or y.any()):  # all planar: 2 atan2(qz, qw)
+        raw = 2.0 * np.asarray([atan2(b, a) for b, a in zip(z.tolist(), w.tolist(), strict=True)])
+    else:
+        raw = np.asarray([
+            2.0 * atan2(c, d) if a == 0.0 and b == 0.0
+            else atan2(2.0 * (d * c + a * b), 1.0 - 2.0 * (b * b + c * c))
+            for a, b, c, d in zip(x.tolist(), y.tolist(), z.tolist(), w.tolist(), strict=True)
+        ])  # fmt: skip
+    return wrap_angle(raw.reshape(len(z)))
+
+
 def quaternion_of_yaw(theta_rad: float) -> Quaternion:
     """The rotation by ``theta_rad`` about z, (0, 0, sin(theta/2), cos(theta/2)): the inverse of
     :func:`yaw_of` up to wrapping (and about 1 ulp)."""

@@ -59,6 +59,8 @@ class RecordingRead:
     problem: GridmapError | None  # lenient read: the error a strict read raises, if any
     spans: dict[str, tuple[int, int]]  # topic -> first and last log time (ns) of the messages read
     truth_from: str | None  # where the reference track came from: a topic or a TF chain
+    problems: tuple[GridmapError, ...] = ()  # lenient read: every error, ``problem`` first
+    mounts_only: bool = True  # every problem is a sensor's unknown mounting
 
 
 def merge_surveys(surveys: Sequence[Survey]) -> Survey:
@@ -138,6 +140,7 @@ def read_recording(
     survey = merge_surveys([s.survey() for s in sources])
     plan = plan_topics(survey, opts, refusals)
     acc = MessageAccumulator(survey.path, plan, opts.robot, refusals)
+    acc.laser_mount = opts.laser_mount
     spans: dict[str, list[int]] = {}
     topics = plan.topics()
     if ranges_apart is not None:
@@ -198,4 +201,6 @@ def read_recording(
         refusals.first,
         {topic: (first, last) for topic, (first, last) in spans.items()},
         acc.truth_from,
+        tuple(refusals.errors),
+        refusals.mounts_only,
     )

@@ -104,8 +104,13 @@ class Survey:
     files: tuple[tuple[str, int], ...] = ()  # (file, bytes) of each file read
 
     def topic(self, name: str) -> ChannelInfo | None:
+        """The channel of topic ``name``; a name without its leading ``/`` (``sonar``) is the
+        root namespace's topic (``/sonar``), as ROS resolves it, when no topic is spelled so."""
         for channel in self.channels:
             if channel.topic == name:
+                return channel
+        for channel in self.channels:
+            if channel.topic.lstrip("/") == name.lstrip("/"):
                 return channel
         return None
 
@@ -118,17 +123,33 @@ class Survey:
 
 class Refusals:
     """Errors that stop a build: a strict read (``build``) raises the first one at once; a lenient
-    read (``inspect``) keeps it in :attr:`first` and reads on to show what the file holds."""
+    read (``inspect``) keeps them all in :attr:`errors` and reads on to show what the file
+    holds (and every problem build would meet, not only the first)."""
 
     def __init__(self, strict: bool = True) -> None:
         self.strict = strict
-        self.first: GridmapError | None = None
+        self.errors: list[GridmapError] = []
+        self.mounts_only = True  # every error kept is a sensor's unknown mounting
 
-    def refuse(self, error: GridmapError) -> None:
+    @property
+    def first(self) -> GridmapError | None:
+        return self.errors[0] if self.errors else None
+
+    def refuse(self, error: GridmapError, mount: bool = False) -> None:
+        """``mount``: the error is a sensor's unknown mounting, which leaves the rest of the
+        log as build reads it (its later checks still say something new)."""
         if self.strict:
             raise error
-        if self.first is None:
-            self.first = error
+        if any(_subject(error) == _subject(e) for e in self.errors):
+            return  # the same thing missing, seen again at a later stage of the read
+        self.errors.append(error)
+        self.mounts_only = self.mounts_only and mount
+
+
+def _subject(error: GridmapError) -> str:
+    """What an error is about: its detail up to the first colon ("no odometry")."""
+    detail = error.detail if isinstance(error, InputFileError) else str(error)
+    return detail.partition(":")[0]
 
 
 @dataclass(frozen=True)
@@ -154,6 +175,9 @@ class Plan:
     map_frame: str = "map"
     #: a recording without odometry is read (its track empty) rather than refused
     odometry_optional: bool = False
+    #: why the recording has no odometry, when the plan found none (for a caller that can do
+    #: without: the scans make the motion)
+    odometry_reason: str | None = None
 
     def topics(self) -> list[str]:
         """Every topic the read decodes: /tf unless a pose topic gives both the odometry and
@@ -183,6 +207,7 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
     static_topics = tuple(c.topic for c in by_role.get("tf_static", []))
 
     odom_topic: str | None
+    no_odometry: str | None = None
     if options.odom_topic is not None:
         chosen = survey.topic(options.odom_topic)
         if chosen is None:
@@ -209,14 +234,13 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
                 + "; choose one with --odom-topic",
             )
         odom_topic = candidates[0].topic if candidates else None
-        if not candidates and not tf_topics and not options.odometry_optional:
-            refuse(
-                InputFileError(
-                    path,
-                    "no odometry: no nav_msgs/Odometry, geometry_msgs/PoseStamped or "
-                    f"gridmap.Pose2D topic and no TF; {survey.listing()}",
-                )
+        if not candidates and not tf_topics:
+            no_odometry = (
+                "no odometry: no nav_msgs/Odometry, geometry_msgs/PoseStamped or "
+                f"gridmap.Pose2D topic and no TF; {survey.listing()}"
             )
+            if not options.odometry_optional:
+                refuse(InputFileError(path, no_odometry))
     truths = [c.topic for c in by_role.get("truth", []) if c.topic != odom_topic]
     truth_topic = truths[0] if len(truths) == 1 else None
     references = [c.topic for c in by_role.get("reference", [])]
@@ -250,7 +274,7 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
                     f"{path}: --range-topic {name} is {chosen.type_name or 'untyped'}, not a "
                     f"range type ({', '.join(RANGE_TYPES)})"
                 )
-            ranges.append(name)
+            ranges.append(chosen.topic)
         range_topics = tuple(dict.fromkeys(ranges))
     else:
         range_topics = tuple(c.topic for c in by_role.get("range", []))
@@ -275,4 +299,5 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
         reference_topic=reference_topic,
         map_frame=options.map_frame or "map",
         odometry_optional=options.odometry_optional,
+        odometry_reason=no_odometry,
     )

@@ -213,7 +213,17 @@ def build_tracks(path: str, events: list[Event], last_line: int) -> Tracks:
                 odo_stamps.append(stamps[i])
                 own_ns.append(event.stamp_ns)
                 odo_rows.append(event.pose)
-        notes["odometry"] = "no ODOM lines: the laser lines' robot poses"
+        # a corrected data set writes its SLAM poses where a raw log writes the odometry, in
+        # both pose fields of a laser line alike: without ODOM lines nothing tells them apart
+        missing = (
+            "missing: the log has no ODOM lines, and its laser lines' poses may as well be a "
+            "corrected log's SLAM poses as the robot's odometry (CARMEN writes both alike); "
+            "--pose global maps with them"
+        )
+        notes["odometry"] = (
+            "no ODOM lines: none the log can vouch for; the laser lines' poses are its "
+            "reference track (--pose global)"
+        )
     if not odo_rows:
         raise InputFileError(
             path, "no odometry: no ODOM lines and no laser line with a pose", last_line
@@ -224,14 +234,17 @@ def build_tracks(path: str, events: list[Event], last_line: int) -> Tracks:
     if true_idx:
         truth = _track([stamps[i] for i in true_idx], _poses(events, true_idx))
         notes["truth"] = f"{len(true_idx)} TRUEPOS lines (--pose global)"
-    elif corrected:
+    elif corrected or not odom_idx:
         with_pose = [i for i, e in enumerate(events) if e.kind == "scan" and e.pose is not None]
         truth = _track([stamps[i] for i in with_pose], _poses(events, with_pose))
-        notes["truth"] = f"the corrected poses of the {len(with_pose)} laser lines (--pose global)"
+        what = "corrected poses" if corrected else "poses"
+        notes["truth"] = f"the {what} of the {len(with_pose)} laser lines (--pose global)"
     notes["carmen"] = (
         f"corrected log: ODOM restarts from the scan's corrected pose {sum(restart)} times"
         if corrected
         else "raw log: ODOM is the robot's odometry"
+        if odom_idx
+        else "raw or corrected: without ODOM lines the log does not say"
     )
     moved = sum(a != b for a, b in zip(fixed, (events[i].stamp_ns for i in timed), strict=True))
     if moved:
@@ -244,7 +257,7 @@ def build_tracks(path: str, events: list[Event], last_line: int) -> Tracks:
     differ = fixed_odo != logged_odo
     own = MovedStamps(fixed_odo[differ], logged_odo[differ]) if differ.any() else None
     return Tracks(odometry=_track(odo_stamps, odo_rows), truth=truth, event_stamps_ns=stamps,
-                  notes=notes, odometry_missing=missing if odom_idx else None,
+                  notes=notes, odometry_missing=missing,
                   moved=own)  # fmt: skip
 
 

@@ -71,3 +71,15 @@ def _classify(value: float, max_range: float) -> float | None:
     if value >= max_range:
         return math.inf
     return value
+
+
+def scan_limits_problem(frame: str, range_min: float, range_max: float) -> str | None:
+    """Why a LaserScan's range limits cannot be used, or None: ``range_max`` is the range a
+    beam with no echo reads and the sensor's reach on the map, so it must be a finite number
+    above ``range_min`` (a NaN or infinite one would leave no echo and no bound)."""
+    if 0.0 <= range_min < range_max and math.isfinite(range_max):
+        return None
+    return (
+        f"laser '{frame}': need 0 <= range_min < range_max, range_max finite, got "
+        f"{_f32(range_min)} and {_f32(range_max)}"
+    )

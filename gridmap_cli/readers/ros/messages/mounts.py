@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from gridmap_cli.errors import InputFileError
+from gridmap_cli.errors import InputFileError, given, naming_style
 from gridmap_cli.readers.ros.frames import (
     TransformBuffer,
     TransformSeries,
@@ -76,9 +76,20 @@ class _Mounts(_State):
                 return known.x_m, known.y_m, known.yaw_rad
         return None
 
+    def _beamless(self, base: str) -> list[str]:
+        """The laser frames that neither TF nor a robot laser of their name or beam count
+        mounts: those a mounting without beams (a robot file's, ``--laser-mount``) may take."""
+        known = self.robot.by_name() if self.robot is not None else {}
+        named = {m.name for m in self.robot.mounts} if self.robot is not None else set()
+        return [
+            f for f, sc in self.scans.items()
+            if self.tree.lookup(base, f) is None and f not in named
+            and not all(f"{f}_{i}" in known for i in range(sc.count))
+        ]  # fmt: skip
+
     def _unmounted(self, base: str, frame: str) -> tuple[float, float, float]:
         """A frame with no known mounting: refused; a NaN mounting when read on."""
-        self.refusals.refuse(self._unknown_mount(base, frame))
+        self.refusals.refuse(self._unknown_mount(base, frame), mount=True)
         self.mount_from[frame] = "unknown"
         return math.nan, math.nan, math.nan
 
@@ -98,19 +109,61 @@ class _Mounts(_State):
             tf_part = f"no transform from '{base}' to it on {where}"
         else:
             tf_part = "the recording has no TF"
+        if frame in self.scans:
+            return InputFileError(
+                self.path,
+                f"sensor frame '{frame}' ({self.frame_topic[frame]}): mounting pose unknown: "
+                f"{tf_part}, {self._laser_hint(base, frame)}",
+            )
         if self.robot is None:
             robot_part = "and no --robot describing it"
         else:
             robot_part = f"and robot '{self.robot.name}' has no sensor named '{frame}'"
-            lasers = self.robot.lasers()
-            if lasers and frame in self.scans:
-                # its lasers could not be paired with this frame: several of either, or
-                # another beam count
-                robot_part += (
-                    f" (its lasers: {', '.join(lasers)}; name one '{frame}' in a robot YAML)"
-                )
         return InputFileError(
             self.path,
             f"sensor frame '{frame}' ({self.frame_topic[frame]}): mounting pose unknown: "
             f"{tf_part}, {robot_part}",
         )
+
+    def _laser_hint(self, base: str, frame: str) -> str:
+        """What the robot lacks for a laser frame, and the two ways to give its mounting (the
+        scans give the rest)."""
+        count = self.scans[frame].count
+        fix = (
+            f"give its pose on '{base}' with {_mount_given()}, or "
+            f"{given('robot', 'FILE')} holding the two lines 'gridmap-robot: 1' and "
+            f"'sensors: [{{name: {frame}, kind: laser, x_m: X, y_m: Y, yaw_deg: YAW_DEG}}]' "
+            "(its beams and range come from the scans; docs/robot-format.md)"
+        )
+        unmounted = self._beamless(base)
+        if self.laser_mount is not None and len(unmounted) > 1:
+            return (
+                f"and {given('laser_mount')} gives one laser's mounting while "
+                f"{len(unmounted)} laser frames have none ({', '.join(unmounted)}): give each "
+                f"by name in a robot file, "
+                f"'{{name: {frame}, kind: laser, x_m: X, y_m: Y, yaw_deg: YAW_DEG}}'"
+            )
+        if self.robot is None:
+            return f"and no {given('robot')} describing it: {fix}"
+        lasers = self.robot.lasers()
+        same = lasers.get(frame) or (next(iter(lasers.values())) if len(lasers) == 1 else None)
+        if same is not None and len(same) != count:
+            name = frame if frame in lasers else next(iter(lasers))
+            return (
+                f"and robot '{self.robot.name}' describes laser '{name}' with {len(same)} "
+                f"beams where the scans on {self.frame_topic[frame]} have {count}: leave "
+                "first_deg, last_deg and samples out of its entry and the scans give them"
+            )
+        part = f"and robot '{self.robot.name}' has no laser named '{frame}'"
+        if lasers or self.robot.mounts:
+            names = [*lasers, *(m.name for m in self.robot.mounts)]
+            part += f" (its lasers: {', '.join(names)})"
+        return f"{part}: {fix}"
+
+
+def _mount_given() -> str:
+    """How the caller gives a laser's mounting: the flag takes degrees, the Python read
+    option radians."""
+    if naming_style() == "flags":
+        return "--laser-mount X,Y,YAW_DEG (metres, degrees)"
+    return "ReadOptions(laser_mount=(X, Y, YAW_RAD)) (metres, radians)"

@@ -75,7 +75,7 @@ class _Poses(_Mounts):
 
     def _no_odometry(self, error: InputFileError) -> None:
         if self.plan.odometry_optional:
-            self.odometry_missing = "missing: the recording has no odometry"
+            self.odometry_missing = f"missing: {self.plan.odometry_reason or error.detail}"
         else:
             self.refusals.refuse(error)
 

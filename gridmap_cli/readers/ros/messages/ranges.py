@@ -15,7 +15,12 @@ from gridmap_cli.errors import InputFileError
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.limits import MAX_LASER_SAMPLES, too_many_beams
 from gridmap_cli.readers.ros.frames import frame_name
-from gridmap_cli.readers.ros.messages.fields import _classify, _f32, float32_decimal
+from gridmap_cli.readers.ros.messages.fields import (
+    _classify,
+    _f32,
+    float32_decimal,
+    scan_limits_problem,
+)
 from gridmap_cli.readers.ros.messages.mounts import _Mounts
 from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar, scan_angles_disagree
 from gridmap_cli.robot import RangeSensor
@@ -79,6 +84,9 @@ class _Ranges(_Mounts):
         if count > MAX_LASER_SAMPLES:
             where = f"{self._where(topic, log_time)}: laser '{frame}': "
             raise too_many_beams(self.message_path, count, where=where)
+        problem = scan_limits_problem(frame, float(msg.range_min), float(msg.range_max))
+        if problem is not None:
+            raise InputFileError(self.message_path, f"{self._where(topic, log_time)}: {problem}")
         if scan_angles_disagree(
             np.array([amin]), np.array([float(msg.angle_max)]), np.array([ainc]), np.array([count])
         )[0]:
@@ -201,12 +209,31 @@ class _Ranges(_Mounts):
                     for n, beam_yaw in zip(names[scan.count :], yaws, strict=True)
                 ]
             return beams
-        x, y, yaw = mount or self._unmounted(base, frame)
+        x, y, yaw = mount or self._given_mount(base, frame) or self._unmounted(base, frame)
         yaws = wrap_angle(yaw + starts + book.local * steps).tolist()
         return [
             RangeSensor(name, x, y, beam_yaw, 0.0, rmin, rmax, "laser")
             for name, beam_yaw in zip(names, yaws, strict=True)
         ]
+
+    def _given_mount(self, base: str, frame: str) -> tuple[float, float, float] | None:
+        """A laser's mounting without beams: the robot's of the frame's name; else, for the
+        recording's only laser left without one, ``--laser-mount`` or the robot's only such
+        mounting (named after no frame of the recording)."""
+        mounts = {m.name: m for m in self.robot.mounts} if self.robot is not None else {}
+        mount = mounts.get(frame)
+        if mount is None:
+            if self._beamless(base) != [frame]:
+                return None
+            if self.laser_mount is not None:
+                self.mount_from[frame] = "--laser-mount"
+                return self.laser_mount
+            spare = [m for name, m in mounts.items() if name not in self.scans]
+            if len(spare) != 1 or (self.robot is not None and self.robot.lasers()):
+                return None
+            mount = spare[0]
+        self.mount_from[frame] = "robot"
+        return mount.x_m, mount.y_m, mount.yaw_rad
 
     def _sole_robot_laser(self, base: str, scan: _Scan) -> list[str] | None:
         """The beam names of the robot's laser when the pairing is unambiguous: the robot

@@ -124,6 +124,7 @@ class _State:
         self.refusals = refusals
         self.plan = plan
         self.robot = robot
+        self.laser_mount: tuple[float, float, float] | None = None  # --laser-mount X, Y, yaw
         self.odom = _Track()
         self.truth = _Track()
         self.reference = _Track()
