@@ -205,6 +205,10 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
             by_role.setdefault(channel.role, []).append(channel)
     tf_topics = tuple(c.topic for c in by_role.get("tf", []))
     static_topics = tuple(c.topic for c in by_role.get("tf_static", []))
+    # the scans can make the motion where there is no odometry, for a caller that asks; a
+    # recording without laser scans still needs its odometry
+    scans = any(c.type_name == "sensor_msgs/LaserScan" for c in survey.channels if c.count > 0)
+    odometry_optional = options.odometry_optional and scans
 
     odom_topic: str | None
     no_odometry: str | None = None
@@ -239,7 +243,7 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
                 "no odometry: no nav_msgs/Odometry, geometry_msgs/PoseStamped or "
                 f"gridmap.Pose2D topic and no TF; {survey.listing()}"
             )
-            if not options.odometry_optional:
+            if not odometry_optional:
                 refuse(InputFileError(path, no_odometry))
     truths = [c.topic for c in by_role.get("truth", []) if c.topic != odom_topic]
     truth_topic = truths[0] if len(truths) == 1 else None
@@ -298,6 +302,6 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
         base_frame=options.base_frame,
         reference_topic=reference_topic,
         map_frame=options.map_frame or "map",
-        odometry_optional=options.odometry_optional,
+        odometry_optional=odometry_optional,
         odometry_reason=no_odometry,
     )
