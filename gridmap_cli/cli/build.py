@@ -45,6 +45,7 @@ from gridmap_cli.errors import MixedLogsError, NotRecordingFolderError, UsageErr
 from gridmap_cli.evaluation.quality import quality_notes
 from gridmap_cli.heap import TRIM_EVERY_BATCHES, TrimEvery, keep_scratch_memory, release_free_memory
 from gridmap_cli.mapping.options import BuildOptions
+from gridmap_cli.mapping.selection import Selection
 from gridmap_cli.poses.sources import ODOMETRY_SOURCE, pose_source, source_names
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import PoseTrack, RangeLog
@@ -201,16 +202,7 @@ def build(
         for path in spread_paths(output):
             check_output(path, force)
     if fuse:
-        fuse_jobs = [
-            FuseJob(log=log.resolve(), log_format=opts.log_format, read_options=opts.topics,
-                    pose=opts.pose, initial_pose=first, selection=selection,
-                    robot_spec=_robot_spec(opts.robot), options=_fused_settings(settings))
-            for log, first in zip(logs, placed, strict=True)
-        ]  # fmt: skip
-        if scheduler is not None:
-            total = fuse_dask(fuse_jobs, scheduler)
-        else:
-            total = fuse_local(fuse_jobs, jobs)
+        total = _fused(logs, placed, opts, selection, settings, scheduler, jobs)
         warn(total.notes, quiet)
         _write_fused(total, output, to_mcap, opts, force, started, quiet, as_json, len(logs))
         return
@@ -233,6 +225,27 @@ def _check_map_name(output: Path, image_format: str | None, map_mode: str) -> bo
         return True
     check_map_outputs(Path(f"map.{image_format}") if output == STDIO else output, map_mode, True)
     return False
+
+
+def _fused(
+    logs: tuple[Path, ...],
+    placed: list[tuple[float, float, float] | None],
+    opts: MapOptions,
+    selection: Selection,
+    settings: BuildOptions,
+    scheduler: str | None,
+    jobs: int,
+) -> Partial:
+    """Each log mapped on its own, placed, and the partial grids added (locally or on Dask)."""
+    fuse_jobs = [
+        FuseJob(log=log.resolve(), log_format=opts.log_format, read_options=opts.topics,
+                pose=opts.pose, initial_pose=first, selection=selection,
+                robot_spec=_robot_spec(opts.robot), options=_fused_settings(settings))
+        for log, first in zip(logs, placed, strict=True)
+    ]  # fmt: skip
+    if scheduler is not None:
+        return fuse_dask(fuse_jobs, scheduler)
+    return fuse_local(fuse_jobs, jobs)
 
 
 def _fused_settings(settings: BuildOptions) -> BuildOptions:

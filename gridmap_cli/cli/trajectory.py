@@ -27,6 +27,7 @@ from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.evaluation.relations import (
     ClockOffset,
+    Relations,
     find_clock_offset,
     logged_stamps,
     read_relations,
@@ -44,7 +45,7 @@ from gridmap_cli.poses.sources import (
 )
 from gridmap_cli.readers import read_logs
 from gridmap_cli.readers.options import ReadOptions
-from gridmap_cli.records import PoseTrack
+from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import load_robot, robot_from_log
 from gridmap_cli.writers import check_output
 from gridmap_cli.writers.trajectory import covariance_path, trajectory_format, write_trajectory
@@ -155,23 +156,7 @@ def trajectory(
     summary["poses"] = len(track)
     clock: ClockOffset | None = None  # found from the stamps when no offset is given
     if relations is not None:
-        # a corrected track is scored at every odometry stamp too (the track `build` maps
-        # with), so a relation between two scans finds the pose the estimate gives at its time
-        offset = relations_offset
-        if offset is None:
-            clock = find_clock_offset(logged_stamps(data), truth)
-            offset = clock.offset_s or 0.0
-        score = score_track(scored, truth, data.poses, offset_s=offset, moved=data.moved_stamps)
-        if score.count == 0:
-            why = "is the clock offset right (--relations-offset)?"
-            raise GridmapError(
-                f"{relations}: no relation lies within the track's time span; "
-                + (why if clock is None else clock.message())
-            )
-        scored_summary: dict[str, object] = {**score.summary(), "offset_s": offset}
-        if clock is not None:
-            scored_summary["clock"] = clock.message()
-        summary["relations"] = scored_summary
+        summary["relations"], clock = _scored(scored, truth, data, relations, relations_offset)
     if data.moved_stamps is not None:
         # the log's own clock: a stamp the reader moved forward is written as the log gave it,
         # so the benchmark's relations (and evo) find this pose under the log's stamp
@@ -184,6 +169,34 @@ def trajectory(
         click.echo(json.dumps(summary, indent=2))
     if not quiet:
         _report(summary, posed, len(track), cov_path, clock)
+
+
+def _scored(
+    scored: PoseTrack,
+    truth: Relations,
+    data: RangeLog,
+    relations: Path,
+    relations_offset: float | None,
+) -> tuple[dict[str, object], ClockOffset | None]:
+    """The track scored on the relations, on the clock offset given or found from the stamps.
+    A corrected track is scored at every odometry stamp too (the track ``build`` maps with),
+    so a relation between two scans finds the pose the estimate gives at its time."""
+    clock: ClockOffset | None = None
+    offset = relations_offset
+    if offset is None:
+        clock = find_clock_offset(logged_stamps(data), truth)
+        offset = clock.offset_s or 0.0
+    score = score_track(scored, truth, data.poses, offset_s=offset, moved=data.moved_stamps)
+    if score.count == 0:
+        why = "is the clock offset right (--relations-offset)?"
+        raise GridmapError(
+            f"{relations}: no relation lies within the track's time span; "
+            + (why if clock is None else clock.message())
+        )
+    scored_summary: dict[str, object] = {**score.summary(), "offset_s": offset}
+    if clock is not None:
+        scored_summary["clock"] = clock.message()
+    return scored_summary, clock
 
 
 Covariance = tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_]]
