@@ -26,6 +26,7 @@ from scipy.spatial import cKDTree
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.heap import release_free_memory
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
+from gridmap_cli.poses.correction.scan_match import pose_matrix
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -124,14 +125,6 @@ def candidates(
                 break
         pairs.extend((int(i), j) for j in taken)
     return pairs
-
-
-def _matrix(x: float, y: float, theta: float) -> FloatArray:
-    m = np.eye(4)
-    c, s = math.cos(theta), math.sin(theta)
-    m[0, 0], m[0, 1], m[1, 0], m[1, 1] = c, -s, s, c
-    m[0, 3], m[1, 3] = x, y
-    return m
 
 
 def _sheet(points: FloatArray, voxel_m: float) -> FloatArray:
@@ -311,7 +304,7 @@ def _align(
         target,
         source,
         target_tree,
-        init_T_target_source=_matrix(*start),
+        init_T_target_source=pose_matrix(*start),
         registration_type="GICP",
         max_correspondence_distance=p.correspondence_m,
         max_iterations=30,

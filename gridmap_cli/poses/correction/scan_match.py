@@ -206,7 +206,8 @@ def laser_scans(log: RangeLog, sensors: tuple[RangeSensor, ...], params: ScanMat
     return Scans(stamp_ns=laser_stamps.astype(np.int64), points=points)
 
 
-def _matrix(x: float, y: float, theta: float) -> FloatArray:
+def pose_matrix(x: float, y: float, theta: float) -> FloatArray:
+    """The planar pose as the 4 x 4 transform small_gicp takes."""
     m = np.eye(4)
     c, s = math.cos(theta), math.sin(theta)
     m[0, 0], m[0, 1], m[1, 0], m[1, 1] = c, -s, s, c
@@ -214,11 +215,12 @@ def _matrix(x: float, y: float, theta: float) -> FloatArray:
     return m
 
 
-def _planar(m: FloatArray) -> tuple[float, float, float]:
+def planar_pose(m: FloatArray) -> tuple[float, float, float]:
+    """The planar pose (x, y, theta) of a 4 x 4 transform."""
     return float(m[0, 3]), float(m[1, 3]), math.atan2(float(m[1, 0]), float(m[0, 0]))
 
 
-def _sheet(points: FloatArray, voxel_m: float) -> FloatArray:
+def planar_sheet(points: FloatArray, voxel_m: float) -> FloatArray:
     """Planar points (K, 2) as three layers one voxel apart in z, shape (3K, 3)."""
     k = len(points)
     sheet = np.empty((3 * k, 3))
@@ -230,7 +232,8 @@ def _sheet(points: FloatArray, voxel_m: float) -> FloatArray:
     return sheet
 
 
-def _transform(points: FloatArray, pose: tuple[float, float, float]) -> FloatArray:
+def placed_points(points: FloatArray, pose: tuple[float, float, float]) -> FloatArray:
+    """Points (K, 2) of a scan moved to ``pose`` (x, y, theta)."""
     x, y, th = pose
     c, s = math.cos(th), math.sin(th)
     return np.column_stack(
@@ -262,7 +265,7 @@ class _LocalMap:
         flat = np.vstack(list(self.frames))
         voxel = self.params.downsample_m
         self.cloud, self.tree = small_gicp.preprocess_points(
-            _sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
+            planar_sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
         )
         self.tree2d = cKDTree(flat)
 
@@ -354,7 +357,7 @@ def _match_pass(
                 mx, my, _ = compose(*inverse(*poses[k - 1]), *poses[k])
                 scale.add((float(mx), float(my)), (float(dx), float(dy)))
         if len(pts) and local.wants(tuple(poses[k])):
-            local.add(_transform(pts, tuple(poses[k])), tuple(poses[k]))
+            local.add(placed_points(pts, tuple(poses[k])), tuple(poses[k]))
         if progress is not None:
             progress("scan matching", k + 1, n)
     return poses, status, score, weak, scale
@@ -376,7 +379,7 @@ def _match_one(
         return kept, FALLBACK, 0.0, None
     voxel = params.downsample_m
     source, _ = small_gicp.preprocess_points(
-        _sheet(pts, voxel), downsampling_resolution=voxel, num_neighbors=10
+        planar_sheet(pts, voxel), downsampling_resolution=voxel, num_neighbors=10
     )
     cloud = np.asarray(source.points())
     planar = cloud[np.abs(cloud[:, 2] - 0.5 * voxel) < 0.25 * voxel, :2]
@@ -390,18 +393,20 @@ def _match_one(
             local.cloud,
             source,
             local.tree,
-            init_T_target_source=_matrix(*start),
+            init_T_target_source=pose_matrix(*start),
             registration_type="GICP",
             max_correspondence_distance=params.correspondence_m,
             max_iterations=params.max_iterations,
             num_threads=1,
         )
-        pose = _planar(np.asarray(result.T_target_source))
+        pose = planar_pose(np.asarray(result.T_target_source))
         moved = math.hypot(pose[0] - guess[0], pose[1] - guess[1])
         turned = abs(float(wrap_angle(pose[2] - guess[2])))
         if moved > limit_m or turned > params.max_correction_rad:
             continue
-        dist, _ = local.tree2d.query(_transform(planar, pose), distance_upper_bound=params.inlier_m)
+        dist, _ = local.tree2d.query(
+            placed_points(planar, pose), distance_upper_bound=params.inlier_m
+        )
         fraction = float(np.mean(np.isfinite(dist)))
         if best is None or fraction > best[0]:
             best = (fraction, pose, np.asarray(result.H))

@@ -32,6 +32,10 @@ from gridmap_cli.poses.correction.scan_match import (
     ScanMatchParams,
     Scans,
     laser_scans,
+    placed_points,
+    planar_pose,
+    planar_sheet,
+    pose_matrix,
 )
 from gridmap_cli.poses.sync import sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
@@ -77,35 +81,6 @@ class ScanOdometryParams:
     )
 
 
-def _sheet(points: FloatArray, voxel_m: float) -> FloatArray:
-    """Planar points (K, 2) as three layers one voxel apart in z, shape (3K, 3), so that GICP's
-    local covariances see a wall as a plane."""
-    layers = [np.column_stack([points, np.full(len(points), z)]) for z in (-voxel_m, 0.0, voxel_m)]
-    sheet: FloatArray = np.vstack(layers) + np.array([0.0, 0.0, 0.5 * voxel_m])
-    return sheet
-
-
-def _matrix(pose: Pose) -> FloatArray:
-    x, y, theta = pose
-    m = np.eye(4)
-    c, s = math.cos(theta), math.sin(theta)
-    m[0, 0], m[0, 1], m[1, 0], m[1, 1] = c, -s, s, c
-    m[0, 3], m[1, 3] = x, y
-    return m
-
-
-def _planar(m: FloatArray) -> Pose:
-    return float(m[0, 3]), float(m[1, 3]), math.atan2(float(m[1, 0]), float(m[0, 0]))
-
-
-def _placed(points: FloatArray, pose: Pose) -> FloatArray:
-    x, y, th = pose
-    c, s = math.cos(th), math.sin(th)
-    return np.column_stack(
-        [x + c * points[:, 0] - s * points[:, 1], y + s * points[:, 0] + c * points[:, 1]]
-    )
-
-
 class _Keyframes:
     """The last keyframe scans, placed: GICP's target (3-D sheet) and a 2-D tree for scoring."""
 
@@ -126,12 +101,12 @@ class _Keyframes:
             turned = abs(float(wrap_angle(pose[2] - self.last[2])))
             if moved < self.params.keyframe_m and turned < self.params.keyframe_rad:
                 return
-        self.frames.append(_placed(points, pose))
+        self.frames.append(placed_points(points, pose))
         self.last = pose
         flat = np.vstack(list(self.frames))
         voxel = self.params.downsample_m
         self.cloud, self.tree = small_gicp.preprocess_points(
-            _sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
+            planar_sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
         )
         self.tree2d = cKDTree(flat)
 
@@ -144,7 +119,7 @@ class _Keyframes:
         if self.cloud is None or self.tree is None or self.tree2d is None:
             return None
         source, _ = small_gicp.preprocess_points(
-            _sheet(points, p.downsample_m), downsampling_resolution=p.downsample_m,
+            planar_sheet(points, p.downsample_m), downsampling_resolution=p.downsample_m,
             num_neighbors=10,
         )  # fmt: skip
         cloud = np.asarray(source.points())
@@ -159,14 +134,16 @@ class _Keyframes:
                 self.cloud,
                 source,
                 self.tree,
-                init_T_target_source=_matrix(start),
+                init_T_target_source=pose_matrix(*start),
                 registration_type="GICP",
                 max_correspondence_distance=p.correspondence_m,
                 max_iterations=p.max_iterations,
                 num_threads=1,
             )
-            pose = _planar(np.asarray(result.T_target_source))
-            dist, _ = self.tree2d.query(_placed(planar, pose), distance_upper_bound=p.inlier_m)
+            pose = planar_pose(np.asarray(result.T_target_source))
+            dist, _ = self.tree2d.query(
+                placed_points(planar, pose), distance_upper_bound=p.inlier_m
+            )
             fraction = float(np.mean(np.isfinite(dist)))
             if fraction < p.min_inlier_fraction or (best is not None and fraction <= best[0]):
                 continue
