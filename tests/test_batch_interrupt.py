@@ -19,8 +19,8 @@ from tests.helpers import names, run
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLES = ROOT / "samples"
-#: A bound that catches a hang, not a slow machine.
-HANG_S = 60.0
+#: A bound that catches a hang, not a slow machine: nothing waits on it unless something hangs.
+HANG_S = 600.0
 
 
 @pytest.fixture
@@ -40,12 +40,11 @@ def interrupted_at_c(job: Job) -> JobResult:
 
 
 def stuck_on_c_and_d(job: Job) -> JobResult:
-    """run_job, except that c.csv and d.csv take long (say so with a file beside the log,
-    then wait, as a long build does, up to the hang bound)."""
+    """run_job, except that c.csv and d.csv never finish (say so with a file beside the log,
+    then wait until stopped), so however slow the machine, only Ctrl-C ends them."""
     if job.log.stem in ("c", "d"):
         job.log.with_suffix(".started").touch()
-        deadline = time.monotonic() + HANG_S
-        while time.monotonic() < deadline:
+        while True:
             time.sleep(0.05)
     return run_job(job)
 
