@@ -164,15 +164,21 @@ class MapBuild:
         echoes: bool = True,
     ) -> Quality:
         """What the log tells of the map, without ground truth: ``thresholds`` (occupied, free)
-        classify its cells; ``spread`` from :meth:`spread`; the pose graph's closures when the
-        source built one; ``echoes`` False leaves out the echo consistency (a pass over the
-        readings)."""
-        from gridmap_cli.evaluation.quality import map_quality
+        classify its cells; ``spread`` from :meth:`spread`; the pose graph's closures, and
+        the map's track on the revisits they found, when the source built one; ``echoes``
+        False leaves out the echo consistency (a pass over the readings)."""
+        from gridmap_cli.evaluation.quality import map_quality, track_revisits
 
-        slam = self.placed.posed.slam
+        posed = self.placed.posed
+        slam = posed.slam
         graph = None if slam is None or slam.graph is None else (slam.poses, slam.graph.edges)
+        revisits = None
+        if slam is not None:
+            # the map's track is the graph's own when the source kept the graph's match
+            own = posed.match is slam.match
+            revisits = track_revisits(slam, posed.log, self.placed.robot, self.log, own)
         return map_quality(self.log, self.placed.robot, self._judged(), self.map, thresholds,
-                           spread, graph, echoes)  # fmt: skip
+                           spread, graph, echoes, revisits)  # fmt: skip
 
     def _judged(self) -> BuildOptions:
         """The options with the pose source's belief, which a standard map is not built with
