@@ -10,10 +10,14 @@ ways:
   best lays its track on the reference track, as ``bench/scan_match.py`` scores a map;
 - **without it**: what ``gridmap evaluate MAP --log LOG`` reports
   (:mod:`gridmap_cli.evaluation.quality`): the share of the laser's echoes that end in a cell
-  the map calls free (lower is better), and for the pose graph the median NEES of its closures.
+  the map calls free (lower is better), the revisits (:mod:`gridmap_cli.evaluation.revisits`:
+  the median distance between two visits' echoes on the places the pose graph found twice, the
+  graph's own track on the closures held out of its solve; lower is better), and for the pose
+  graph the median NEES of its closures.
 
-Nothing is fitted: the score is the echo share as defined, the same for every log. Writes the
-table to docs/quality.md between its markers.
+Nothing is fitted: each score is as defined, the same for every log. The CPU seconds of the
+revisits (the scans' echoes summed up and the held-out solves) are printed beside those of the
+pose graph they come from. Writes the table to docs/quality.md between its markers.
 
     nice .venv/bin/python bench/quality_ranking.py
     .venv/bin/python bench/quality_ranking.py --logs aces --no-doc
@@ -40,6 +44,12 @@ from gridmap_cli.evaluation.quality import (  # noqa: E402
     echo_consistency,
     map_readings,
 )
+from gridmap_cli.evaluation.revisits import (  # noqa: E402
+    RevisitScore,
+    graph_revisits,
+    map_revisits,
+    score_track,
+)
 from gridmap_cli.mapping.pipeline import BuildOptions, build_map  # noqa: E402
 from gridmap_cli.poses.correction.scan_match import corrected_track, match_log  # noqa: E402
 from gridmap_cli.poses.correction.slam import slam_log  # noqa: E402
@@ -64,12 +74,29 @@ class Row:
     nll: float
     echoes: EchoConsistency | None
     closures: ClosureConsistency | None
+    revisits: RevisitScore | None
 
 
-def run_log(name: str) -> list[Row]:
+@dataclass(frozen=True)
+class Found:
+    """What the pose graph found in one log: the corrected-pose reference on its revisits, and
+    the CPU seconds of the graph and of the revisits (echoes summed up, held-out solves)."""
+
+    reference: RevisitScore | None
+    graph_s: float
+    revisits_s: float
+
+
+def run_log(name: str) -> tuple[list[Row], Found]:
+    """The three rows of one log and what its pose graph found."""
     log = read_logs((DATA / f"{name}-corrected.log.gz",), None, ReadOptions())
     assert log.truth is not None
+    cpu = time.process_time()
     slam = slam_log(log, None)
+    graph_s = time.process_time() - cpu
+    cpu = time.process_time()
+    revisits = graph_revisits(slam, log, None)
+    revisits_s = time.process_time() - cpu
     match = match_log(log, None)  # build --pose scan-matched's own matcher, not the graph's
     stamps = slam.track.stamp_ns
     rx, ry, rth, _ = interpolate_pose(log.truth, stamps)
@@ -95,8 +122,10 @@ def run_log(name: str) -> list[Row]:
         closures = None
         if source == "slam" and slam.graph is not None:
             closures = closure_consistency(slam.poses, slam.graph.edges)
-        rows.append(Row(source, error.ape_rmse_m, nll, echoes, closures))
-    return rows
+        own = map_revisits(revisits, logs[source].poses, graph_track=source == "slam")
+        rows.append(Row(source, error.ape_rmse_m, nll, echoes, closures, own))
+    on_revisits = None if revisits is None else score_track(log.truth, revisits)
+    return rows, Found(on_revisits, graph_s, revisits_s)
 
 
 def ranks(values: list[float]) -> list[int]:
@@ -104,38 +133,66 @@ def ranks(values: list[float]) -> list[int]:
     return [sorted(values).index(v) + 1 for v in values]
 
 
-def table(results: dict[str, list[Row]]) -> tuple[list[str], int]:
+def table(results: dict[str, list[Row]]) -> tuple[list[str], int, int]:
     lines = [
         "| log | map | track APE m | NLL against the reference | rank | echoes | "
-        "echoes in free cells | rank | echoes in occupied cells | closures, median NEES |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "echoes in free cells | rank | revisits | apart, median m | mean m | mean deg | rank | "
+        "closures, median NEES |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    agree = 0
+    agree = agree_revisits = 0
+    nan = float("nan")
     for name, rows in results.items():
         nll_rank = ranks([r.nll for r in rows])
-        own = [r.echoes.in_free if r.echoes is not None else float("nan") for r in rows]
-        own_rank = ranks(own)
+        own_rank = ranks([r.echoes.in_free if r.echoes is not None else nan for r in rows])
+        apart_rank = ranks([r.revisits.median_m if r.revisits is not None else nan for r in rows])
         agree += nll_rank == own_rank
-        for r, a, b in zip(rows, nll_rank, own_rank, strict=True):
+        agree_revisits += nll_rank == apart_rank
+        for r, a, b, d in zip(rows, nll_rank, own_rank, apart_rank, strict=True):
             e = r.echoes
             c = r.closures
+            v = r.revisits
+            held = " (held out)" if v is not None and v.held_out else ""
             lines.append(
                 f"| {name} | {r.source} | {r.ape_m:.2f} | {r.nll:.4f} | {a} | "
-                f"{e.echoes if e else 0:,} | {e.in_free if e else float('nan'):.4f} | {b} | "
-                f"{e.in_occupied if e else float('nan'):.3f} | "
+                f"{e.echoes if e else 0:,} | {e.in_free if e else nan:.4f} | {b} | "
+                + (
+                    f"{v.relations:,}{held} | {v.median_m:.3f} | {v.mean_m:.3f} | "
+                    f"{v.rot_mean_deg:.2f} | {d} | "
+                    if v
+                    else "- | - | - | - | - | "
+                )
                 + (f"{c.closures:,}, {c.median_nees:.2f} |" if c else "- |")
             )
-    return lines, agree
+    return lines, agree, agree_revisits
 
 
-def write_doc(lines: list[str], agree: int, total: int, path: Path) -> None:
+def found_table(found: dict[str, Found]) -> list[str]:
+    """The revisits each log's pose graph found, the reference's score on them, the costs."""
+    lines = [
+        "| log | revisits | reference: apart, median m | mean m | mean deg | CPU s: pose graph | "
+        "revisits |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, f in found.items():
+        r = f.reference
+        scores = f"{r.median_m:.3f} | {r.mean_m:.3f} | {r.rot_mean_deg:.2f}" if r else "- | - | -"
+        lines.append(
+            f"| {name} | {r.relations if r else 0:,} | {scores} | {f.graph_s:.1f} | "
+            f"{f.revisits_s:.2f} |"
+        )
+    return lines
+
+
+def write_doc(lines: list[str], agree: tuple[int, int], total: int, path: Path) -> None:
     text = path.read_text(encoding="utf-8")
     block = "\n".join(
         [
             "<!-- quality-ranking: generated by bench/quality_ranking.py -->",
             *lines,
             "",
-            f"The echo share ranks the three maps as the NLL does on {agree} of {total} logs.",
+            f"The three maps are ranked as the NLL ranks them on {agree[0]} of {total} logs by "
+            f"the echo share, on {agree[1]} of {total} by the revisits.",
             "<!-- /quality-ranking -->",
         ]
     )
@@ -154,14 +211,16 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(f"{DATA} is not present: nothing to measure")
     started = time.perf_counter()
     results = {}
+    found: dict[str, Found] = {}
     for name in args.logs:
-        results[name] = run_log(name)
+        results[name], found[name] = run_log(name)
         print(f"{name} done, {time.perf_counter() - started:.0f} s", file=sys.stderr, flush=True)
-    lines, agree = table(results)
+    lines, agree, agree_revisits = table(results)
+    lines += ["", *found_table(found)]
     print("\n".join(lines))
-    print(f"agree on {agree} of {len(results)} logs")
+    print(f"agree on {agree} of {len(results)} logs (echo share), {agree_revisits} (revisits)")
     if not args.no_doc:
-        write_doc(lines, agree, len(results), DOC)
+        write_doc(lines, (agree, agree_revisits), len(results), DOC)
         print(f"wrote {DOC}")
 
 

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
@@ -18,34 +20,54 @@ from gridmap_cli.evaluation.evaluate import (
 )
 from gridmap_cli.evaluation.quality import (
     EchoConsistency,
+    Quality,
     closure_consistency,
     echo_consistency,
     map_readings,
+    quality_table,
     spread_summary,
     spread_timeline,
 )
+from gridmap_cli.evaluation.revisits import (
+    Revisits,
+    RevisitScore,
+    echo_displacement,
+    graph_revisits,
+    map_revisits,
+    score_track,
+)
+from gridmap_cli.geometry import compose, inverse
 from gridmap_cli.mapping.grid import GridSpec, OccupancyMap
 from gridmap_cli.mapping.pipeline import BuildOptions, build_map
 from gridmap_cli.poses.correction.pose_graph import Edge
-from gridmap_cli.poses.correction.scan_match import corrected_track, match_log
-from gridmap_cli.poses.sync import sensors_for_log
+from gridmap_cli.poses.correction.scan_match import ScanMatch, corrected_track, match_log
+from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
 from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty
-from gridmap_cli.records import RangeLog
+from gridmap_cli.records import PoseTrack, RangeLog
 from tests.test_scan_match import laser_robot, room_world
 from tests.test_scan_match import run as simulate_run
+
+if TYPE_CHECKING:
+    from gridmap_cli.poses.correction.slam import SlamResult
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 LOOP = [[2, 1.5], [10, 1.5], [10, 6.5], [2, 6.5], [2, 1.5]]
 SOURCES = ("odometry", "scan-matched", "slam")
 
 
-def posed_logs(log: RangeLog) -> dict[str, RangeLog]:
-    """The log with the poses of each source, as build --pose maps it."""
+@pytest.fixture(scope="module")
+def loop() -> tuple[RangeLog, SlamResult, ScanMatch]:
+    """The drifting laser loop, its pose graph and its open-loop scan match."""
     from gridmap_cli.poses.correction.slam import slam_log
 
+    log = simulate_run(room_world(), LOOP, drift=3.0)
     robot = laser_robot()
-    slam = slam_log(log, robot)
-    match = match_log(log, robot)
+    return log, slam_log(log, robot), match_log(log, robot)
+
+
+def posed_logs(loop: tuple[RangeLog, SlamResult, ScanMatch]) -> dict[str, RangeLog]:
+    """The log with the poses of each source, as build --pose maps it."""
+    log, slam, match = loop
     return {
         "odometry": log,
         "scan-matched": dataclasses.replace(log, poses=corrected_track(log.poses, match)),
@@ -54,9 +76,11 @@ def posed_logs(log: RangeLog) -> dict[str, RangeLog]:
 
 
 @pytest.fixture(scope="module")
-def scored() -> dict[str, tuple[float, EchoConsistency]]:
+def scored(
+    loop: tuple[RangeLog, SlamResult, ScanMatch],
+) -> dict[str, tuple[float, EchoConsistency]]:
     """Per pose source: NLL against the simulated world, and the echo consistency."""
-    log = simulate_run(room_world(), LOOP, drift=3.0)
+    log = loop[0]
     world = room_world()
     robot = laser_robot()
     assert log.truth is not None
@@ -64,7 +88,7 @@ def scored() -> dict[str, tuple[float, EchoConsistency]]:
     placed = odometry_frame_in_world(log)
     out = {}
     options = BuildOptions()
-    for source, posed in posed_logs(log).items():
+    for source, posed in posed_logs(loop).items():
         omap = build_map(posed, robot, options).map
         pmap = ProbabilityMap.from_occupancy_map(omap, 0.65)
         nll = evaluate_map(pmap, world.occupied, world.spec, region, placed).nll
@@ -178,8 +202,10 @@ def test_evaluate_without_truth_reports_what_the_log_tells(tmp_path: Path, room_
     doc = json.loads(stdout)
     assert doc["pose"] == "odometry" and doc["spread"]["known_cells"] > 0
     assert doc["echo_consistency"] is None and doc["closures"] is None  # sonar, no graph
+    assert doc["revisits"] is None
     code, stdout, _ = run("evaluate", yaml_path, "--log", str(room_csv))
     assert code == 0 and "pose spread           n/a" in stdout and "echo consistency" in stdout
+    assert "revisits              n/a" in stdout
 
 
 def test_evaluate_without_truth_needs_the_log_and_draws_nothing(
@@ -197,3 +223,161 @@ def test_evaluate_without_truth_needs_the_log_and_draws_nothing(
                           "--plot", str(plot))  # fmt: skip
     assert code == 2 and "--plot and --spread-plot draw the map against --truth" in stderr
     assert names(tmp_path) == before
+
+
+@pytest.fixture(scope="module")
+def loop_revisits(
+    loop: tuple[RangeLog, SlamResult, ScanMatch],
+) -> tuple[RangeLog, Revisits, dict[str, RevisitScore]]:
+    """The drifting loop, the revisits its pose graph found, and each source's map scored on
+    them (the graph's own track on the closures held out of its solve)."""
+    log, slam, _ = loop
+    revisits = graph_revisits(slam, log, laser_robot())
+    assert revisits is not None and revisits.predicted is not None
+    scores = {}
+    for source, posed in posed_logs(loop).items():
+        score = map_revisits(revisits, posed.poses, graph_track=source == "slam")
+        assert score is not None
+        scores[source] = score
+    return log, revisits, scores
+
+
+def test_the_revisits_rank_the_drifting_loop_as_the_truth_does(
+    loop_revisits: tuple[RangeLog, Revisits, dict[str, RevisitScore]],
+    scored: dict[str, tuple[float, EchoConsistency]],
+) -> None:
+    _, revisits, scores = loop_revisits
+    apart = {s: scores[s].median_m for s in SOURCES}
+    nll = {s: scored[s][0] for s in SOURCES}
+    assert scores["slam"].held_out and not scores["odometry"].held_out
+    assert all(scores[s].relations == len(revisits) for s in SOURCES)
+    # the odometry drifted metres and degrees around the loop; its two visits of the start
+    # lie far apart, the corrected tracks' within a few centimetres
+    assert apart["odometry"] > 10 * max(apart["scan-matched"], apart["slam"]), apart
+    assert apart["odometry"] > 0.5 and scores["odometry"].rot_mean_deg > 5.0
+    assert nll["odometry"] > max(nll["scan-matched"], nll["slam"])
+
+
+def test_the_revisits_see_a_bend_the_echo_share_does_not(
+    loop_revisits: tuple[RangeLog, Revisits, dict[str, RevisitScore]],
+) -> None:
+    """Two maps of the loop: one bent as a whole (5 degrees of heading gained evenly along the
+    path, every step exact, so each place is crisp), one blurred in place (every pose off by
+    3 cm and 1 degree at random, no drift). The truth prefers the blurred map; so do the
+    revisits; the echo share, which counts only local contradictions, prefers the bent one."""
+    log, revisits, _ = loop_revisits
+    world = room_world()
+    robot = laser_robot()
+    assert log.truth is not None
+    region = sensed_region(world, log.truth, sensors_for_log(log, robot))
+    stamps = log.poses.stamp_ns
+    tx, ty, tth, _ = interpolate_pose(log.truth, stamps)
+    ix, iy, ith = inverse(tx[:-1], ty[:-1], tth[:-1])
+    dx, dy, dth = compose(ix, iy, ith, tx[1:], ty[1:], tth[1:])
+    step = np.hypot(dx, dy)
+    turn = dth + math.radians(5.0) * step / step.sum()
+    x, y, th = [float(tx[0])], [float(ty[0])], [float(tth[0])]
+    for k in range(len(step)):
+        a, b, c = compose(x[-1], y[-1], th[-1], dx[k], dy[k], turn[k])
+        x.append(float(a))
+        y.append(float(b))
+        th.append(float(c))
+    bent = PoseTrack(stamp_ns=stamps, x_m=np.array(x), y_m=np.array(y), theta_rad=np.array(th))
+    rng = np.random.default_rng(0)
+    n = len(stamps)
+    blurred = PoseTrack(
+        stamp_ns=stamps,
+        x_m=tx + rng.normal(0.0, 0.03, n),
+        y_m=ty + rng.normal(0.0, 0.03, n),
+        theta_rad=tth + np.radians(rng.normal(0.0, 1.0, n)),
+    )
+    options = BuildOptions()
+    nll, share, apart = {}, {}, {}
+    for name, track in (("bent", bent), ("blurred", blurred)):
+        posed = dataclasses.replace(log, poses=track)
+        omap = build_map(posed, robot, options).map
+        pmap = ProbabilityMap.from_occupancy_map(omap, 0.65)
+        nll[name] = evaluate_map(pmap, world.occupied, world.spec, region).nll  # world frame
+        echoes = echo_consistency(omap, map_readings(posed, robot, options), 0.65, 0.25)
+        assert echoes is not None
+        share[name] = echoes.in_free
+        apart[name] = score_track(track, revisits).median_m
+    assert nll["bent"] > 1.5 * nll["blurred"], nll
+    assert apart["bent"] > 2 * apart["blurred"], apart
+    assert share["bent"] < share["blurred"], share  # the blind spot the revisits cover
+
+
+def test_the_echo_displacement_is_the_mean_over_the_echoes() -> None:
+    """The closed form against the echoes moved one by one."""
+    rng = np.random.default_rng(1)
+    points = [rng.uniform(-8.0, 8.0, (50, 2)) for _ in range(4)]
+    error = np.column_stack([rng.normal(0, 0.3, 4), rng.normal(0, 0.3, 4), rng.normal(0, 0.1, 4)])
+    mean = np.array([p.mean(axis=0) for p in points])
+    square = np.array([(p**2).sum(axis=1).mean() for p in points])
+    got = echo_displacement(error, mean, square)
+    for k, p in enumerate(points):
+        px, py, _ = compose(error[k, 0], error[k, 1], error[k, 2], p[:, 0], p[:, 1], 0.0)
+        moved = np.hypot(px - p[:, 0], py - p[:, 1])
+        assert got[k] == pytest.approx(math.sqrt(float((moved**2).mean())), rel=1e-9)
+
+
+def test_a_track_is_scored_on_the_relations_it_covers() -> None:
+    """A track that covers one of two relations: one scored, one skipped; a pure turn of the
+    second scan moves its echoes by their distance times 2 sin(theta / 2)."""
+    revisits = Revisits(
+        t1_ns=np.array([0, 0], dtype=np.int64),
+        t2_ns=np.array([10, 50], dtype=np.int64),
+        relative=np.zeros((2, 3)),
+        echo_mean_m=np.zeros((2, 2)),
+        echo_square_m2=np.full(2, 4.0),  # every echo 2 m away
+    )
+    track = PoseTrack(
+        stamp_ns=np.array([0, 20], dtype=np.int64),
+        x_m=np.zeros(2),
+        y_m=np.zeros(2),
+        theta_rad=np.array([0.0, 0.2]),
+    )
+    s = score_track(track, revisits)
+    assert (s.relations, s.skipped) == (1, 1)
+    assert s.median_m == pytest.approx(2.0 * 2.0 * math.sin(0.05), rel=1e-9)
+    assert s.rot_mean_deg == pytest.approx(math.degrees(0.1))
+
+
+def test_build_json_and_evaluate_score_the_map_on_the_revisits(
+    tmp_path: Path, loop: tuple[RangeLog, SlamResult, ScanMatch]
+) -> None:
+    """A slam build's quality block holds its revisits, held out of the graph's solve; evaluate
+    of the odometry's map solves the graph for them and finds the odometry's visits apart."""
+    from gridmap_cli.writers.csv_log import save_csv_log
+    from tests.helpers import run
+
+    log = dataclasses.replace(loop[0], metadata={**loop[0].metadata, "robot": "p3at-lms200"})
+    csv = tmp_path / "run.csv"
+    save_csv_log(log, csv)
+    slam_map, odo_map = tmp_path / "slam.png", tmp_path / "odo.png"
+    code, stdout, stderr = run("build", str(csv), "--pose", "slam", "-o", str(slam_map), "--json")
+    assert code == 0, stderr
+    graph = json.loads(stdout)["quality"]["revisits"]
+    assert graph["held_out"] and graph["relations"] >= 1 and graph["median_m"] < 0.1
+    assert run("build", str(csv), "--pose", "odometry", "-o", str(odo_map))[0] == 0
+    yaml_path = str(odo_map.with_suffix(".yaml"))
+    code, stdout, stderr = run("evaluate", yaml_path, "--log", str(csv), "--pose", "odometry",
+                               "--json")  # fmt: skip
+    assert code == 0, stderr
+    odo = json.loads(stdout)["revisits"]
+    assert not odo["held_out"] and odo["relations"] == graph["relations"]
+    assert odo["median_m"] > 10 * graph["median_m"]
+
+
+def test_the_table_says_how_far_apart_the_visits_are(
+    loop_revisits: tuple[RangeLog, Revisits, dict[str, RevisitScore]],
+) -> None:
+    _, _, scores = loop_revisits
+    odo, graph = scores["odometry"], scores["slam"]
+    text = quality_table("m.yaml", "run.csv", "odometry", Quality(None, None, None, odo))
+    assert "places the scans found twice (the map's track)" in text
+    assert f"median {odo.median_m:.3f} m" in text
+    text = quality_table("m.yaml", "run.csv", "slam", Quality(None, None, None, graph))
+    assert "held out of the graph's solve" in text
+    text = quality_table("m.yaml", "run.csv", "odometry", Quality(None, None, None))
+    assert "revisits              n/a" in text

@@ -329,7 +329,7 @@ def _write_one(
         summary["spread"] = str(output if to_mcap else spread_paths(output)[1])
     line = summary_line(summary)
     if as_json or spread is not None:
-        quality = built.quality((occupied, free), spread, echoes=as_json)
+        quality = built.quality((occupied, free), spread, echoes=as_json, revisits=as_json)
         summary["quality"] = quality.as_dict()
         notes = quality_notes(quality, built.placed.posed.source, built.log, built.placed.robot)
         line += "".join(f"; {part}" for part in notes)

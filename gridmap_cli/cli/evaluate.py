@@ -53,7 +53,9 @@ if TYPE_CHECKING:
     type=click.Path(path_type=Path, readable=False),
     help="Ground-truth world map (map_server YAML, e.g. samples/worlds/*.yaml). Without it, "
     "--log is required and the map is judged by what the log itself tells: its pose spread, "
-    "how many laser echoes it contradicts, and a pose graph's closures (docs/quality.md).",
+    "how many laser echoes it contradicts, how far apart it puts the places the scans saw "
+    "twice (a laser log's pose graph is solved for them), and a pose graph's closures "
+    "(docs/quality.md).",
 )
 @click.option(
     "--log",

@@ -18,6 +18,10 @@ Three things, each a check a user can read without a reference:
 - **Closure consistency** (:func:`closure_consistency`): a pose graph's loop closures at the
   optimum, each residual whitened by the closure's own covariance (a NEES, chi-square with 3
   degrees of freedom, median 2.37, when the noise is right and the closure true).
+- **Revisits** (:mod:`.revisits`): the places the pose graph's closure search found the robot
+  back at, each a relative pose registered from the scans; the map's track scored on them (the
+  graph's own track on the ones held out of its solve). The echo share is local; this sees a
+  map bent or drifted as a whole wherever the robot came back.
 
 Numpy only, no file I/O; the callers read the log and build the map.
 """
@@ -35,6 +39,7 @@ import numpy.typing as npt
 
 from gridmap_cli.errors import given
 from gridmap_cli.evaluation.relation_nees import CHI2_3_MEDIAN, between, log_map
+from gridmap_cli.evaluation.revisits import RevisitScore, graph_revisits, map_revisits
 from gridmap_cli.mapping.grid import OccupancyMap
 from gridmap_cli.mapping.options import BuildOptions
 from gridmap_cli.mapping.pipeline import SYNC_CHUNK_READINGS, corrected_for_build
@@ -46,6 +51,7 @@ from gridmap_cli.robot import RobotDescription
 
 if TYPE_CHECKING:
     from gridmap_cli.poses.correction.pose_graph import Edge
+    from gridmap_cli.poses.correction.slam import SlamResult
 
 F64 = npt.NDArray[np.float64]
 FloatArray = F64
@@ -278,12 +284,14 @@ class Quality:
     spread: SpreadSummary | None
     echoes: EchoConsistency | None
     closures: ClosureConsistency | None
+    revisits: RevisitScore | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {
             "spread": None if self.spread is None else self.spread.as_dict(),
             "echo_consistency": None if self.echoes is None else self.echoes.as_dict(),
             "closures": None if self.closures is None else self.closures.as_dict(),
+            "revisits": None if self.revisits is None else self.revisits.as_dict(),
         }
 
 
@@ -313,11 +321,13 @@ def map_quality(
     spread: tuple[F64, PoseUncertainty] | None = None,
     graph: tuple[F64, Sequence[Edge]] | None = None,
     echoes: bool = True,
+    revisits: RevisitScore | None = None,
 ) -> Quality:
     """Everything :class:`Quality` holds for a map built from ``log`` with ``options``:
     ``thresholds`` (occupied, free) classify its cells; ``spread`` from :func:`map_spread`;
     ``graph`` the pose graph's optimum and edges (a pose graph's build); ``echoes`` False
-    leaves out the echo consistency (a pass over the readings)."""
+    leaves out the echo consistency (a pass over the readings); ``revisits`` from
+    :func:`track_revisits`."""
     occupied, free = thresholds
     consistency = None
     if echoes and has_laser(log, robot):
@@ -326,7 +336,20 @@ def map_quality(
         spread=None if spread is None else spread_summary(*spread),
         echoes=consistency,
         closures=None if graph is None else closure_consistency(*graph),
+        revisits=revisits,
     )
+
+
+def track_revisits(
+    slam: SlamResult, graph_log: RangeLog, robot: RobotDescription | None, mapped: RangeLog,
+    graph_track: bool,
+) -> RevisitScore | None:  # fmt: skip
+    """The track of ``mapped`` (the log as mapped) scored on the revisits ``slam`` found in
+    ``graph_log`` (the log its graph was solved from); ``graph_track``: the map's track is the
+    graph's own, so it is scored on the closures held out of its solve. None without a
+    closure."""
+    revisits = graph_revisits(slam, graph_log, robot, hold_out=graph_track)
+    return map_revisits(revisits, mapped.poses, graph_track)
 
 
 def has_laser(log: RangeLog, robot: RobotDescription | None) -> bool:
@@ -371,15 +394,26 @@ def log_quality(
     :data:`~gridmap_cli.poses.sources.SOURCES`; a pose graph's is built again and gives the
     spread and the closures), ``options`` the odometry error the spread is carried with (or
     none). The map must be the one built from ``log`` with ``pose``: its frame is the
-    track's."""
+    track's. A log with a laser is also posed by the pose graph, when ``pose`` did not, for
+    the revisits its track is scored on."""
     posed = pose_source(pose).run(log, robot, PoseSettings(belief_samples=0))
     graph = None
     if posed.belief is not None:
         options = dataclasses.replace(options, pose_belief=posed.belief)
     if posed.slam is not None and posed.slam.graph is not None:
         graph = (posed.slam.poses, posed.slam.graph.edges)
+    revisits = None
+    if posed.slam is not None:
+        # the map's track is the graph's own when the source kept the graph's match
+        own = posed.match is posed.slam.match
+        revisits = track_revisits(posed.slam, posed.log, robot, posed.log, own)
+    elif has_laser(log, robot):
+        found = pose_source(_graph_source()).run(log, robot, PoseSettings())
+        if found.slam is not None:
+            revisits = track_revisits(found.slam, found.log, robot, posed.log, False)
     spread = map_spread(posed.log, robot, options, omap)
-    return map_quality(posed.log, robot, options, omap, thresholds, spread, graph)
+    return map_quality(posed.log, robot, options, omap, thresholds, spread, graph,
+                       revisits=revisits)  # fmt: skip
 
 
 def quality_table(map_name: str, log_name: str, pose: str, quality: Quality) -> str:
@@ -403,6 +437,16 @@ def quality_table(map_name: str, log_name: str, pose: str, quality: Quality) -> 
         lines.append(
             f"echo consistency      {100 * e.in_free:.2f} % of {e.echoes:,} laser echoes end in "
             f"cells the map calls free (lower is better), {100 * e.in_occupied:.1f} % in occupied"
+        )
+    v = quality.revisits
+    if v is None:
+        lines.append("revisits              n/a (no loop closed, or no laser)")
+    else:
+        how = "held out of the graph's solve" if v.held_out else "the map's track"
+        lines.append(
+            f"revisits              {v.relations:,} places the scans found twice ({how}): "
+            f"median {v.median_m:.3f} m between the two visits' echoes, mean {v.mean_m:.3f} m, "
+            f"{v.rot_mean_deg:.2f} deg (lower is better)"
         )
     c = quality.closures
     if c is not None:

@@ -162,17 +162,25 @@ class MapBuild:
         thresholds: tuple[float, float],
         spread: tuple[FloatArray, PoseUncertainty] | None = None,
         echoes: bool = True,
+        revisits: bool = True,
     ) -> Quality:
         """What the log tells of the map, without ground truth: ``thresholds`` (occupied, free)
-        classify its cells; ``spread`` from :meth:`spread`; the pose graph's closures when the
-        source built one; ``echoes`` False leaves out the echo consistency (a pass over the
-        readings)."""
-        from gridmap_cli.evaluation.quality import map_quality
+        classify its cells; ``spread`` from :meth:`spread`; the pose graph's closures, and
+        the map's track on the revisits they found, when the source built one; ``echoes``
+        False leaves out the echo consistency (a pass over the readings), ``revisits`` False
+        the revisits (a pass over the laser's readings and a few more solves of the graph)."""
+        from gridmap_cli.evaluation.quality import map_quality, track_revisits
 
-        slam = self.placed.posed.slam
+        posed = self.placed.posed
+        slam = posed.slam
         graph = None if slam is None or slam.graph is None else (slam.poses, slam.graph.edges)
+        score = None
+        if revisits and slam is not None:
+            # the map's track is the graph's own when the source kept the graph's match
+            own = posed.match is slam.match
+            score = track_revisits(slam, posed.log, self.placed.robot, self.log, own)
         return map_quality(self.log, self.placed.robot, self._judged(), self.map, thresholds,
-                           spread, graph, echoes)  # fmt: skip
+                           spread, graph, echoes, score)  # fmt: skip
 
     def _judged(self) -> BuildOptions:
         """The options with the pose source's belief, which a standard map is not built with
