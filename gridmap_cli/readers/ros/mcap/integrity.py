@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import struct
 import zlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO
 
@@ -57,23 +57,68 @@ class McapDamage(DamagedAtError):
     """An MCAP file is damaged at a byte offset: ``path: byte N: detail``."""
 
 
-def verify_mcap(path: Path) -> None:
+def verify_mcap(path: Path, take_chunk: Callable[[int, bytes], None] | None = None) -> None:
     """Raise :class:`McapDamage` at the first structural damage or CRC mismatch in ``path``.
 
+    ``take_chunk``, when given, gets each chunk's offset in the file and its decompressed
+    records once they are checked, in file order (so a reader needs not decompress them again).
     Raises :class:`InputFileError` when the file cannot be read. Memory use is bounded by the
     largest chunk (:data:`MAX_CHUNK_BYTES`).
     """
     try:
         with open(path, "rb") as handle:
-            _Walker(path, handle).walk()
+            _Walker(path, handle, take_chunk).walk()
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
 
 
+def summary_intact(path: Path) -> bool:
+    """Whether ``path`` ends in an MCAP footer whose summary CRC, when written, matches: the
+    part of the file a survey reads. False when anything there is off (:func:`verify_mcap`
+    then names the damage, or the first damage before it).
+    """
+    try:
+        with open(path, "rb") as handle:
+            handle.seek(0, 2)
+            footer_at = handle.tell() - len(MAGIC) - 9 - _FOOTER_LENGTH
+            if footer_at < len(MAGIC):
+                return False
+            handle.seek(footer_at)
+            tail = handle.read()
+            head = struct.unpack_from("<BQ", tail)
+            if head != (_FOOTER, _FOOTER_LENGTH) or tail[-len(MAGIC) :] != MAGIC:
+                return False
+            summary_start, _, stored = struct.unpack_from("<QQI", tail, 9)
+            if not stored:
+                return True
+            first = summary_start or footer_at
+            if first > footer_at:
+                return False
+            handle.seek(first)
+            return bool(_crc(handle, footer_at + 9 + 16 - first) == stored)
+    except (OSError, struct.error):
+        return False
+
+
+def _crc(handle: IO[bytes], n: int) -> int:
+    """CRC-32 of the next ``n`` bytes of ``handle``, read in bounded blocks."""
+    crc = 0
+    while n > 0:
+        block = handle.read(min(n, _BLOCK))
+        if not block:
+            break
+        crc = zlib.crc32(block, crc)
+        n -= len(block)
+    return crc
+
+
 class _Walker:
-    def __init__(self, path: Path, handle: IO[bytes]) -> None:
+    def __init__(
+        self, path: Path, handle: IO[bytes], take_chunk: Callable[[int, bytes], None] | None
+    ) -> None:
         self.path = path
         self.handle = handle
+        self.take_chunk = take_chunk
         handle.seek(0, 2)
         self.size = handle.tell()
         handle.seek(0)
@@ -200,6 +245,12 @@ class _Walker:
                 f"the chunk's data at bytes {body_start + data_at}..{body_start + length} is "
                 "damaged",
             )
+        self._chunk_records(start, data)
+        if self.take_chunk is not None:
+            self.take_chunk(start, data)
+
+    def _chunk_records(self, start: int, data: bytes) -> None:
+        """The records inside a chunk: each fits, and is one a chunk may hold."""
         walk = compiled_walk()
         if (
             walk is not None
@@ -277,12 +328,7 @@ class _Walker:
         if first > start:
             raise self.damage(start, f"footer's summary start {summary_start} is past the footer")
         self.handle.seek(first)
-        crc = 0
-        remaining = start + 9 + 16 - first
-        while remaining > 0:
-            block = self.handle.read(min(remaining, _BLOCK))
-            crc = zlib.crc32(block, crc)
-            remaining -= len(block)
+        crc = _crc(self.handle, start + 9 + 16 - first)
         if crc != stored:
             raise self.damage(
                 first,

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.readers.ros.bulk import lexsort_order
 from gridmap_cli.readers.ros.messages.fields import float32_decimal
 from gridmap_cli.readers.ros.messages.poses import _Poses
 from gridmap_cli.readers.ros.messages.ranges import _Ranges
@@ -97,8 +98,10 @@ class MessageAccumulator(_Poses, _Ranges):
             # no echo is stored at the sensor's maximum range, as in the CSV layout
             max_r = np.array([s.max_range_m for s in sensors], dtype=np.float64)
             rng = np.where(np.isinf(rng), max_r[sensor], rng)
-        by_time = np.lexsort((sensor, stamp))  # by stamp, ties in sensor order
-        readings = RangeReadings(stamp[by_time], sensor[by_time], rng[by_time])
+        by_time = lexsort_order((sensor, stamp))  # by stamp, ties in sensor order
+        if by_time is not None:
+            stamp, sensor, rng = stamp[by_time], sensor[by_time], rng[by_time]
+        readings = RangeReadings(stamp, sensor, rng)
         described = sensors or tuple(self.json_sensors.values())
         return RangeLog(
             source=self.path,
