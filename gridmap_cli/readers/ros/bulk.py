@@ -87,6 +87,21 @@ def field_view(buf: npt.NDArray[np.uint8], dtype: np.dtype[Any]) -> Arr:
     return np.ndarray((max(len(buf) - size + 1, 0),), dtype=dtype, buffer=buf, strides=(1,))
 
 
+def gather_bytes(buf: npt.NDArray[np.uint8], at: IntArray, width: int) -> Arr:
+    """The ``width`` bytes from each of the offsets ``at``, one row (a void scalar) each: one
+    gather however many fields the bytes hold (:func:`column` reads them)."""
+    return field_view(buf, np.dtype((np.void, width)))[at]
+
+
+def column(block: Arr, offset: int, dtype: np.dtype[Any]) -> Arr:
+    """The ``dtype`` field at byte ``offset`` of each row of ``block`` (from
+    :func:`gather_bytes`): a view, no copy."""
+    if len(block) == 0:
+        return np.zeros(0, dtype=dtype)
+    width = block.dtype.itemsize
+    return np.ndarray((len(block),), dtype=dtype, buffer=block, offset=offset, strides=(width,))
+
+
 def concat(parts: list[Columns]) -> Columns:
     """Rows of several Columns, in log-time order (ties in file order, then transform order)."""
     if len(parts) == 1:
@@ -178,6 +193,15 @@ class _Reader:
             raise Layout("field past the end of its message")
         return self.gather(at, dtype)
 
+    def run(self, at: IntArray, dtype: np.dtype[Any], n: int) -> list[Arr]:
+        """``n`` fields of ``dtype`` one after another from ``at``: one gather of the run
+        (the bytes of a message are fetched once, not once a field)."""
+        size = dtype.itemsize
+        if np.any(at + n * size > self.end) or np.any(at < self.raw.offset):
+            raise Layout("field past the end of its message")
+        block = gather_bytes(self.buf, at, n * size)
+        return [column(block, i * size, dtype) for i in range(n)]
+
     def gather(self, at: IntArray, dtype: np.dtype[Any]) -> Arr:
         """The fields at ``at``, unchecked (the caller has checked they are inside)."""
         view = self.views.get(dtype)
@@ -266,19 +290,31 @@ def _unique_rows(
 ) -> tuple[IntArray, list[str]]:
     """Indexes into the distinct rows of ``keys`` (N, words), first seen first, and the
     strings they stand for."""
-    n_words = keys.shape[1]
-    rows = keys[:, 0] if n_words == 1 else keys.view(np.dtype((np.void, 8 * n_words)))
-    _, first, inverse = np.unique(rows.reshape(-1), return_index=True, return_inverse=True)
+    n = len(keys)
+    inverse, count = _dense_rank(keys[:, 0])
+    for j in range(1, keys.shape[1]):  # longer strings: (rank so far, next word) ranked again
+        word, word_count = _dense_rank(keys[:, j])
+        inverse, count = _dense_rank(inverse * word_count + word)
+    first = np.full(count, n, dtype=np.int64)
+    np.minimum.at(first, inverse, np.arange(n, dtype=np.int64))
     by_first = np.argsort(first, kind="stable")
     rank = np.empty_like(by_first)
-    rank[by_first] = np.arange(len(by_first))
+    rank[by_first] = np.arange(count)
     names = []
     for i in first[by_first].tolist():
         try:
             names.append(bytes(buf[start[i] : start[i] + length[i]]).decode("utf-8"))
         except UnicodeDecodeError as exc:
             raise Layout("a string that is not UTF-8") from exc
-    return rank[inverse.reshape(-1)].astype(np.int64), names
+    return rank[inverse], names
+
+
+def _dense_rank(values: Arr) -> tuple[IntArray, int]:
+    """Each value's index among the distinct values (sorted), and how many there are: a sort
+    and a binary search, several times faster than ``np.unique``'s inverse."""
+    ordered = np.sort(values)
+    distinct = ordered[np.concatenate(([True], ordered[1:] != ordered[:-1]))]
+    return np.searchsorted(distinct, values).astype(np.int64), len(distinct)
 
 
 _U4 = np.dtype("<u4")
@@ -290,10 +326,11 @@ _F8 = np.dtype("<f8")
 def _header(r: _Reader) -> tuple[IntArray, IntArray, list[str], IntArray]:
     """std_msgs/Header: (stamp ns, frame index, frame names, offset after it)."""
     at = r.origin if r.cdr else r.origin + 4  # ROS 1: uint32 seq first
-    sec = r.get(at, _I4).astype(np.int64) if r.cdr else r.get(at, _U4).astype(np.int64)
-    nsec = r.get(at + 4, _U4).astype(np.int64)
+    sec, nsec = r.run(at, _U4, 2)
+    if r.cdr:
+        sec = sec.view(_I4)
     frame, names, after = r.string(at + 8)
-    return sec * 1_000_000_000 + nsec, frame, names, after
+    return sec.astype(np.int64) * 1_000_000_000 + nsec, frame, names, after
 
 
 def _base(raw: Raw) -> dict[str, Arr]:
@@ -301,8 +338,7 @@ def _base(raw: Raw) -> dict[str, Arr]:
 
 
 def _floats(r: _Reader, at: IntArray, dtype: np.dtype[Any], n: int) -> list[Arr]:
-    at = r.align(at, dtype.itemsize)
-    return [r.get(at + i * dtype.itemsize, dtype) for i in range(n)]
+    return r.run(r.align(at, dtype.itemsize), dtype, n)
 
 
 def decode_range(raw: Raw, cdr: bool) -> Columns:

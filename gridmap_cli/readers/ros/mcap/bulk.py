@@ -362,11 +362,11 @@ def _records(
     ``pos`` their file-order positions -> their data."""
     if np.any(offset < lo) or np.any(offset + _MESSAGE_HEAD > hi):
         raise Layout("message index points past the chunk")
-    if np.any(buf[offset] != 0x05):
+    head = ros_bulk.gather_bytes(buf, offset, 23)  # opcode to log time: one gather a record
+    if np.any(ros_bulk.column(head, 0, np.dtype("u1")) != 0x05):
         raise Layout("message index points at something else")
-    word = ros_bulk.words(buf)
-    length = word[offset + 1].astype(np.int64) - (_MESSAGE_HEAD - 9)
-    log_ns = word[offset + 15].astype(np.int64)
+    length = ros_bulk.column(head, 1, np.dtype("<u8")).astype(np.int64) - (_MESSAGE_HEAD - 9)
+    log_ns = ros_bulk.column(head, 15, np.dtype("<u8")).astype(np.int64)
     data = offset + _MESSAGE_HEAD
     if np.any(length < 0) or np.any(data + length > hi):
         raise Layout("message runs past the chunk")
