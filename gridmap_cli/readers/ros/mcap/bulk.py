@@ -136,9 +136,9 @@ class _BulkRead:
         self.group = _Group()
         # a read that cannot go on: no message index where the summary says one is (the topics
         # are then read message by message), or an error, raised once the walk has checked
-        # every chunk (damage is named first)
+        # the whole file (damage is named first: the chunks may come before their CRC check)
         self.unindexed = False
-        self.error: InputFileError | None = None
+        self.error: Exception | None = None
 
     def wants(self, start: int) -> bool:
         """Whether the chunk at ``start`` holds messages of a channel still read in bulk."""
@@ -149,13 +149,15 @@ class _BulkRead:
         """The decompressed records of the chunk at byte ``start`` of the file."""
         if self.unindexed or self.error is not None or not self.wants(start):
             return
+        try:
+            self._take(start, data)
+        except Exception as exc:  # raised by result(), once the walk has found no damage
+            self.error = exc
+
+    def _take(self, start: int, data: bytes) -> None:
         ordinal, offsets = self.chunk_at[start]
         todo = [i for i in offsets if i in self.channels and i not in self.failed]
-        try:
-            entries = _message_index(self.path, self.handle, offsets, todo)
-        except InputFileError as exc:
-            self.error = exc
-            return
+        entries = _message_index(self.path, self.handle, offsets, todo)
         if entries is None:
             self.unindexed = True
             return
@@ -177,9 +179,6 @@ class _BulkRead:
                 self.failed.add(channel_id)
                 self.parts[channel_id] = []  # read message by message instead
                 continue
-            except InputFileError as exc:
-                self.error = exc
-                return
             self.parts[channel_id].append(cols)
 
     def result(self) -> tuple[list[Batch], list[str]]:

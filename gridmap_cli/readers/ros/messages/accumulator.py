@@ -82,18 +82,16 @@ class MessageAccumulator(_Poses, _Ranges):
         )
         key = np.concatenate(
             [np.asarray(self.r_key, dtype=np.intp), *(c[1] for c in self.r_chunks)]
-        ).astype(np.intp)
+        ).astype(np.intp, copy=False)
         sensor = remap[key]
+        # float32 fields as their decimals, a chunk at once: one by one was most of the read time
+        listed = np.asarray(self.r_range, dtype=np.float64)
+        f32 = np.asarray(self.r_f32, dtype=bool)
+        listed[f32] = float32_decimal(listed[f32])
         rng = np.concatenate(
-            [np.asarray(self.r_range, dtype=np.float64), *(c[2] for c in self.r_chunks)]
+            [listed, *(float32_decimal(c[2]) if c[3] else c[2] for c in self.r_chunks)],
+            dtype=np.float64,
         )
-        f32 = np.concatenate(
-            [
-                np.asarray(self.r_f32, dtype=bool),
-                *(np.full(len(c[0]), c[3], dtype=bool) for c in self.r_chunks),
-            ]
-        )
-        rng[f32] = float32_decimal(rng[f32])  # at once: one by one was most of the read time
         if sensors and len(rng):
             # no echo is stored at the sensor's maximum range, as in the CSV layout
             max_r = np.array([s.max_range_m for s in sensors], dtype=np.float64)
