@@ -253,14 +253,18 @@ def _unique_strings(
     keys = np.empty((len(start), n_words), dtype=np.uint64)
     for j in range(n_words):
         at = start + 8 * j
-        # a word that would run past the buffer is read from 8 bytes before its end, shifted
-        # (the string ends inside the buffer: a word starting at its end keeps no byte)
-        inside = np.minimum(at, last)
-        shift = (8 * (at - inside)).astype(np.uint64)
-        left = np.clip(length - 8 * j, 0, 8)
-        value = (word[inside] >> np.minimum(shift, np.uint64(56))) & _MASK[left]
+        mask = _MASK[np.clip(length - 8 * j, 0, 8)]
+        if int(at.max()) <= last:
+            value = word[at] & mask
+        else:
+            # a word that would run past the buffer is read from 8 bytes before its end,
+            # shifted (the string ends inside the buffer: a word starting at its end keeps
+            # no byte)
+            inside = np.minimum(at, last)
+            shift = (8 * (at - inside)).astype(np.uint64)
+            value = (word[inside] >> np.minimum(shift, np.uint64(56))) & mask
         # a NUL among the string's bytes: the padding set to 0xff, any zero byte is one
-        padded = value | ~_MASK[left]
+        padded = value | ~mask
         if np.any((padded - _ONES) & ~padded & _HIGHS):
             raise Layout("NUL inside a string")
         keys[:, j] = value

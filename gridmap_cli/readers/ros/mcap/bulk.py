@@ -32,7 +32,6 @@ from mcap.summary import Summary
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.readers.ros import bulk as ros_bulk
 from gridmap_cli.readers.ros.bulk import Columns, IntArray, Layout, Raw
-from gridmap_cli.readers.ros.mcap import json_bulk
 from gridmap_cli.readers.ros.mcap.channels import message_type
 
 #: False turns bulk decoding off: every message through its decoder, the reference path that
@@ -267,7 +266,10 @@ def decode_raw(
     """One channel's messages decoded in bulk; the first is decoded by the library too and
     compared. Raises :class:`Layout` when the bulk decoder cannot take them."""
     buf = raw.buf
-    if ch.message_encoding == "json":
+    json = ch.message_encoding == "json"
+    if json:
+        from gridmap_cli.readers.ros.mcap import json_bulk  # (msgspec: JSON recordings only)
+
         cols = json_bulk.decode(type_name, raw)
     else:
         cols = ros_bulk.decode(type_name, raw, ch.message_encoding == "cdr")
@@ -279,7 +281,10 @@ def decode_raw(
     except Exception as exc:  # the message-by-message read names the bad message
         raise Layout("the library cannot decode the first message") from exc
     try:
-        same = matches(type_name, cols, int(raw.pos[0]), msg)
+        if json:
+            same = json_bulk.matches(type_name, cols, int(raw.pos[0]), msg)
+        else:
+            same = matches(type_name, cols, int(raw.pos[0]), msg)
     except (AttributeError, TypeError, ValueError, IndexError) as exc:
         # a schema that is not the type's: the message-by-message read names the message
         raise Layout("the library's message lacks the type's fields") from exc
@@ -340,7 +345,9 @@ def _bulk_channel(type_name: str, message_encoding: str) -> bool:
     :data:`~gridmap_cli.readers.ros.mcap.json_bulk.
     JSON_TYPES`."""
     if message_encoding == "json":
-        return type_name in json_bulk.JSON_TYPES
+        from gridmap_cli.readers.ros.mcap.json_bulk import JSON_TYPES
+
+        return type_name in JSON_TYPES
     return type_name in ros_bulk.BULK_TYPES and message_encoding in ("cdr", "ros1")
 
 
@@ -415,8 +422,6 @@ def _chunk_data(path: Path, handle: Any, start: int) -> bytes:
 # ---------------------------------------------------------------------- the library's view
 def matches(type_name: str, cols: Columns, pos: int, msg: Any) -> bool:
     """True if the rows of the message at ``pos`` hold what the ROS library decoded from it."""
-    if type_name in json_bulk.JSON_TYPES:
-        return json_bulk.matches(type_name, cols, pos, msg)
     a = cols.arrays
 
     def stamp(header: Any) -> int:
