@@ -177,15 +177,26 @@ class _Reader:
         self.cdr = cdr
         self.views: dict[np.dtype[Any], Arr] = {}
         self.end = raw.offset + raw.length
+        # each message's first 16 bytes in one gather: (CDR's encapsulation, or ROS 1's
+        # sequence number) and a header's stamp and frame id length, or a TF list's length
+        self.head: Arr | None = None
+        if len(raw.length) and int(raw.length.min()) >= _HEAD_BYTES:
+            self.head = gather_bytes(self.buf, raw.offset, _HEAD_BYTES)
         if cdr:
             if np.any(raw.length < 4):
                 raise Layout("short CDR message")
-            kind = self.get(raw.offset, np.dtype("<u2"))
+            kind = self.first(0, np.dtype("<u2"))
             if np.any(kind != 0x0100):  # CDR_LE: 00 01; anything else message by message
                 raise Layout("not little-endian CDR")
             self.origin = raw.offset + 4
         else:
             self.origin = raw.offset
+
+    def first(self, at: int, dtype: np.dtype[Any]) -> Arr:
+        """The field at byte ``at`` of each message (inside its first 16 bytes)."""
+        if self.head is None:
+            return self.get(self.raw.offset + at, dtype)
+        return column(self.head, at, dtype)
 
     def get(self, at: IntArray, dtype: np.dtype[Any]) -> Arr:
         size = dtype.itemsize
@@ -217,10 +228,13 @@ class _Reader:
         rel = at - self.origin
         return self.origin + (rel + size - 1) // size * size
 
-    def string(self, at: IntArray) -> tuple[IntArray, list[str], IntArray]:
-        """A string at ``at`` (aligned here): (index into the names, names, offset after it)."""
+    def string(
+        self, at: IntArray, length: Arr | None = None
+    ) -> tuple[IntArray, list[str], IntArray]:
+        """A string at ``at`` (aligned here; its ``length`` field read already or not):
+        (index into the names, names, offset after it)."""
         at = self.align(at, 4)
-        n = self.get(at, np.dtype("<u4")).astype(np.int64)
+        n = (self.get(at, np.dtype("<u4")) if length is None else length).astype(np.int64)
         chars = at + 4
         after = chars + n
         if np.any(after > self.end):
@@ -322,6 +336,7 @@ def _dense_rank(values: Arr) -> tuple[IntArray, int]:
 
 
 _U4 = np.dtype("<u4")
+_HEAD_BYTES = 16
 _I4 = np.dtype("<i4")
 _F4 = np.dtype("<f4")
 _F8 = np.dtype("<f8")
@@ -330,10 +345,11 @@ _F8 = np.dtype("<f8")
 def _header(r: _Reader) -> tuple[IntArray, IntArray, list[str], IntArray]:
     """std_msgs/Header: (stamp ns, frame index, frame names, offset after it)."""
     at = r.origin if r.cdr else r.origin + 4  # ROS 1: uint32 seq first
-    sec, nsec = r.run(at, _U4, 2)
+    # (CDR's 4-byte encapsulation or ROS 1's seq, then stamp and frame id length: byte 4 on)
+    sec, nsec, length = (r.first(k, _U4) for k in (4, 8, 12))
     if r.cdr:
         sec = sec.view(_I4)
-    frame, names, after = r.string(at + 8)
+    frame, names, after = r.string(at + 8, length)
     return sec.astype(np.int64) * 1_000_000_000 + nsec, frame, names, after
 
 
@@ -384,7 +400,7 @@ def decode_tf(raw: Raw, cdr: bool) -> Columns:
         if len(todo) == 0:
             break
         sub = _Reader.__new__(_Reader)
-        sub.buf, sub.cdr, sub.views = r.buf, cdr, r.views
+        sub.buf, sub.cdr, sub.views, sub.head = r.buf, cdr, r.views, None
         sub.raw = Raw(r.buf, raw.offset[todo], raw.length[todo], raw.log_ns[todo], raw.pos[todo])
         sub.end, sub.origin = r.end[todo], r.origin[todo]
         here = at[todo]
