@@ -3,9 +3,12 @@
 An indexed MCAP file (every file gridmap, ``ros2 bag record`` and ``mcap convert`` write) lists
 each chunk's messages per channel in a Message Index record: (log time, offset in the
 decompressed chunk). So the messages of a channel are found without walking the chunk record by
-record, and :mod:`~gridmap_cli.readers.ros.bulk` decodes them all at once. Chunk CRCs are
-checked (one ``zlib.crc32`` per chunk). The first message of each chunk is also decoded by the
-ROS library and compared field by field, so a schema that differs from the standard layout
+record, and :mod:`~gridmap_cli.readers.ros.bulk` decodes them all at once. The chunks come from
+the integrity walk (:func:`~gridmap_cli.readers.ros.mcap.integrity.verify_mcap`), checked and
+decompressed once for both, or, when the file was checked before, are read here with their
+CRCs checked. A few MiB of chunks are decoded together (:data:`GROUP_BYTES`): numpy's cost per
+call is then small beside the messages'. The first message of each group is also decoded by
+the ROS library and compared field by field, so a schema that differs from the standard layout
 falls back to message-by-message reading instead of giving wrong values.
 
 A channel is read in bulk when its type is one of :data:`~gridmap_cli.readers.ros.bulk.
