@@ -122,3 +122,116 @@ def test_indexed_messages_as_the_library_yields_them(tmp_path: Path, ros: int) -
             got = [(c.id, m.log_time, m.data) for _, c, m in found]
             assert got == [(c.id, m.log_time, bytes(m.data)) for _, c, m in want]
             assert len(got) > 0
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_chunks_decoded_in_groups_as_one_by_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, ros: int
+) -> None:
+    """Many small chunks, decoded a few at a time (each group's first message checked by the
+    library): the log read message by message."""
+    from mcap.writer import CompressionType
+
+    from tests.corpus.mcap_edit import edit_mcap
+
+    path = edit_mcap(
+        busy_log(tmp_path / "busy.mcap", ros), tmp_path / "small.mcap",
+        compression=CompressionType.LZ4, chunk_size=400,
+    )  # fmt: skip
+    with open(path, "rb") as handle:
+        from mcap.reader import make_reader
+
+        summary = make_reader(handle).get_summary()
+    assert summary is not None and len(summary.chunk_indexes) > 10
+    monkeypatch.setattr(mcap_bulk, "GROUP_BYTES", 3000)
+    topics = ["/odom", "/ground_truth", "/sonar", "/tf_static", "/tf"]
+    batches, left = McapSource(path).bulk(topics)
+    assert {b.topic for b in batches} == set(topics)
+    assert left == []
+    bulk, one_by_one = both(path, monkeypatch)
+    assert_same(bulk, one_by_one)
+    assert_same(bulk, read_mcap(tmp_path / "busy.mcap").log)
+
+
+def test_each_chunk_is_decompressed_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The integrity check hands the bulk read each chunk it decompressed and checked."""
+    from gridmap_cli.readers.ros.mcap import integrity
+
+    path = busy_log(tmp_path / "busy.mcap", 2)
+    calls: list[str] = []
+    decompress = integrity._Walker._decompress
+
+    def counted(self: object, *args: object) -> bytes:
+        calls.append("walk")
+        return decompress(self, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(integrity._Walker, "_decompress", counted)
+    monkeypatch.setattr(mcap_bulk, "_chunk_data", lambda *a: calls.append("again"))
+    read = read_mcap(path)
+    with open(path, "rb") as handle:
+        from mcap.reader import make_reader
+
+        summary = make_reader(handle).get_summary()
+    assert summary is not None
+    assert calls == ["walk"] * len(summary.chunk_indexes)
+    assert len(read.log.readings) > 20
+
+
+def test_strings_as_the_bytes_say() -> None:
+    """Strings of every length, anywhere in the buffer (up to its last byte), found as their
+    distinct values in order of first appearance; a NUL inside or bytes that are not UTF-8 are
+    not taken."""
+    from gridmap_cli.readers.ros.bulk import Layout, _unique_strings
+
+    rng = np.random.default_rng(7)
+    words = [b"", b"a", b"base_link", b"sonar_12", b"sonar_1", b"x" * 17, "r\u00e9f".encode()]
+    buf = bytearray(rng.integers(1, 256, 300, dtype=np.uint8).tobytes())
+    places: list[tuple[int, int]] = []
+    for k in range(40):
+        text = words[int(rng.integers(len(words)))]
+        at = len(buf) - len(text) if k == 39 else int(rng.integers(0, len(buf) - 20))
+        buf[at : at + len(text)] = text
+        places.append((at, len(text)))
+    # later strings may overwrite earlier ones: the expected values are read back from buf
+    strings = [bytes(buf[a : a + n]) for a, n in places]
+    keep = [i for i, t in enumerate(strings) if b"\0" not in t and _utf8(t)]
+    arr = np.frombuffer(bytes(buf), np.uint8)
+    start = np.array([places[i][0] for i in keep], np.int64)
+    length = np.array([places[i][1] for i in keep], np.int64)
+    index, names = _unique_strings(arr, start, length)
+    expected = list(dict.fromkeys(strings[i].decode() for i in keep))
+    assert names == expected
+    assert [names[i] for i in index.tolist()] == [strings[i].decode() for i in keep]
+    assert places[-1][0] + places[-1][1] == len(buf)  # the last string ends the buffer
+    for bad in (b"ab\0cd", b"\xff\xfe"):
+        arr = np.frombuffer(b"zz" + bad + b"zz", np.uint8)
+        with pytest.raises(Layout):
+            _unique_strings(arr, np.array([0, 2]), np.array([2, len(bad)]))
+
+
+def _utf8(text: bytes) -> bool:
+    try:
+        text.decode()
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
+def test_lexsort_order_is_lexsort() -> None:
+    """None for rows already in order, else np.lexsort's order, ties on every key included."""
+    from gridmap_cli.readers.ros.bulk import lexsort_order
+
+    rng = np.random.default_rng(3)
+    for trial in range(200):
+        n = int(rng.integers(0, 30))
+        keys = [rng.integers(0, 3, n) for _ in range(int(rng.integers(1, 4)))]
+        if trial % 2:  # half of them in order already
+            order = np.lexsort(keys)
+            keys = [k[order] for k in keys]
+        got = lexsort_order(keys)
+        want = np.lexsort(keys) if n else np.zeros(0, np.intp)
+        if got is None:
+            assert np.array_equal(want, np.arange(n))
+        else:
+            assert np.array_equal(got, want)
+            assert not np.array_equal(want, np.arange(n))

@@ -4,6 +4,7 @@ the error names the byte offset of the damage (issue 11)."""
 from __future__ import annotations
 
 import struct
+import zlib
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -177,3 +178,35 @@ def test_verify_reports_the_offset_as_a_field(plain: bytes, tmp_path: Path) -> N
     with pytest.raises(McapDamage) as info:
         verify_mcap(path)
     assert info.value.offset == len(plain) - 1
+
+
+def test_the_first_damaged_chunk_is_named_when_the_data_crc_covers_them(
+    plain: bytes, tmp_path: Path
+) -> None:
+    """With a data section CRC the chunks' own CRCs are checked only once damage is found:
+    a changed digit in one chunk is still named before a lying length in a later one."""
+    damaged, _ = first(plain, CHUNK, 1)
+    later, _ = first(plain, CHUNK, 3)
+    data = bytearray(plain)
+    digits = [i for i in range(damaged + 9 + 60, later) if chr(data[i]).isdigit()]
+    data[digits[0]] = ord("7") if data[digits[0]] != ord("7") else ord("3")
+    struct.pack_into("<Q", data, later + 9 + 40 + 1, 1 << 32)  # its first record's length
+    err = build_fails(tmp_path, data)
+    assert f"byte {damaged}: chunk CRC mismatch" in err
+    data[digits[0]] = plain[digits[0]]  # the later damage alone: its chunk's CRC, as before
+    assert f"byte {later}: chunk CRC mismatch" in build_fails(tmp_path, data)
+
+
+def test_a_chunk_crc_left_to_the_data_crc_passes_when_that_matches(
+    plain: bytes, tmp_path: Path
+) -> None:
+    """The data section CRC covers every stored byte of the chunks: a chunk CRC field that
+    disagrees with its intact records (written so, not damaged since) is not checked."""
+    pos, _ = first(plain, CHUNK)
+    data = bytearray(plain)
+    data[pos + 9 + 24] ^= 0x01  # the chunk's uncompressed_crc field
+    end, _ = first(plain, DATA_END)
+    struct.pack_into("<I", data, end + 9, zlib.crc32(bytes(data[:end])))
+    path = tmp_path / "rewritten.mcap"
+    path.write_bytes(bytes(data))
+    verify_mcap(path)

@@ -59,9 +59,10 @@ def add_columns(
 
 def _stamps(cols: Columns) -> npt.NDArray[np.int64]:
     """Header stamps; a zero stamp falls back to the log time."""
-    stamp = cols.arrays["stamp_ns"].astype(np.int64)
-    log_ns = cols.arrays["log_ns"].astype(np.int64)
-    return np.where(stamp != 0, stamp, log_ns)
+    stamp = cols.arrays["stamp_ns"].astype(np.int64, copy=False)
+    if stamp.all():
+        return stamp
+    return np.where(stamp != 0, stamp, cols.arrays["log_ns"].astype(np.int64, copy=False))
 
 
 def _frames(cols: Columns, column: str = "frame") -> tuple[npt.NDArray[np.int64], list[str]]:
@@ -101,8 +102,7 @@ def _ranges(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
     n = len(cols)
     index, frames = _frames(cols)
     first = _first_rows(index, len(frames))
-    rmin = a["min"].astype(np.float64)
-    rmax = a["max"].astype(np.float64)
+    rmin, rmax = a["min"], a["max"]  # float32: compared and maxed as float64 would be
     with np.errstate(invalid="ignore"):
         bad = ~((rmin >= 0.0) & (rmin < rmax) & np.isfinite(rmax))
     bad_row = int(np.argmax(bad)) if bad.any() else n
@@ -112,13 +112,13 @@ def _ranges(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
         raise InputFileError(
             acc.message_path,
             f"{_where(acc, topic, cols, bad_row)}: frame '{frame}': need 0 <= min_range < "
-            f"max_range, got {_f32(rmin[bad_row])} and {_f32(rmax[bad_row])}",
+            f"max_range, got {_f32(float(rmin[bad_row]))} and {_f32(float(rmax[bad_row]))}",
         )
-    most_min = np.full(len(frames), -np.inf)
-    most_max = np.full(len(frames), -np.inf)
+    most_min = np.full(len(frames), -np.inf, dtype=rmin.dtype)  # (ufunc.at is slow across types)
+    most_max = np.full(len(frames), -np.inf, dtype=rmax.dtype)
     np.maximum.at(most_min, index, rmin)
     np.maximum.at(most_max, index, rmax)
-    fov = a["fov"].astype(np.float64)
+    fov = a["fov"]
     keys = np.empty(len(frames), dtype=np.int64)
     for i in np.argsort(first, kind="stable").tolist():
         frame = frames[i]
@@ -130,10 +130,10 @@ def _ranges(acc: MessageAccumulator, topic: str, cols: Columns) -> None:
             sonar.min_range = max(sonar.min_range, float(most_min[i]))
             sonar.max_range = max(sonar.max_range, float(most_max[i]))
         keys[i] = acc._key(frame)
-    value = a["range"].astype(np.float64)
+    value = a["range"]  # float32 until the log's float64 readings are made
     with np.errstate(invalid="ignore"):
         keep = ~np.isnan(value) & (value >= 0.0)  # NaN: no reading; -inf and below 0: dropped
-        value = np.where(value >= rmax, np.inf, value)  # at or beyond max_range: no echo
+        value = np.where(value >= rmax, np.float32(np.inf), value)  # at or beyond max: no echo
     acc.r_chunks.append((_stamps(cols)[keep], keys[index[keep]], value[keep], True))
 
 

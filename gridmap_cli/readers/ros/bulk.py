@@ -19,6 +19,7 @@ are the ones the libraries give: float32 fields widened to float64, stamps as in
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -75,7 +76,30 @@ class Columns:
 def words(buf: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint64]:
     """The 8 bytes from each place of ``buf`` as a little-endian uint64, shape
     (len(buf) - 7,): a view, so ``words(buf)[at]`` gathers 8 bytes a place in one step."""
-    return np.ndarray((max(len(buf) - 7, 0),), dtype="<u8", buffer=buf, strides=(1,))
+    return field_view(buf, np.dtype("<u8"))
+
+
+def field_view(buf: npt.NDArray[np.uint8], dtype: np.dtype[Any]) -> Arr:
+    """``buf`` read as ``dtype`` from each byte on, shape (len(buf) - itemsize + 1,): a view
+    with a stride of one byte, so ``field_view(buf, dtype)[at]`` gathers a field at each of the
+    (unaligned) offsets ``at`` in one step."""
+    size = dtype.itemsize
+    return np.ndarray((max(len(buf) - size + 1, 0),), dtype=dtype, buffer=buf, strides=(1,))
+
+
+def gather_bytes(buf: npt.NDArray[np.uint8], at: IntArray, width: int) -> Arr:
+    """The ``width`` bytes from each of the offsets ``at``, one row (a void scalar) each: one
+    gather however many fields the bytes hold (:func:`column` reads them)."""
+    return field_view(buf, np.dtype((np.void, width)))[at]
+
+
+def column(block: Arr, offset: int, dtype: np.dtype[Any]) -> Arr:
+    """The ``dtype`` field at byte ``offset`` of each row of ``block`` (from
+    :func:`gather_bytes`): a view, no copy."""
+    if len(block) == 0:
+        return np.zeros(0, dtype=dtype)
+    width = block.dtype.itemsize
+    return np.ndarray((len(block),), dtype=dtype, buffer=block, offset=offset, strides=(width,))
 
 
 def concat(parts: list[Columns]) -> Columns:
@@ -99,11 +123,26 @@ def concat(parts: list[Columns]) -> Columns:
         if parts[0].ranges is not None:
             ranges = np.concatenate([p.ranges for p in parts if p.ranges is not None])
         out = Columns(arrays, names, ranges)
-    sub = out.arrays.get("sub", np.zeros(len(out), dtype=np.int64))
-    order = np.lexsort((sub, out.arrays["pos"], out.arrays["log_ns"]))
-    if np.array_equal(order, np.arange(len(order))):
-        return out
-    return take(out, order)
+    keys = [out.arrays["pos"], out.arrays["log_ns"]]
+    if "sub" in out.arrays:
+        keys.insert(0, out.arrays["sub"])
+    order = lexsort_order(keys)
+    return out if order is None else take(out, order)
+
+
+def lexsort_order(keys: Sequence[Arr]) -> npt.NDArray[np.intp] | None:
+    """``np.lexsort(keys)`` (the last key sorts first), or None when the rows are in that order
+    already: rows read from a recording mostly are, and one pass finds it where sorting takes
+    many."""
+    undecided = np.ones(max(len(keys[-1]) - 1, 0), dtype=bool)  # pairs tied so far
+    for key in reversed(keys):
+        ahead, behind = key[:-1], key[1:]
+        if np.any(undecided & (ahead > behind)):
+            return np.lexsort(keys)
+        undecided &= ahead == behind
+        if not undecided.any():
+            break
+    return None  # ties on every key stay as they are, as a stable sort leaves them
 
 
 def take(cols: Columns, rows: npt.NDArray[np.intp]) -> Columns:
@@ -136,23 +175,50 @@ class _Reader:
         self.buf = raw.buf
         self.raw = raw
         self.cdr = cdr
+        self.views: dict[np.dtype[Any], Arr] = {}
         self.end = raw.offset + raw.length
+        # each message's first 16 bytes in one gather: (CDR's encapsulation, or ROS 1's
+        # sequence number) and a header's stamp and frame id length, or a TF list's length
+        self.head: Arr | None = None
+        if len(raw.length) and int(raw.length.min()) >= _HEAD_BYTES:
+            self.head = gather_bytes(self.buf, raw.offset, _HEAD_BYTES)
         if cdr:
             if np.any(raw.length < 4):
                 raise Layout("short CDR message")
-            kind = self.get(raw.offset, np.dtype("<u2"))
+            kind = self.first(0, np.dtype("<u2"))
             if np.any(kind != 0x0100):  # CDR_LE: 00 01; anything else message by message
                 raise Layout("not little-endian CDR")
             self.origin = raw.offset + 4
         else:
             self.origin = raw.offset
 
+    def first(self, at: int, dtype: np.dtype[Any]) -> Arr:
+        """The field at byte ``at`` of each message (inside its first 16 bytes)."""
+        if self.head is None:
+            return self.get(self.raw.offset + at, dtype)
+        return column(self.head, at, dtype)
+
     def get(self, at: IntArray, dtype: np.dtype[Any]) -> Arr:
         size = dtype.itemsize
         if np.any(at + size > self.end) or np.any(at < self.raw.offset):
             raise Layout("field past the end of its message")
-        idx = at[:, None] + np.arange(size, dtype=np.int64)
-        out: Arr = self.buf[idx].view(dtype).reshape(-1)
+        return self.gather(at, dtype)
+
+    def run(self, at: IntArray, dtype: np.dtype[Any], n: int) -> list[Arr]:
+        """``n`` fields of ``dtype`` one after another from ``at``: one gather of the run
+        (the bytes of a message are fetched once, not once a field)."""
+        size = dtype.itemsize
+        if np.any(at + n * size > self.end) or np.any(at < self.raw.offset):
+            raise Layout("field past the end of its message")
+        block = gather_bytes(self.buf, at, n * size)
+        return [column(block, i * size, dtype) for i in range(n)]
+
+    def gather(self, at: IntArray, dtype: np.dtype[Any]) -> Arr:
+        """The fields at ``at``, unchecked (the caller has checked they are inside)."""
+        view = self.views.get(dtype)
+        if view is None:
+            view = self.views[dtype] = field_view(self.buf, dtype)
+        out: Arr = view[at]
         return out
 
     def align(self, at: IntArray, size: int) -> IntArray:
@@ -162,10 +228,13 @@ class _Reader:
         rel = at - self.origin
         return self.origin + (rel + size - 1) // size * size
 
-    def string(self, at: IntArray) -> tuple[IntArray, list[str], IntArray]:
-        """A string at ``at`` (aligned here): (index into the names, names, offset after it)."""
+    def string(
+        self, at: IntArray, length: Arr | None = None
+    ) -> tuple[IntArray, list[str], IntArray]:
+        """A string at ``at`` (aligned here; its ``length`` field read already or not):
+        (index into the names, names, offset after it)."""
         at = self.align(at, 4)
-        n = self.get(at, np.dtype("<u4")).astype(np.int64)
+        n = (self.get(at, np.dtype("<u4")) if length is None else length).astype(np.int64)
         chars = at + 4
         after = chars + n
         if np.any(after > self.end):
@@ -187,30 +256,87 @@ def _unique_strings(
     width = int(length.max())
     if width == 0:
         return np.zeros(len(start), dtype=np.int64), [""]
-    # padded with NULs to whole 8-byte words (a string holds none, so no two collide): a frame
-    # id of up to 8 bytes is then one integer, which sorts many times faster than bytes do
-    width = -(-width // 8) * 8
-    cols = np.arange(width, dtype=np.int64)
+    # each string as whole 8-byte words, padded with NULs (a string holds none, so no two
+    # collide): a frame id of up to 8 bytes is then one integer, which sorts many times faster
+    # than bytes do
+    n_words = -(-width // 8)
+    word = words(buf)
+    if len(word) == 0:
+        return _unique_rows(buf, start, length, _string_bytes(buf, start, length, n_words))
+    last = len(word) - 1
+    keys = np.empty((len(start), n_words), dtype=np.uint64)
+    for j in range(n_words):
+        at = start + 8 * j
+        mask = _MASK[np.clip(length - 8 * j, 0, 8)]
+        if int(at.max()) <= last:
+            value = word[at] & mask
+        else:
+            # a word that would run past the buffer is read from 8 bytes before its end,
+            # shifted (the string ends inside the buffer: a word starting at its end keeps
+            # no byte)
+            inside = np.minimum(at, last)
+            shift = (8 * (at - inside)).astype(np.uint64)
+            value = (word[inside] >> np.minimum(shift, np.uint64(56))) & mask
+        # a NUL among the string's bytes: the padding set to 0xff, any zero byte is one
+        padded = value | ~mask
+        if np.any((padded - _ONES) & ~padded & _HIGHS):
+            raise Layout("NUL inside a string")
+        keys[:, j] = value
+    return _unique_rows(buf, start, length, keys)
+
+
+#: The low ``k`` bytes of a word, for k = 0..8.
+_MASK = np.array([(1 << (8 * k)) - 1 for k in range(9)], dtype=np.uint64)
+_ONES = np.uint64(0x0101010101010101)
+_HIGHS = np.uint64(0x8080808080808080)
+
+
+def _string_bytes(
+    buf: npt.NDArray[np.uint8], start: IntArray, length: IntArray, n_words: int
+) -> npt.NDArray[np.uint64]:
+    """The strings' bytes padded with NULs to ``n_words`` words each, shape (N, n_words)."""
+    cols = np.arange(8 * n_words, dtype=np.int64)
     inside = cols < length[:, None]
     mat = np.where(inside, buf[np.where(inside, start[:, None] + cols, 0)], 0).astype(np.uint8)
     if np.any(inside & (mat == 0)):
         raise Layout("NUL inside a string")
-    mat = np.ascontiguousarray(mat)
-    rows = mat.view("<u8").reshape(-1) if width == 8 else mat.view(np.dtype((np.void, width)))
-    _, first, inverse = np.unique(rows.reshape(-1), return_index=True, return_inverse=True)
+    return np.ascontiguousarray(mat).view("<u8")
+
+
+def _unique_rows(
+    buf: npt.NDArray[np.uint8], start: IntArray, length: IntArray, keys: npt.NDArray[np.uint64]
+) -> tuple[IntArray, list[str]]:
+    """Indexes into the distinct rows of ``keys`` (N, words), first seen first, and the
+    strings they stand for."""
+    n = len(keys)
+    inverse, count = _dense_rank(keys[:, 0])
+    for j in range(1, keys.shape[1]):  # longer strings: (rank so far, next word) ranked again
+        word, word_count = _dense_rank(keys[:, j])
+        inverse, count = _dense_rank(inverse * word_count + word)
+    first = np.full(count, n, dtype=np.int64)
+    np.minimum.at(first, inverse, np.arange(n, dtype=np.int64))
     by_first = np.argsort(first, kind="stable")
     rank = np.empty_like(by_first)
-    rank[by_first] = np.arange(len(by_first))
+    rank[by_first] = np.arange(count)
     names = []
     for i in first[by_first].tolist():
         try:
             names.append(bytes(buf[start[i] : start[i] + length[i]]).decode("utf-8"))
         except UnicodeDecodeError as exc:
             raise Layout("a string that is not UTF-8") from exc
-    return rank[inverse.reshape(-1)].astype(np.int64), names
+    return rank[inverse], names
+
+
+def _dense_rank(values: Arr) -> tuple[IntArray, int]:
+    """Each value's index among the distinct values (sorted), and how many there are: a sort
+    and a binary search, several times faster than ``np.unique``'s inverse."""
+    ordered = np.sort(values)
+    distinct = ordered[np.concatenate(([True], ordered[1:] != ordered[:-1]))]
+    return np.searchsorted(distinct, values).astype(np.int64), len(distinct)
 
 
 _U4 = np.dtype("<u4")
+_HEAD_BYTES = 16
 _I4 = np.dtype("<i4")
 _F4 = np.dtype("<f4")
 _F8 = np.dtype("<f8")
@@ -219,10 +345,12 @@ _F8 = np.dtype("<f8")
 def _header(r: _Reader) -> tuple[IntArray, IntArray, list[str], IntArray]:
     """std_msgs/Header: (stamp ns, frame index, frame names, offset after it)."""
     at = r.origin if r.cdr else r.origin + 4  # ROS 1: uint32 seq first
-    sec = r.get(at, _I4).astype(np.int64) if r.cdr else r.get(at, _U4).astype(np.int64)
-    nsec = r.get(at + 4, _U4).astype(np.int64)
-    frame, names, after = r.string(at + 8)
-    return sec * 1_000_000_000 + nsec, frame, names, after
+    # (CDR's 4-byte encapsulation or ROS 1's seq, then stamp and frame id length: byte 4 on)
+    sec, nsec, length = (r.first(k, _U4) for k in (4, 8, 12))
+    if r.cdr:
+        sec = sec.view(_I4)
+    frame, names, after = r.string(at + 8, length)
+    return sec.astype(np.int64) * 1_000_000_000 + nsec, frame, names, after
 
 
 def _base(raw: Raw) -> dict[str, Arr]:
@@ -230,8 +358,7 @@ def _base(raw: Raw) -> dict[str, Arr]:
 
 
 def _floats(r: _Reader, at: IntArray, dtype: np.dtype[Any], n: int) -> list[Arr]:
-    at = r.align(at, dtype.itemsize)
-    return [r.get(at + i * dtype.itemsize, dtype) for i in range(n)]
+    return r.run(r.align(at, dtype.itemsize), dtype, n)
 
 
 def decode_range(raw: Raw, cdr: bool) -> Columns:
@@ -273,7 +400,7 @@ def decode_tf(raw: Raw, cdr: bool) -> Columns:
         if len(todo) == 0:
             break
         sub = _Reader.__new__(_Reader)
-        sub.buf, sub.cdr = r.buf, cdr
+        sub.buf, sub.cdr, sub.views, sub.head = r.buf, cdr, r.views, None
         sub.raw = Raw(r.buf, raw.offset[todo], raw.length[todo], raw.log_ns[todo], raw.pos[todo])
         sub.end, sub.origin = r.end[todo], r.origin[todo]
         here = at[todo]
@@ -325,7 +452,7 @@ def decode_scan(raw: Raw, cdr: bool) -> Columns:
     _exact_end(r, after + 4 + 4 * n_int)
     beam = _ragged_index(np.zeros(len(count), dtype=np.int64), count)
     flat = np.repeat(first, count) + 4 * beam  # byte offset of each range
-    ranges = r.buf[flat[:, None] + np.arange(4, dtype=np.int64)].view(_F4).reshape(-1)
+    ranges = r.gather(flat, _F4)
     arrays = {**_base(raw), "stamp_ns": stamp, "frame": frame, "angle_min": amin}
     arrays.update({"angle_max": amax, "angle_increment": ainc, "range_min": rmin})
     arrays.update({"range_max": rmax, "count": count})

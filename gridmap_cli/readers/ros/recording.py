@@ -118,6 +118,10 @@ def merge_surveys(surveys: Sequence[Survey]) -> Survey:
     )
 
 
+def _first(batch: Batch, column: str) -> int:
+    return int(batch.columns.arrays[column][0])
+
+
 def read_recording(
     sources: Sequence[RecordingSource],
     options: ReadOptions | None = None,
@@ -154,15 +158,17 @@ def read_recording(
             rest.append(topics)
             continue
         done, left = bulk(topics)
-        for b in done:
-            first = b.columns.arrays
-            batches.append((int(first["log_ns"][0]), i, int(first["pos"][0]), b))
+        batches += [(_first(b, "log_ns"), i, _first(b, "pos"), b) for b in done]
+        del done  # the batches list alone holds them: each goes once added
         rest.append(left)
     # a channel decoded in bulk joins the stream where its first message would have (ties: as
-    # the merge orders them, by file, then by place in the file)
-    batches.sort(key=lambda entry: entry[:3])
-    pending = (entry[3] for entry in batches)
-    batch = next(pending, None)
+    # the merge orders them, by file, then by place in the file); each is let go once added
+    batches.sort(key=lambda entry: entry[:3], reverse=True)
+
+    def next_batch() -> Batch | None:
+        return batches.pop()[3] if batches else None
+
+    batch = next_batch()
 
     def add_batch(b: Batch) -> None:
         log_ns = b.columns.arrays["log_ns"]
@@ -176,7 +182,7 @@ def read_recording(
     for path, topic, type_name, log_time, msg in merged:
         while batch is not None and int(batch.columns.arrays["log_ns"][0]) <= log_time:
             add_batch(batch)
-            batch = next(pending, None)
+            batch = next_batch()
         span = spans.get(topic)
         if span is None:
             spans[topic] = [log_time, log_time]
@@ -186,7 +192,7 @@ def read_recording(
             acc.add(path, topic, type_name, log_time, msg)
     while batch is not None:
         add_batch(batch)
-        batch = next(pending, None)
+        batch = next_batch()
     log = acc.finish(survey.metadata.get(METADATA_NAME, {}))
     base = acc.base_frame()
     below = tuple(f for f in acc.tree.order if acc.tree.lookup(base, f) is not None)

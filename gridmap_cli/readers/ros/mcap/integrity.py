@@ -7,7 +7,8 @@ file at the first damage it finds, naming the byte offset:
 - every record's length must fit in what is left of the file (or of its chunk);
 - a chunk's compression must be known, its records length must fill the chunk record, it must
   decompress to exactly its ``uncompressed_size`` (at most :data:`MAX_CHUNK_BYTES`), and the
-  CRC-32 of the decompressed records must equal ``uncompressed_crc`` (when not zero);
+  CRC-32 of the decompressed records must equal ``uncompressed_crc`` (when not zero; see below
+  for files with a data section CRC);
 - inside a chunk, only schema, channel and message records, each fitting in the chunk;
 - the data section's CRC (``DataEnd.data_section_crc``, when not zero) over every byte from the
   magic up to the DataEnd record;
@@ -17,6 +18,12 @@ file at the first damage it finds, naming the byte offset:
 - attachments' CRCs.
 
 A zero CRC means "not computed" (the specification's rule), so files written without CRCs pass.
+
+When the data section's CRC is written, it covers every byte of every chunk as stored, so a
+damaged chunk cannot pass it: the chunks' own CRCs (over their decompressed records, the larger
+part of the walk's work) are then left until damage is found, and checked only to name the
+first damaged chunk, as checking each at once would have. A chunk whose stored CRC disagrees
+with its intact bytes (a writer's fault, not damage) then passes.
 
 Why not the ``mcap`` reader's own ``validate_crcs``: it checks
 the chunk CRCs and, in its stream reader only, the data section's CRC, but not the rest of what
@@ -32,9 +39,9 @@ from __future__ import annotations
 
 import struct
 import zlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 from gridmap_cli.errors import DamagedAtError, InputFileError
 from gridmap_cli.readers.ros.walk import compiled_walk
@@ -57,29 +64,97 @@ class McapDamage(DamagedAtError):
     """An MCAP file is damaged at a byte offset: ``path: byte N: detail``."""
 
 
-def verify_mcap(path: Path) -> None:
+def verify_mcap(path: Path, take_chunk: Callable[[int, bytes], None] | None = None) -> None:
     """Raise :class:`McapDamage` at the first structural damage or CRC mismatch in ``path``.
 
+    ``take_chunk``, when given, gets each chunk's offset in the file and its decompressed
+    records once they are checked, in file order (so a reader needs not decompress them again).
     Raises :class:`InputFileError` when the file cannot be read. Memory use is bounded by the
     largest chunk (:data:`MAX_CHUNK_BYTES`).
     """
     try:
         with open(path, "rb") as handle:
-            _Walker(path, handle).walk()
+            _Walker(path, handle, take_chunk).walk()
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
 
 
+def summary_intact(path: Path) -> bool:
+    """Whether ``path`` ends in an MCAP footer whose summary CRC, when written, matches: the
+    part of the file a survey reads. False when anything there is off (:func:`verify_mcap`
+    then names the damage, or the first damage before it).
+    """
+    try:
+        with open(path, "rb") as handle:
+            handle.seek(0, 2)
+            footer_at = handle.tell() - len(MAGIC) - 9 - _FOOTER_LENGTH
+            if footer_at < len(MAGIC):
+                return False
+            handle.seek(footer_at)
+            tail = handle.read()
+            head = struct.unpack_from("<BQ", tail)
+            if head != (_FOOTER, _FOOTER_LENGTH) or tail[-len(MAGIC) :] != MAGIC:
+                return False
+            summary_start, _, stored = struct.unpack_from("<QQI", tail, 9)
+            if not stored:
+                return True
+            first = summary_start or footer_at
+            if first > footer_at:
+                return False
+            handle.seek(first)
+            return bool(_crc(handle, footer_at + 9 + 16 - first) == stored)
+    except (OSError, struct.error):
+        return False
+
+
+def _data_crc_written(handle: IO[bytes], size: int) -> bool:
+    """Whether the DataEnd record, found from the footer, holds a data section CRC (a hint:
+    the walk checks the record itself when it gets there)."""
+    try:
+        footer_at = size - len(MAGIC) - 9 - _FOOTER_LENGTH
+        handle.seek(footer_at)
+        footer = handle.read(9 + _FOOTER_LENGTH)
+        if struct.unpack_from("<BQ", footer) != (_FOOTER, _FOOTER_LENGTH):
+            return False
+        end_at = (struct.unpack_from("<Q", footer, 9)[0] or footer_at) - 13
+        if end_at < len(MAGIC):
+            return False
+        handle.seek(end_at)
+        opcode, length, crc = struct.unpack("<BQI", handle.read(13))
+        return bool(opcode == _DATA_END and length == 4 and crc != 0)
+    except (OSError, struct.error):
+        return False
+
+
+def _crc(handle: IO[bytes], n: int) -> int:
+    """CRC-32 of the next ``n`` bytes of ``handle``, read in bounded blocks."""
+    crc = 0
+    while n > 0:
+        block = handle.read(min(n, _BLOCK))
+        if not block:
+            break
+        crc = zlib.crc32(block, crc)
+        n -= len(block)
+    return crc
+
+
 class _Walker:
-    def __init__(self, path: Path, handle: IO[bytes]) -> None:
+    def __init__(
+        self, path: Path, handle: IO[bytes], take_chunk: Callable[[int, bytes], None] | None
+    ) -> None:
         self.path = path
         self.handle = handle
+        self.take_chunk = take_chunk
         handle.seek(0, 2)
         self.size = handle.tell()
         handle.seek(0)
         self.pos = 0
         self.crc = 0  # running CRC-32 of the data section, from the magic on
         self.chunks: dict[int, int] = {}  # chunk offset -> record length (opcode + length + body)
+        # chunks whose CRC is left to the data section's: (offset, where its compressed records
+        # are, their length, compression, uncompressed size and CRC)
+        self.unchecked: list[tuple[int, int, int, bytes, int, int]] | None = None
+        self.zstd: Any = None  # one decompression context for every chunk
 
     def damage(self, offset: int, detail: str) -> McapDamage:
         return McapDamage(self.path, offset, detail)
@@ -101,6 +176,13 @@ class _Walker:
             n -= step
 
     def walk(self) -> None:
+        try:
+            self._walk()
+        except McapDamage as damage:
+            self._check_chunks(damage.offset)  # an earlier damaged chunk is named first
+            raise
+
+    def _walk(self) -> None:
         if self.size < 2 * len(MAGIC) or self.read(len(MAGIC), True) != MAGIC:
             raise self.damage(0, "not an MCAP file (no MCAP magic)")
         self.handle.seek(self.size - len(MAGIC))
@@ -110,6 +192,8 @@ class _Walker:
                 "truncated or damaged MCAP file: no valid footer at the end (no closing magic); "
                 "was the recording cut short? `mcap recover` can rebuild it",
             )
+        if _data_crc_written(self.handle, self.size):
+            self.unchecked = []
         self.handle.seek(self.pos)
         summary_start: int | None = None
         while True:
@@ -130,6 +214,7 @@ class _Walker:
                 summary_start = self.pos
                 continue
             if opcode == _FOOTER:
+                self._check_chunks(start)  # (none left unless the file had no DataEnd record)
                 self._footer(start, length)
                 return
             if summary_start is None:
@@ -160,6 +245,29 @@ class _Walker:
                 f"data section CRC mismatch (stored {stored:#010x}, computed "
                 f"{expected_crc:#010x}): bytes 0..{start} are damaged",
             )
+        if not stored:  # no data section CRC after all: the chunks' own are the check
+            self._check_chunks(start)
+        self.unchecked = None  # the data section's CRC covered them
+
+    def _check_chunks(self, before: int) -> None:
+        """Check the CRCs left unchecked of the chunks at or before byte ``before``, in file
+        order; raise at the first mismatch."""
+        unchecked, self.unchecked = self.unchecked or [], None
+        for start, at, size, compression, usize, ucrc in unchecked:
+            if start > before:
+                break
+            self.handle.seek(at)
+            data = self._decompress(start, compression, self.handle.read(size), usize)
+            self._check_crc(start, data, ucrc, at, size)
+
+    def _check_crc(self, start: int, data: bytes, ucrc: int, at: int, size: int) -> None:
+        crc = zlib.crc32(data)
+        if ucrc and crc != ucrc:
+            raise self.damage(
+                start,
+                f"chunk CRC mismatch (stored {ucrc:#010x}, computed {crc:#010x}): the chunk's "
+                f"data at bytes {at}..{at + size} is damaged",
+            )
 
     def _chunk(self, start: int, length: int) -> None:
         body_start = self.pos
@@ -188,18 +296,22 @@ class _Walker:
                 f"chunk claims {usize} bytes uncompressed, above gridmap's limit of "
                 f"{MAX_CHUNK_BYTES} bytes per chunk (MAX_CHUNK_BYTES)",
             )
-        data = self._decompress(start, compression, body[data_at:], usize)
+        data = self._decompress(start, compression, memoryview(body)[data_at:], usize)
         if len(data) != usize:
             raise self.damage(
                 start, f"chunk decompresses to {len(data)} bytes, its header says {usize}"
             )
-        if ucrc and zlib.crc32(data) != ucrc:
-            raise self.damage(
-                start,
-                f"chunk CRC mismatch (stored {ucrc:#010x}, computed {zlib.crc32(data):#010x}): "
-                f"the chunk's data at bytes {body_start + data_at}..{body_start + length} is "
-                "damaged",
-            )
+        at, size = body_start + data_at, length - data_at
+        if self.unchecked is None:
+            self._check_crc(start, data, ucrc, at, size)
+        elif ucrc:
+            self.unchecked.append((start, at, size, bytes(compression), usize, ucrc))
+        self._chunk_records(start, data)
+        if self.take_chunk is not None:
+            self.take_chunk(start, data)
+
+    def _chunk_records(self, start: int, data: bytes) -> None:
+        """The records inside a chunk: each fits, and is one a chunk may hold."""
         walk = compiled_walk()
         if (
             walk is not None
@@ -222,15 +334,20 @@ class _Walker:
                     start, f"message record of {rec_len} bytes at byte {offset} of the chunk"
                 )
 
-    def _decompress(self, start: int, compression: bytes, data: bytes, usize: int) -> bytes:
+    def _decompress(
+        self, start: int, compression: bytes, data: bytes | memoryview, usize: int
+    ) -> bytes:
         name = compression.decode("utf-8", errors="replace")
         try:
             if name == "":
-                return data
+                return bytes(data)
             if name == "zstd":
                 import zstandard
 
-                return zstandard.ZstdDecompressor().decompress(data, max_output_size=usize)
+                if self.zstd is None:
+                    self.zstd = zstandard.ZstdDecompressor()
+                result: bytes = self.zstd.decompress(data, max_output_size=usize)
+                return result
             if name == "lz4":
                 import lz4.frame
 
@@ -277,12 +394,7 @@ class _Walker:
         if first > start:
             raise self.damage(start, f"footer's summary start {summary_start} is past the footer")
         self.handle.seek(first)
-        crc = 0
-        remaining = start + 9 + 16 - first
-        while remaining > 0:
-            block = self.handle.read(min(remaining, _BLOCK))
-            crc = zlib.crc32(block, crc)
-            remaining -= len(block)
+        crc = _crc(self.handle, start + 9 + 16 - first)
         if crc != stored:
             raise self.damage(
                 first,

@@ -7,12 +7,12 @@ The MCAP reader hands over the raw bytes of many messages of one channel at once
   reads (integer stamps, numbers, names; ``schemas/mcap-log.md``). It takes strict JSON only and
   checks the types as it parses, so it refuses what the next way must look at: NaN and Infinity
   (which Python's ``json`` writes by default), numbers beyond a double, a string or ``true``
-  where a number belongs; and a chunk with bytes that are not UTF-8 goes the next way too
+  where a number belongs; and a batch with bytes that are not UTF-8 goes the next way too
   (msgspec does not read the fields it skips, ``json`` does). Where it takes a message, its
   values are the ones ``json.loads`` gives, to the bit (tests/readers/test_json_bulk_typed.py
   holds it to that).
-- any other chunk: one ``json`` decoder parses each message from its own first byte in a tight
-  loop, and a message must end exactly where the next begins.
+- any other batch (the messages of a few chunks): one ``json`` decoder parses each message from
+  its own first byte in a tight loop, and a message must end exactly where the next begins.
 
 The values are then turned into columns (:class:`~gridmap_cli.readers.ros.bulk.Columns`) as
 :mod:`~gridmap_cli.readers.ros.bulk` gives them for ROS messages. Anything else (text that is

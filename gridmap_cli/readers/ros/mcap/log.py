@@ -31,7 +31,7 @@ from gridmap_cli.readers.ros.mcap.channels import (
     survey_mcap,
 )
 from gridmap_cli.readers.ros.mcap.channels import sniff as sniff
-from gridmap_cli.readers.ros.mcap.integrity import verify_mcap
+from gridmap_cli.readers.ros.mcap.integrity import summary_intact, verify_mcap
 from gridmap_cli.readers.ros.messages import float32_decimal as float32_decimal
 from gridmap_cli.readers.ros.recording import Message, RecordingRead, read_recording
 from gridmap_cli.readers.ros.topics import Survey
@@ -50,40 +50,51 @@ class JsonDecoderFactory(McapDecoderFactory):
 class McapSource:
     """An MCAP file as a recording source.
 
-    The whole file's structure and CRCs are checked (:func:`verify_mcap`) before the survey
-    or any message is read, once per source: the ``mcap`` library trusts both.
+    The whole file's structure and CRCs are checked (:func:`verify_mcap`) before any message
+    is used, once per source: the ``mcap`` library trusts both. The survey reads only the
+    summary, so only the summary's CRC is checked before it (any damage found there is named
+    by the whole check); the bulk read then checks every chunk as it decompresses it, once for
+    both.
     """
 
     def __init__(self, path: Path) -> None:
         self.path = path
         self._verified = False
 
-    def _verify(self) -> None:
+    def verify(self, take_chunk: Callable[[int, bytes], None] | None = None) -> None:
+        """Check the whole file (once), handing ``take_chunk`` each chunk's offset and its
+        checked, decompressed records."""
         if not self._verified:
-            verify_mcap(self.path)
+            verify_mcap(self.path, take_chunk)
             self._verified = True
 
     def survey(self) -> Survey:
-        self._verify()
-        return survey_mcap(self.path)
+        if not self._verified and not summary_intact(self.path):
+            self.verify()
+        try:
+            return survey_mcap(self.path)
+        except InputFileError:
+            self.verify()  # damage anywhere is named first, where the check finds it
+            raise
 
     def bulk(self, topics: Sequence[str]) -> tuple[list[Batch], list[str]]:
         """The topics whose messages can be decoded in bulk (:mod:`~gridmap_cli.readers.
         mcap_bulk`), decoded; and the topics left for :meth:`messages`."""
         path = self.path
         decoder_for = library_decoders(path)
+        walk = None if self._verified else self.verify
         try:
             with open(path, "rb") as handle:
                 reader = open_reader(path, handle)
                 summary = read_summary(path, reader)
-                return read_bulk(path, handle, reader, summary, topics, decoder_for)
+                return read_bulk(path, handle, summary, topics, decoder_for, walk)
         except InputFileError:
             raise
         except DAMAGED as exc:
             raise damage_error(path, exc) from exc
 
     def messages(self, topics: Sequence[str], every_topic: bool) -> Iterator[Message]:
-        self._verify()
+        self.verify()
         if not topics and not every_topic:
             return  # every topic read in bulk: nothing to walk the chunks for
         path = self.path

@@ -35,7 +35,7 @@ import numpy.typing as npt
 from gridmap_cli.errors import GridmapError, InputFileError
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros.batches import _frames, _stamps, add_columns, scan_beams
-from gridmap_cli.readers.ros.bulk import Columns, Layout, decode
+from gridmap_cli.readers.ros.bulk import Columns, Layout, decode, lexsort_order
 from gridmap_cli.readers.ros.mcap.bulk import (
     _chunk_data,
     _message_index,
@@ -104,7 +104,9 @@ def read_streamed(path: Path, options: ReadOptions) -> RangeLog | None:
             return None
         seen = _stat(path)
         check = _Check(path)
-        read = read_recording([McapSource(path)], options, ranges_apart=check.read)
+        source = McapSource(path)
+        source.verify()  # before the checking pass reads the range topic's chunks
+        read = read_recording([source], options, ranges_apart=check.read)
         return check.log(read.log, seen)
     except (_Unusual, GridmapError, OSError):
         return None
@@ -309,8 +311,11 @@ def _read_again(
                     np.concatenate((tail.sensor, block.sensor)),
                     np.concatenate((tail.range_m, block.range_m)),
                 )
-                order = np.lexsort((both.sensor, both.stamp_ns))  # stable: ties as held
-                both = RangeReadings(both.stamp_ns[order], both.sensor[order], both.range_m[order])
+                order = lexsort_order((both.sensor, both.stamp_ns))  # stable: ties as held
+                if order is not None:
+                    both = RangeReadings(
+                        both.stamp_ns[order], both.sensor[order], both.range_m[order]
+                    )
                 cut = int(np.searchsorted(both.stamp_ns, both.stamp_ns[-1], "left"))
                 if cut:
                     yield both.part(slice(0, cut))

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from gridmap_cli.errors import InputFileError
+from gridmap_cli.readers.ros.bulk import lexsort_order
 from gridmap_cli.readers.ros.messages.fields import float32_decimal
 from gridmap_cli.readers.ros.messages.poses import _Poses
 from gridmap_cli.readers.ros.messages.ranges import _Ranges
@@ -81,24 +82,24 @@ class MessageAccumulator(_Poses, _Ranges):
         )
         key = np.concatenate(
             [np.asarray(self.r_key, dtype=np.intp), *(c[1] for c in self.r_chunks)]
-        ).astype(np.intp)
+        ).astype(np.intp, copy=False)
         sensor = remap[key]
+        # float32 fields as their decimals, a chunk at once: one by one was most of the read time
+        listed = np.asarray(self.r_range, dtype=np.float64)
+        f32 = np.asarray(self.r_f32, dtype=bool)
+        listed[f32] = float32_decimal(listed[f32])
         rng = np.concatenate(
-            [np.asarray(self.r_range, dtype=np.float64), *(c[2] for c in self.r_chunks)]
+            [listed, *(float32_decimal(c[2]) if c[3] else c[2] for c in self.r_chunks)],
+            dtype=np.float64,
         )
-        f32 = np.concatenate(
-            [
-                np.asarray(self.r_f32, dtype=bool),
-                *(np.full(len(c[0]), c[3], dtype=bool) for c in self.r_chunks),
-            ]
-        )
-        rng[f32] = float32_decimal(rng[f32])  # at once: one by one was most of the read time
         if sensors and len(rng):
             # no echo is stored at the sensor's maximum range, as in the CSV layout
             max_r = np.array([s.max_range_m for s in sensors], dtype=np.float64)
             rng = np.where(np.isinf(rng), max_r[sensor], rng)
-        by_time = np.lexsort((sensor, stamp))  # by stamp, ties in sensor order
-        readings = RangeReadings(stamp[by_time], sensor[by_time], rng[by_time])
+        by_time = lexsort_order((sensor, stamp))  # by stamp, ties in sensor order
+        if by_time is not None:
+            stamp, sensor, rng = stamp[by_time], sensor[by_time], rng[by_time]
+        readings = RangeReadings(stamp, sensor, rng)
         described = sensors or tuple(self.json_sensors.values())
         return RangeLog(
             source=self.path,

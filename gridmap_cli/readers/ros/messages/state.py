@@ -150,7 +150,7 @@ class _State:
         self.r_f32: list[bool] = []
         # readings decoded in bulk (ros_batches): arrays of the same four, after the lists
         self.r_chunks: list[
-            tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.float64], bool]
+            tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.floating], bool]
         ] = []
         self.range_topics = set(plan.range_topics)
         self.topic_types: dict[str, str] = {}
