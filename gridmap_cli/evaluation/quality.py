@@ -38,11 +38,10 @@ from gridmap_cli.evaluation.relation_nees import CHI2_3_MEDIAN, between, log_map
 from gridmap_cli.mapping.grid import OccupancyMap
 from gridmap_cli.mapping.options import BuildOptions
 from gridmap_cli.mapping.pipeline import SYNC_CHUNK_READINGS, corrected_for_build
-from gridmap_cli.mapping.stamps import MIN_STEP_NS
 from gridmap_cli.poses.sources import SOURCES, PoseSettings, pose_source
 from gridmap_cli.poses.sync import SensorReadings, synchronise
 from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty, StepNoise, propagate
-from gridmap_cli.records import RangeLog
+from gridmap_cli.records import RangeLog, stamps_advance
 from gridmap_cli.robot import RobotDescription
 
 if TYPE_CHECKING:
@@ -205,7 +204,7 @@ def spread_distances(
 ) -> tuple[tuple[float | None, ...], float, bool]:
     """Per threshold, the metres driven (along the key poses) at which the position spread
     first passes it (None: never); the track's length; whether its stamps advance (not all
-    within :data:`~gridmap_cli.mapping.stamps.MIN_STEP_NS` a key pose)."""
+    within :data:`~gridmap_cli.records.MIN_STEP_NS` a key pose)."""
     k = uncertainty.stamp_ns.shape[0]
     if k == 0:
         return tuple(None for _ in thresholds_m), 0.0, True
@@ -216,8 +215,8 @@ def spread_distances(
     for t in thresholds_m:
         over = np.flatnonzero(spread > t)
         out.append(float(driven[over[0]]) if over.size else None)
-    span = int(uncertainty.stamp_ns[-1] - uncertainty.stamp_ns[0])
-    return tuple(out), float(driven[-1]), k < 3 or span >= (k - 1) * MIN_STEP_NS
+    advance = stamps_advance(int(uncertainty.stamp_ns[0]), int(uncertainty.stamp_ns[-1]), k)
+    return tuple(out), float(driven[-1]), advance
 
 
 def spread_summary(
