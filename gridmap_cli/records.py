@@ -249,6 +249,17 @@ class RangeLog:
 EPOCH_FROM_NS = 1_000_000_000 * 1_000_000_000
 
 
+#: Records closer than this on average (0.1 ms: 10 kHz) are stamps that do not advance; a reader
+#: may space equal stamps by a microsecond to keep them ordered.
+MIN_STEP_NS = 100_000
+
+
+def stamps_advance(first_ns: int, last_ns: int, records: int) -> bool:
+    """Whether ``records`` stamps from ``first_ns`` to ``last_ns`` measure time: fewer than 3
+    always do; more must average at least :data:`MIN_STEP_NS` apart."""
+    return records < 3 or last_ns - first_ns >= (records - 1) * MIN_STEP_NS
+
+
 def stamp_text(stamp_ns: int) -> str:
     """A stamp for people: UTC date and time for epoch stamps, else seconds."""
     if stamp_ns >= EPOCH_FROM_NS:

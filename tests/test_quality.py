@@ -161,6 +161,13 @@ def test_the_spread_summary_says_when_the_spread_passes_each_threshold() -> None
     summary = spread_summary(layer, unc)
     assert summary.known_cells == 5 and summary.shares == (0.4, 0.6, 0.8)
     assert "beyond 3.0 min of 3.0 min the position spread exceeds 1 m" in summary.line()
+    # a log whose stamps do not advance (every record a microsecond apart) says it in metres
+    still = PoseUncertainty(stamps // 60_000_000, np.array([0.0, 4.0, 9.0, 9.0]),
+                            np.array([0.0, 0.0, 0.0, 3.0]), cov)  # fmt: skip
+    summary = spread_summary(layer, still)
+    assert not summary.stamps_advance and summary.driven_m == pytest.approx(12.0)
+    assert "beyond 12 m driven of 12 m the position spread exceeds 1 m" in summary.line()
+    assert summary.as_dict()["exceeds_after_m"] == {"0.1": 4.0, "0.5": 9.0, "1": 12.0}
 
 
 @pytest.mark.skipif(not (DATA / "carmen").is_dir(), reason="../shared/data is not present")

@@ -46,7 +46,7 @@ from gridmap_cli.mapping.pipeline import SYNC_CHUNK_READINGS, corrected_for_buil
 from gridmap_cli.poses.sources import SOURCES, PoseSettings, pose_source
 from gridmap_cli.poses.sync import SensorReadings, synchronise
 from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty, StepNoise, propagate
-from gridmap_cli.records import RangeLog
+from gridmap_cli.records import RangeLog, stamps_advance
 from gridmap_cli.robot import RobotDescription
 
 if TYPE_CHECKING:
@@ -109,6 +109,11 @@ class SpreadSummary:
     crossing_s: tuple[float | None, ...]
     duration_s: float
     largest_m: float
+    #: The same crossings in metres driven from the first pose, and the track's length: what
+    #: the summary says when the stamps do not advance (a log whose every record has one stamp).
+    crossing_m: tuple[float | None, ...] = ()
+    driven_m: float = math.nan
+    stamps_advance: bool = True
 
     def as_dict(self) -> dict[str, Any]:
         def key(t: float) -> str:
@@ -125,8 +130,27 @@ class SpreadSummary:
                 for t, c in zip(self.thresholds_m, self.crossing_s, strict=True)
             },
             "duration_s": round(self.duration_s, 1),
+            "exceeds_after_m": {
+                key(t): None if c is None else round(c, 1)
+                for t, c in zip(self.thresholds_m, self.crossing_m, strict=True)
+            },
+            "driven_m": _rounded(self.driven_m),
             "largest_m": _rounded(self.largest_m),
         }
+
+    def when(self, k: int) -> str | None:
+        """When the spread passes threshold ``k``: minutes (seconds) from the start, or metres
+        driven when the stamps do not advance; None: never."""
+        after = self.crossing_s[k]
+        if after is None:
+            return None
+        if self.stamps_advance or k >= len(self.crossing_m):
+            return _minutes(after)
+        return f"{self.crossing_m[k]:.0f} m driven"
+
+    def span(self) -> str:
+        """The track's span in the unit of :meth:`when`."""
+        return _minutes(self.duration_s) if self.stamps_advance else f"{self.driven_m:.0f} m"
 
     def line(self) -> str:
         """Where the map stops being usable, in words (the summary line's part)."""
@@ -135,7 +159,7 @@ class SpreadSummary:
             f"{100 * s:.0f} % within {t:g} m"
             for t, s in zip(self.thresholds_m, self.shares, strict=True)
         )
-        after = self.crossing_s[usable]
+        after = self.when(usable)
         if after is None:
             when = (
                 f"the position spread stays under {USABLE_SPREAD_M:g} m (largest "
@@ -143,8 +167,7 @@ class SpreadSummary:
             )
         else:
             when = (
-                f"beyond {_minutes(after)} of {_minutes(self.duration_s)} the position spread "
-                f"exceeds {USABLE_SPREAD_M:g} m"
+                f"beyond {after} of {self.span()} the position spread exceeds {USABLE_SPREAD_M:g} m"
             )
         return f"pose spread of the known cells: {within}; {when}"
 
@@ -182,6 +205,26 @@ def spread_timeline(
     return tuple(out), float(seconds[-1]), float(spread.max())
 
 
+def spread_distances(
+    uncertainty: PoseUncertainty, thresholds_m: Sequence[float] = SPREAD_THRESHOLDS_M
+) -> tuple[tuple[float | None, ...], float, bool]:
+    """Per threshold, the metres driven (along the key poses) at which the position spread
+    first passes it (None: never); the track's length; whether its stamps advance (not all
+    within :data:`~gridmap_cli.records.MIN_STEP_NS` a key pose)."""
+    k = uncertainty.stamp_ns.shape[0]
+    if k == 0:
+        return tuple(None for _ in thresholds_m), 0.0, True
+    steps = np.hypot(np.diff(uncertainty.x_m), np.diff(uncertainty.y_m))
+    driven = np.concatenate([[0.0], np.cumsum(steps)])
+    spread = position_spread(uncertainty.cov)
+    out: list[float | None] = []
+    for t in thresholds_m:
+        over = np.flatnonzero(spread > t)
+        out.append(float(driven[over[0]]) if over.size else None)
+    advance = stamps_advance(int(uncertainty.stamp_ns[0]), int(uncertainty.stamp_ns[-1]), k)
+    return tuple(out), float(driven[-1]), advance
+
+
 def spread_summary(
     layer: F64,
     uncertainty: PoseUncertainty,
@@ -192,10 +235,12 @@ def spread_summary(
     values = layer[~np.isnan(layer)]
     shares = tuple(float(np.mean(values <= t)) if values.size else 0.0 for t in thresholds_m)
     crossing, duration, largest = spread_timeline(uncertainty, thresholds_m)
+    crossing_m, driven, advance = spread_distances(uncertainty, thresholds_m)
     median = float(np.median(values)) if values.size else math.nan
     return SpreadSummary(
-        int(values.size), median, tuple(thresholds_m), shares, crossing, duration, largest
-    )
+        int(values.size), median, tuple(thresholds_m), shares, crossing, duration, largest,
+        crossing_m, driven, advance,
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -427,8 +472,9 @@ def quality_table(map_name: str, log_name: str, pose: str, quality: Quality) -> 
         lines.append(
             f"pose spread           median {s.median_m:.3f} m over {s.known_cells:,} known cells"
         )
-        for t, share, after in zip(s.thresholds_m, s.shares, s.crossing_s, strict=True):
-            when = "never passed" if after is None else f"passed after {_minutes(after)}"
+        for k, (t, share) in enumerate(zip(s.thresholds_m, s.shares, strict=True)):
+            after = s.when(k)
+            when = "never passed" if after is None else f"passed after {after}"
             lines.append(f"  within {t:g} m{'':<7s}{100 * share:5.1f} % of the cells ({when})")
     e = quality.echoes
     if e is None:

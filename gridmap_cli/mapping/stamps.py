@@ -9,13 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from gridmap_cli.records import RangeLog, stamp_text
+from gridmap_cli.records import RangeLog, stamp_text, stamps_advance
 
 #: A gap between consecutive stamps longer than this is a jump no recording makes (365 days).
 MAX_GAP_NS = 365 * 86_400 * 1_000_000_000
-#: Records closer than this on average (0.1 ms: 10 kHz) are stamps that do not advance; a reader
-#: may space equal stamps by a microsecond to keep them ordered.
-MIN_STEP_NS = 100_000
 
 
 def stamp_problem(log: RangeLog) -> str | None:
@@ -36,7 +33,7 @@ def stamp_problem(log: RangeLog) -> str | None:
     span_ns = int(stamps[-1] - stamps[0])
     # records: poses, or scans when there is no pose track (a scan's readings share a stamp)
     records = max(len(log.poses), n_readings // max(len(log.sensor_names), 1))
-    if records >= 3 and span_ns < (records - 1) * MIN_STEP_NS:
+    if not stamps_advance(int(stamps[0]), int(stamps[-1]), records):
         return (
             f"the stamps do not advance ({records:,} records within {span_ns / 1e9:g} s from "
             f"{stamp_text(int(stamps[0]))}): rates and time windows mean nothing"

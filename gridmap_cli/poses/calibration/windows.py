@@ -19,7 +19,7 @@ from gridmap_cli.poses.calibration.robust_fit import Rung
 from gridmap_cli.poses.odometry_error import travelled
 from gridmap_cli.poses.sync import interpolate_pose
 from gridmap_cli.poses.uncertainty.pose_uncertainty import key_steps
-from gridmap_cli.records import PoseTrack, RangeLog
+from gridmap_cli.records import PoseTrack, RangeLog, stamps_advance
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -118,9 +118,12 @@ def key_turning(
 
 
 def turn_rate(truth: PoseTrack, signed_turn: FloatArray) -> FloatArray:
-    """The reference's turn rate at each pose (N,), rad/s: central differences in time."""
+    """The reference's turn rate at each pose (N,), rad/s: central differences in time. Stamps
+    that do not advance (:func:`~gridmap_cli.records.stamps_advance`: a log that prints one time
+    for every record) measure no time, so they give no rate, and the fit no stamp lag: a lag
+    fitted on them would take a share of the heading error with it."""
     n = len(truth)
-    if n < 2:
+    if n < 2 or not stamps_advance(int(truth.stamp_ns[0]), int(truth.stamp_ns[-1]), n):
         return np.zeros(n)
     t = (truth.stamp_ns - truth.stamp_ns[0]).astype(np.float64) / 1e9
     if np.any(np.diff(t) <= 0.0):
