@@ -1,6 +1,7 @@
-"""A scan the odometry lost (a turn it never counted, as when its messages stop while the robot
-turns): the scan matcher finds it again on its local map by the correlative search, instead of
-keeping the odometry's step and bending every pose after it."""
+"""A scan the odometry lost: found again on the local map by the correlative search, instead of
+keeping the odometry's step and turning every pose after it. Two ways to lose one: the odometry
+misjudges a turn by more than the matcher's retries cover, and its messages stop while the
+robot turns (a corrected CARMEN log then has no motion at all across the gap)."""
 
 from __future__ import annotations
 
@@ -11,58 +12,78 @@ import numpy as np
 import pytest
 
 from gridmap_cli.geometry import compose, inverse
-from gridmap_cli.poses.correction.relocate import typical_fit
 from gridmap_cli.poses.correction.scan_match import FALLBACK, ScanMatchParams, match_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from tests.test_scan_match import errors, laser_robot, room_world, run
 
-#: the turn the odometry misses, far beyond the matcher's retries and heading bound
-MISSED_RAD = math.radians(60.0)
+#: the robot reaches the corner (10, 1.5) at 16 s and turns 90 degrees in place at 40 deg/s:
+#: the gap loses 20 degrees of it, beyond the matcher's 15-degree bound and 16-degree retries
+CORNER_S = (16.6, 17.1)
 
 
-def missed_turn(log: RangeLog, at_s: float, turn_rad: float) -> RangeLog:
-    """``log`` with its odometry turned by ``turn_rad`` about its pose at ``at_s`` from then
-    on: an increment of the odometry that says the robot turned when it did not."""
-    odo = log.poses
-    t = (odo.stamp_ns - odo.stamp_ns[0]) / 1e9
-    k = int(np.searchsorted(t, at_s))
-    px, py, pth = odo.x_m[k - 1], odo.y_m[k - 1], odo.theta_rad[k - 1]
-    ix, iy, ith = inverse(px, py, pth)
+def reanchored(odo: PoseTrack, keep: np.ndarray, a: int, k: int, turn_rad: float) -> PoseTrack:
+    """``odo`` at ``keep`` (mask), its poses from index ``k`` on carried rigidly so that pose
+    ``k`` lies where pose ``a`` does, turned by ``turn_rad`` (``a == k``: pose ``k`` turned in
+    place; ``a < k``: the motion from ``a`` to ``k`` lost but for the turn)."""
+    px, py, pth = odo.x_m[a], odo.y_m[a], odo.theta_rad[a]
+    ix, iy, ith = inverse(odo.x_m[k], odo.y_m[k], odo.theta_rad[k])
     rx, ry, rth = compose(ix, iy, ith, odo.x_m[k:], odo.y_m[k:], odo.theta_rad[k:])
     x, y, th = compose(*compose(px, py, pth, 0.0, 0.0, turn_rad), rx, ry, rth)
-    poses = PoseTrack(
+    out = PoseTrack(
         stamp_ns=odo.stamp_ns,
         x_m=np.concatenate([odo.x_m[:k], x]),
         y_m=np.concatenate([odo.y_m[:k], y]),
         theta_rad=np.concatenate([odo.theta_rad[:k], th]),
     )
-    return dataclasses.replace(log, poses=poses)
+    return PoseTrack(out.stamp_ns[keep], out.x_m[keep], out.y_m[keep], out.theta_rad[keep])
 
 
 @pytest.fixture(scope="module")
-def lost_turn() -> RangeLog:
-    log = run(room_world(), [[2, 1.5], [10, 1.5], [10, 6.5]], drift=1.0)
-    return missed_turn(log, at_s=8.0, turn_rad=MISSED_RAD)
+def corner_run() -> RangeLog:
+    return run(room_world(), [[2, 1.5], [10, 1.5], [10, 6.5]], drift=1.0)
 
 
-def test_a_turn_the_odometry_missed_is_found_again(lost_turn: RangeLog) -> None:
-    match = match_log(lost_turn, laser_robot())
-    ex, ey, eth = errors(lost_turn, match.track)
+@pytest.fixture(scope="module")
+def misjudged(corner_run: RangeLog) -> RangeLog:
+    """The odometry turns 25 degrees too far in one step of a straight drive: beyond the
+    matcher's 15-degree bound and its 16-degree retries."""
+    odo = corner_run.poses
+    t = (odo.stamp_ns - odo.stamp_ns[0]) / 1e9
+    k = int(np.searchsorted(t, 8.0))
+    poses = reanchored(odo, np.ones(len(odo), dtype=bool), k, k, math.radians(-25.0))
+    return dataclasses.replace(corner_run, poses=poses)
+
+
+@pytest.fixture(scope="module")
+def gap(corner_run: RangeLog) -> RangeLog:
+    """Neither odometry nor scans while the robot turns the corner, and the odometry after it
+    carried on from where it stopped: across the gap it says the robot stood still."""
+    odo = corner_run.poses
+    t = (odo.stamp_ns - odo.stamp_ns[0]) / 1e9
+    inside = (t > CORNER_S[0]) & (t < CORNER_S[1])
+    a, k = (
+        int(np.searchsorted(t, CORNER_S[0], side="right")) - 1,
+        int(np.searchsorted(t, CORNER_S[1])),
+    )
+    poses = reanchored(odo, ~inside, a, k, 0.0)
+    r = corner_run.readings
+    rt = (r.stamp_ns - odo.stamp_ns[0]) / 1e9
+    kept = ~((rt > CORNER_S[0]) & (rt < CORNER_S[1]))
+    readings = dataclasses.replace(
+        r, stamp_ns=r.stamp_ns[kept], sensor=r.sensor[kept], range_m=r.range_m[kept]
+    )
+    return dataclasses.replace(corner_run, poses=poses, readings=readings)
+
+
+@pytest.mark.parametrize("which", ["misjudged", "gap"])
+def test_a_lost_turn_is_found_again(which: str, request: pytest.FixtureRequest) -> None:
+    log: RangeLog = request.getfixturevalue(which)
+    match = match_log(log, laser_robot())
+    ex, ey, eth = errors(log, match.track)
     assert np.hypot(ex, ey).max() < 0.15
     assert np.abs(eth).max() < math.radians(2.0)
-    assert match.fallbacks == 0
-
-
-def test_without_the_search_the_turn_bends_the_track(lost_turn: RangeLog) -> None:
-    """The same log with the search switched off: the step falls back to the odometry and
-    every pose after it is turned by the missed 60 degrees (what the test above guards)."""
-    match = match_log(lost_turn, laser_robot(), ScanMatchParams(search_rad=0.0))
-    _, _, eth = errors(lost_turn, match.track)
-    assert np.abs(eth).max() > math.radians(30.0)
-    assert np.count_nonzero(match.status == FALLBACK) >= 1
-
-
-def test_typical_fit_is_the_lower_quartile_once_there_are_enough() -> None:
-    fractions = np.array([np.nan, 0.1, *np.linspace(0.5, 1.0, 21), 0.2])
-    assert typical_fit(fractions, 0.5) == pytest.approx(0.625)  # fallbacks and NaN left out
-    assert typical_fit(fractions[:6], 0.5) == 1.0  # too few matches: only a perfect fit passes
+    # without the search the step falls back to the odometry: every later pose is turned
+    blind = match_log(log, laser_robot(), ScanMatchParams(search_rad=0.0))
+    _, _, blind_eth = errors(log, blind.track)
+    assert np.count_nonzero(blind.status == FALLBACK) >= 1
+    assert np.abs(blind_eth).max() > math.radians(10.0)

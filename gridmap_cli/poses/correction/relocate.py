@@ -1,19 +1,22 @@
 """A scan the odometry lost: found again on the local map by a correlative search.
 
-The scan matcher starts GICP from the odometry's guess and from a few headings around it. Where
-the odometry is off by more than that, none of those starts holds: a sparse log that turns 30
-degrees between scans with a heading error of half of it, a log whose odometry messages stop
-for a few seconds while the robot turns (the odometry then says it stood still). Keeping the
-odometry's step there bends the whole map at that scan, and a loop closure can only straighten
-it if the robot comes back.
+The scan matcher starts GICP from the odometry's guess and from a few headings around it, and
+takes no correction beyond a heading bound. Where the odometry is off by more than that, no
+start holds: a sparse log that turns 30 degrees between scans with a heading error of half of
+it, or a log whose odometry messages stop while the robot turns (a corrected CARMEN log then
+has no odometry motion at all across the gap). Keeping the odometry's step there turns every
+later pose by the error (a map bent at one scan), which a loop closure can only straighten if
+the robot comes back.
 
-The correlative search (:mod:`.correlative`, Cartographer's real-time correlative matcher in
-spirit) scores every pose of a window around the guess on a likelihood grid of the local map:
-the translation within the matcher's correction bound, the heading all round. GICP from the best
-pose is judged by the scan matcher's own inlier test. A turn beyond what the odometry can be off
-by is taken only when the scan fits as well as the log's scans usually do (:func:`typical_fit`):
-a scan half in new space (the robot entering a room) fits some wrong heading about as well as
-its own, and the search, maximising the overlap, finds that one.
+The correlative search (:mod:`.correlative`; a real-time correlative matcher as Cartographer's
+local SLAM has one) scores every pose of a window around the guess on a likelihood grid of the
+local map: the translation within the matcher's correction bound, the heading within twice its
+bound, or all round where the odometry saw no motion and so says nothing of a turn. GICP from
+the best pose is then judged by the matcher's own inlier test, and a turn beyond the bound
+also by the fit the log's scans usually reach (:func:`typical_fit`). A scan half in new space
+(the robot leaving a corridor) can fit a wrong heading (the corridor's other direction) about
+as well as its own, and the search, which maximises the overlap, takes it: the window is kept
+narrow where the odometry moved, and a wide correction must fit as well as most scans do.
 """
 
 from __future__ import annotations
@@ -42,9 +45,18 @@ REACH_M = 2.0
 MIN_SCORE = 0.3
 #: Scan points farther than this (m) are not scored: they would need a finer heading step.
 RANGE_M = 15.0
-#: Matches needed before the log's usual fit is known; until then a turn beyond the odometry's
-#: bound needs a perfect fit.
+#: Matches needed before the log's usual fit is known; until then a turn beyond the matcher's
+#: heading bound needs a perfect fit.
 MIN_MATCHES = 10
+
+
+#: A lost scan's search window : all round across a gap in the odometry (no
+#: message for this many of its usual intervals: it says nothing of the motion there); twice
+#: the heading bound where the robot moved at least ``MOVED_M``; within the bound where it did
+#: not (a robot that stood cannot have lost more than the retries cover: a scan that fits only
+#: turned further is out of place, stale or mis-stamped, and keeping the odometry is right).
+GAP_INTERVALS = 10.0
+MOVED_M = 0.01
 
 
 class LocalMap(Protocol):
@@ -66,14 +78,28 @@ class Settings(Protocol):
     def max_iterations(self) -> int: ...
     @property
     def inlier_m(self) -> float: ...
-    @property
-    def search_rad(self) -> float: ...
+
+
+def odometry_gaps(
+    odometry_ns: npt.NDArray[np.int64], scans_ns: npt.NDArray[np.int64]
+) -> npt.NDArray[np.bool_]:
+    """Whether the odometry sent nothing for :data:`GAP_INTERVALS` of its usual (median)
+    intervals across the step into each scan, shape (S,); the first scan's is False."""
+    gap = np.zeros(len(scans_ns), dtype=bool)
+    if len(odometry_ns) < 2 or len(scans_ns) < 2:
+        return gap
+    usual = float(np.median(np.diff(odometry_ns)))
+    before = np.searchsorted(odometry_ns, scans_ns[:-1], side="right") - 1
+    after = np.minimum(np.searchsorted(odometry_ns, scans_ns[1:]), len(odometry_ns) - 1)
+    span = odometry_ns[after] - odometry_ns[np.maximum(before, 0)]
+    gap[1:] = span > GAP_INTERVALS * usual
+    return gap
 
 
 def typical_fit(fractions: FloatArray, floor: float) -> float:
-    """The inlier fraction that three quarters of the matches so far reached: how well this
-    log's scans usually fit their local map. ``fractions`` (K,): every scan's so far, those
-    under ``floor`` (fallbacks) and NaN left out."""
+    """The inlier fraction three quarters of the matches so far reached: how well this log's
+    scans usually fit their local map. ``fractions`` (K,): every scan's so far; those under
+    ``floor`` (fallbacks) and NaN are left out."""
     done = fractions[fractions >= floor]
     return float(np.percentile(done, 25)) if len(done) >= MIN_MATCHES else 1.0
 
@@ -84,11 +110,12 @@ def relocate(
     planar: FloatArray,
     guess: Pose,
     window_m: float,
+    window_rad: float,
     params: Settings,
 ) -> Registration | None:
     """GICP of ``source`` (the scan, as the matcher gives it to GICP) from the best pose of its
     ``planar`` points (K, 2, robot frame) on the local map within ``window_m`` (capped at
-    :data:`REACH_M`) and ``params.search_rad`` of ``guess``: the inlier fraction, pose and
+    :data:`REACH_M`) and ``window_rad`` of ``guess``: the inlier fraction, pose and
     Hessian; None when no pose scores :data:`MIN_SCORE` or GICP leaves the window."""
     assert local.cloud is not None and local.tree is not None and local.tree2d is not None
     if local.grid is None:
@@ -100,9 +127,7 @@ def relocate(
         return None
     # a heading step that moves the farthest scored point by about a cell (Cartographer's rule)
     step_rad = CELL_M / max(float(reach[near].max()), CELL_M)
-    found = search(
-        local.grid, planar[near], guess, window_m, params.search_rad, step_rad, MIN_SCORE
-    )
+    found = search(local.grid, planar[near], guess, window_m, window_rad, step_rad, MIN_SCORE)
     if found is None:
         return None
     result = small_gicp.align(

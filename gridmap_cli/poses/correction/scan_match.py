@@ -41,7 +41,12 @@ from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.poses.correction.carry import carry
 from gridmap_cli.poses.correction.degeneracy import DistanceScale, keep_across, weak_axis
 from gridmap_cli.poses.correction.planar import placed_points, planar_pose, pose_matrix
-from gridmap_cli.poses.correction.relocate import relocate, typical_fit
+from gridmap_cli.poses.correction.relocate import (
+    MOVED_M,
+    odometry_gaps,
+    relocate,
+    typical_fit,
+)
 from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription
@@ -77,8 +82,8 @@ class ScanMatchParams:
     guess. ``degenerate_ratio``: smallest over largest eigenvalue of the translation block of
     the match's Hessian below which the match is degenerate. ``heading_starts_rad``: extra
     starting headings (offsets from the guess) tried when the first match is poor.
-    ``search_rad``: when no start holds, a correlative search over this much heading either
-    side of the guess finds GICP a start (:mod:`.relocate`; 0: none).
+    ``search_rad``: when no start holds, a correlative search finds GICP a start
+    (:mod:`.relocate`), over this much heading either side of the guess at most (0: none).
     ``scale_min_m``/``scale_max_error``: the odometry's distance scale is learned from the
     straight (turning under ``scale_turn_rad``) matched steps once they cover this many metres,
     within 1 +- this (:class:`DistanceScale`);
@@ -276,12 +281,13 @@ def match_scans(
     if not valid.all():
         raise GridmapError("scan_match: scans outside the odometry's time span")
     odo = (ox, oy, oth)
-    poses, status, score, weak, scale = _match_pass(scans, odo, params, 1.0, progress)
+    gap = odometry_gaps(odometry.stamp_ns, scans.stamp_ns)
+    poses, status, score, weak, scale = _match_pass(scans, odo, params, 1.0, progress, gap)
     if scale.blind_m > params.rescale_blind_m and scale.factor != 1.0:
         # a corridor driven before the scale was known kept the odometry's own scale there, and
         # the rest of the track the learned one: a loop through both would not close. Again,
         # with the scale from the start (costs a second pass, only on such logs).
-        poses, status, score, weak, scale = _match_pass(scans, odo, params, scale.factor, None)
+        poses, status, score, weak, scale = _match_pass(scans, odo, params, scale.factor, None, gap)
     track = PoseTrack(
         stamp_ns=scans.stamp_ns.copy(),
         x_m=np.ascontiguousarray(poses[:, 0]),
@@ -299,9 +305,11 @@ def _match_pass(
     params: ScanMatchParams,
     prior_scale: float,
     progress: Progress | None,
+    gap: npt.NDArray[np.bool_],
 ) -> tuple[FloatArray, npt.NDArray[np.int8], FloatArray, FloatArray, DistanceScale]:
     """One pass of :func:`match_scans`: poses (S, 3), status, inlier fractions, weak axes
-    (S, 2) and the distance scale learned (``prior_scale`` until it is)."""
+    (S, 2) and the distance scale learned (``prior_scale`` until it is). ``gap`` (S,): the
+    odometry has a gap before the scan (:func:`.relocate.odometry_gaps`)."""
     ox, oy, oth = odometry
     n = len(scans)
     poses = np.zeros((n, 3))
@@ -333,6 +341,10 @@ def _match_pass(
             poses[k], status[k], score[k], axis = _match_one(
                 pts, guess, step_m, local, params, scaled,
                 functools.partial(typical_fit, score[:k], params.min_inlier_fraction),
+                params.search_rad if gap[k] else (
+                    2.0 * params.max_correction_rad if step_m >= MOVED_M
+                    else params.max_correction_rad
+                ),
             )  # fmt: skip
             if axis is not None:
                 scale.kept(abs(float(axis @ (poses[k, :2] - poses[k - 1, :2]))))
@@ -361,12 +373,14 @@ def _match_one(
     params: ScanMatchParams,
     kept: tuple[float, float, float] | None = None,
     typical: Callable[[], float] | None = None,
+    window_rad: float = 0.0,
 ) -> tuple[tuple[float, float, float], int, float, FloatArray | None]:
     """One scan's pose, status, inlier fraction and weak axis (map frame; None unless
     degenerate). GICP starts from ``guess``; ``kept`` (default ``guess``) is the pose a
-    fallback takes and a degenerate match keeps along its weak axis. ``typical``: the inlier
-    fraction the log's scans usually reach, which a relocated scan turned beyond the heading
-    bound must reach too (:mod:`.relocate`; None: it never is)."""
+    fallback takes and a degenerate match keeps along its weak axis. ``window_rad``: the
+    heading window of the search for a lost scan (:mod:`.relocate`; at most ``search_rad``);
+    ``typical``: the fit a relocation turned beyond the heading bound must reach
+    (:func:`.relocate.typical_fit`; None: it never is)."""
     kept = kept or guess
     if local.cloud is None or local.tree is None or local.tree2d is None:
         return kept, FALLBACK, 0.0, None
@@ -406,16 +420,19 @@ def _match_one(
         if fraction >= params.min_inlier_fraction:
             break
     if (best is None or best[0] < params.min_inlier_fraction) and params.search_rad > 0:
-        # no start held: the odometry may be off by more than the retries cover; a turn
-        # beyond its bound needs the fit the log's scans usually reach (:mod:`.relocate`)
-        found = relocate(local, source, planar, guess, limit_m, params)
+        # no start held: the odometry may be off by more than the retries and the heading
+        # bound allow (:mod:`.relocate`); beyond the bound only with the fit most of the
+        # log's scans reach
+        found = relocate(
+            local, source, planar, guess, limit_m, min(window_rad, params.search_rad), params
+        )
+        wide = found is not None and (
+            abs(float(wrap_angle(found[1][2] - guess[2]))) > params.max_correction_rad
+        )
         if (
             found is not None
             and (best is None or found[0] > best[0])
-            and (
-                abs(float(wrap_angle(found[1][2] - guess[2]))) <= params.max_correction_rad
-                or (typical is not None and found[0] >= typical())
-            )
+            and (not wide or (typical is not None and found[0] >= typical()))
         ):
             best = found
     if best is None:
