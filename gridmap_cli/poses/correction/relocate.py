@@ -10,13 +10,13 @@ the robot comes back.
 
 The correlative search (:mod:`.correlative`; a real-time correlative matcher as Cartographer's
 local SLAM has one) scores every pose of a window around the guess on a likelihood grid of the
-local map: the translation within the matcher's correction bound, the heading within twice its
-bound, or all round where the odometry saw no motion and so says nothing of a turn. GICP from
-the best pose is then judged by the matcher's own inlier test, and a turn beyond the bound
-also by the fit the log's scans usually reach (:func:`typical_fit`). A scan half in new space
-(the robot leaving a corridor) can fit a wrong heading (the corridor's other direction) about
-as well as its own, and the search, which maximises the overlap, takes it: the window is kept
-narrow where the odometry moved, and a wide correction must fit as well as most scans do.
+local map, the translation within the matcher's correction bound. GICP from the best pose is
+then judged by the matcher's own inlier test, and a turn beyond the heading bound also by the
+fit the log's scans usually reach (:func:`typical_fit`). The heading window is what the odometry
+can have lost (:data:`GAP_INTERVALS`): searched all round everywhere, a scan half in new space
+(leaving a corridor) fits the corridor's other direction about as well as its own, and a
+stale or mis-stamped scan (one that fits only well off its neighbours' heading while the robot
+turns in place) would be taken where it fits, not where the robot was.
 """
 
 from __future__ import annotations
@@ -48,13 +48,12 @@ RANGE_M = 15.0
 #: Matches needed before the log's usual fit is known; until then a turn beyond the matcher's
 #: heading bound needs a perfect fit.
 MIN_MATCHES = 10
-
-
-#: A lost scan's search window : all round across a gap in the odometry (no
-#: message for this many of its usual intervals: it says nothing of the motion there); twice
-#: the heading bound where the robot moved at least ``MOVED_M``; within the bound where it did
-#: not (a robot that stood cannot have lost more than the retries cover: a scan that fits only
-#: turned further is out of place, stale or mis-stamped, and keeping the odometry is right).
+#: A lost scan's heading window: all round across a gap in the odometry (no message for this
+#: many of its usual intervals: a corrected CARMEN log keeps no motion across one); twice the
+#: heading bound
+#: where the robot moved at least ``MOVED_M``; within the bound where it did not (a robot that
+#: stood cannot have lost more than the retries cover: a scan that fits only turned further is
+#: out of place, stale or mis-stamped, and keeping the odometry is right).
 GAP_INTERVALS = 10.0
 MOVED_M = 0.01
 
