@@ -26,7 +26,7 @@ from scipy.spatial import cKDTree
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.heap import release_free_memory
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
-from gridmap_cli.poses.correction.scan_match import pose_matrix
+from gridmap_cli.poses.correction.planar import pose_matrix
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -23,11 +23,13 @@ odometry with the correction (corrected (-) odometry) interpolated between the s
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -38,9 +40,19 @@ from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.poses.correction.carry import carry
 from gridmap_cli.poses.correction.degeneracy import DistanceScale, keep_across, weak_axis
+from gridmap_cli.poses.correction.planar import placed_points, planar_pose, pose_matrix
+from gridmap_cli.poses.correction.relocate import (
+    MOVED_M,
+    odometry_gaps,
+    relocate,
+    typical_fit,
+)
 from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription
+
+if TYPE_CHECKING:
+    from gridmap_cli.poses.correction.correlative import LikelihoodGrid
 
 FloatArray = npt.NDArray[np.float64]
 #: A caller's progress callback: (stage, done, total), e.g. ("scan matching", 120, 4000).
@@ -70,6 +82,8 @@ class ScanMatchParams:
     guess. ``degenerate_ratio``: smallest over largest eigenvalue of the translation block of
     the match's Hessian below which the match is degenerate. ``heading_starts_rad``: extra
     starting headings (offsets from the guess) tried when the first match is poor.
+    ``search_rad``: when no start holds, a correlative search finds GICP a start
+    (:mod:`.relocate`), over this much heading either side of the guess at most (0: none).
     ``scale_min_m``/``scale_max_error``: the odometry's distance scale is learned from the
     straight (turning under ``scale_turn_rad``) matched steps once they cover this many metres,
     within 1 +- this (:class:`DistanceScale`);
@@ -96,6 +110,7 @@ class ScanMatchParams:
     scale_max_error: float = 0.1
     rescale_blind_m: float = 5.0
     scale_turn_rad: float = math.radians(2.0)
+    search_rad: float = math.pi
     heading_starts_rad: tuple[float, ...] = (
         math.radians(-8.0),
         math.radians(8.0),
@@ -206,20 +221,6 @@ def laser_scans(log: RangeLog, sensors: tuple[RangeSensor, ...], params: ScanMat
     return Scans(stamp_ns=laser_stamps.astype(np.int64), points=points)
 
 
-def pose_matrix(x: float, y: float, theta: float) -> FloatArray:
-    """The planar pose as the 4 x 4 transform small_gicp takes."""
-    m = np.eye(4)
-    c, s = math.cos(theta), math.sin(theta)
-    m[0, 0], m[0, 1], m[1, 0], m[1, 1] = c, -s, s, c
-    m[0, 3], m[1, 3] = x, y
-    return m
-
-
-def planar_pose(m: FloatArray) -> tuple[float, float, float]:
-    """The planar pose (x, y, theta) of a 4 x 4 transform."""
-    return float(m[0, 3]), float(m[1, 3]), math.atan2(float(m[1, 0]), float(m[0, 0]))
-
-
 def planar_sheet(points: FloatArray, voxel_m: float) -> FloatArray:
     """Planar points (K, 2) as three layers one voxel apart in z, shape (3K, 3)."""
     k = len(points)
@@ -232,15 +233,6 @@ def planar_sheet(points: FloatArray, voxel_m: float) -> FloatArray:
     return sheet
 
 
-def placed_points(points: FloatArray, pose: tuple[float, float, float]) -> FloatArray:
-    """Points (K, 2) of a scan moved to ``pose`` (x, y, theta)."""
-    x, y, th = pose
-    c, s = math.cos(th), math.sin(th)
-    return np.column_stack(
-        [x + c * points[:, 0] - s * points[:, 1], y + s * points[:, 0] + c * points[:, 1]]
-    )
-
-
 class _LocalMap:
     """The last keyframe scans in the odometry frame, for GICP (3D sheet) and scoring (2D)."""
 
@@ -251,6 +243,7 @@ class _LocalMap:
         self.cloud: small_gicp.PointCloud | None = None
         self.tree: small_gicp.KdTree | None = None
         self.tree2d: cKDTree | None = None
+        self.grid: LikelihoodGrid | None = None  # built when a poor match first needs it
 
     def wants(self, pose: tuple[float, float, float]) -> bool:
         if self.last_pose is None:
@@ -268,6 +261,7 @@ class _LocalMap:
             planar_sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
         )
         self.tree2d = cKDTree(flat)
+        self.grid = None
 
 
 def match_scans(
@@ -287,12 +281,13 @@ def match_scans(
     if not valid.all():
         raise GridmapError("scan_match: scans outside the odometry's time span")
     odo = (ox, oy, oth)
-    poses, status, score, weak, scale = _match_pass(scans, odo, params, 1.0, progress)
+    gap = odometry_gaps(odometry.stamp_ns, scans.stamp_ns)
+    poses, status, score, weak, scale = _match_pass(scans, odo, params, 1.0, progress, gap)
     if scale.blind_m > params.rescale_blind_m and scale.factor != 1.0:
         # a corridor driven before the scale was known kept the odometry's own scale there, and
         # the rest of the track the learned one: a loop through both would not close. Again,
         # with the scale from the start (costs a second pass, only on such logs).
-        poses, status, score, weak, scale = _match_pass(scans, odo, params, scale.factor, None)
+        poses, status, score, weak, scale = _match_pass(scans, odo, params, scale.factor, None, gap)
     track = PoseTrack(
         stamp_ns=scans.stamp_ns.copy(),
         x_m=np.ascontiguousarray(poses[:, 0]),
@@ -310,9 +305,11 @@ def _match_pass(
     params: ScanMatchParams,
     prior_scale: float,
     progress: Progress | None,
+    gap: npt.NDArray[np.bool_],
 ) -> tuple[FloatArray, npt.NDArray[np.int8], FloatArray, FloatArray, DistanceScale]:
     """One pass of :func:`match_scans`: poses (S, 3), status, inlier fractions, weak axes
-    (S, 2) and the distance scale learned (``prior_scale`` until it is)."""
+    (S, 2) and the distance scale learned (``prior_scale`` until it is). ``gap`` (S,): the
+    odometry has a gap before the scan (:func:`.relocate.odometry_gaps`)."""
     ox, oy, oth = odometry
     n = len(scans)
     poses = np.zeros((n, 3))
@@ -342,8 +339,13 @@ def _match_pass(
             scaled = (float(sx), float(sy), float(gth))
             step_m = float(math.hypot(dx, dy))
             poses[k], status[k], score[k], axis = _match_one(
-                pts, guess, step_m, local, params, scaled
-            )
+                pts, guess, step_m, local, params, scaled,
+                functools.partial(typical_fit, score[:k], params.min_inlier_fraction),
+                params.search_rad if gap[k] else (
+                    2.0 * params.max_correction_rad if step_m >= MOVED_M
+                    else params.max_correction_rad
+                ),
+            )  # fmt: skip
             if axis is not None:
                 scale.kept(abs(float(axis @ (poses[k, :2] - poses[k - 1, :2]))))
                 weak[k] = axis
@@ -370,10 +372,15 @@ def _match_one(
     local: _LocalMap,
     params: ScanMatchParams,
     kept: tuple[float, float, float] | None = None,
+    typical: Callable[[], float] | None = None,
+    window_rad: float = 0.0,
 ) -> tuple[tuple[float, float, float], int, float, FloatArray | None]:
     """One scan's pose, status, inlier fraction and weak axis (map frame; None unless
     degenerate). GICP starts from ``guess``; ``kept`` (default ``guess``) is the pose a
-    fallback takes and a degenerate match keeps along its weak axis."""
+    fallback takes and a degenerate match keeps along its weak axis. ``window_rad``: the
+    heading window of the search for a lost scan (:mod:`.relocate`; at most ``search_rad``);
+    ``typical``: the fit a relocation turned beyond the heading bound must reach
+    (:func:`.relocate.typical_fit`; None: it never is)."""
     kept = kept or guess
     if local.cloud is None or local.tree is None or local.tree2d is None:
         return kept, FALLBACK, 0.0, None
@@ -412,6 +419,22 @@ def _match_one(
             best = (fraction, pose, np.asarray(result.H))
         if fraction >= params.min_inlier_fraction:
             break
+    if (best is None or best[0] < params.min_inlier_fraction) and params.search_rad > 0:
+        # no start held: the odometry may be off by more than the retries and the heading
+        # bound allow (:mod:`.relocate`); beyond the bound only with the fit most of the
+        # log's scans reach
+        found = relocate(
+            local, source, planar, guess, limit_m, min(window_rad, params.search_rad), params
+        )
+        wide = found is not None and (
+            abs(float(wrap_angle(found[1][2] - guess[2]))) > params.max_correction_rad
+        )
+        if (
+            found is not None
+            and (best is None or found[0] > best[0])
+            and (not wide or (typical is not None and found[0] >= typical()))
+        ):
+            best = found
     if best is None:
         return kept, FALLBACK, 0.0, None
     fraction, pose, hessian = best
