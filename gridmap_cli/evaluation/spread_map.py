@@ -24,7 +24,8 @@ import numpy.typing as npt
 from scipy import ndimage
 
 from gridmap_cli.mapping.grid import GridSpec, SpanSums
-from gridmap_cli.mapping.models.ray import RaySegments, row_runs
+from gridmap_cli.mapping.models.kernels import compiled
+from gridmap_cli.mapping.models.ray import RaySegments, ray_rows, row_runs
 from gridmap_cli.poses.sync import SensorReadings, select_readings
 from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty
 
@@ -166,12 +167,23 @@ def spread_layer(
     """
     total = SpanSums(spec, np.int64)
     count = SpanSums(spec, np.int64)
+    # a kernel module built before ray_sums existed leaves the work to numpy
+    ray_sums = getattr(compiled(), "ray_sums", None)
     for readings in chunks:
         spread_m, _ = reading_spreads(readings, uncertainty)
         spread_mm = np.rint(spread_m * 1000.0).astype(np.int64)
         for lo in range(0, len(readings), _READINGS_PER_CHUNK):
             part = select_readings(readings, slice(lo, lo + _READINGS_PER_CHUNK))
             index, rays = _beam_rays(part, spec)
+            if ray_sums is not None:
+                # the same integer sums as the numpy path below, without its run arrays
+                r = ray_rows(spec, rays)
+                ray_sums(
+                    spec.width, r.ra, r.rb, r.p_lo, r.counts, r.off, r.slope, r.ua, r.ub,
+                    not r.inside, np.ascontiguousarray(spread_mm[index + lo]),
+                    total.difference_array(), count.difference_array(),
+                )  # fmt: skip
+                continue
             runs = row_runs(spec, rays)
             owner = index[runs.segment] + lo
             total.add(runs.row, runs.col0, runs.col1, spread_mm[owner])

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from gridmap_cli import extensions
+from gridmap_cli.evaluation.spread_map import spread_layer
 from gridmap_cli.mapping import expected
 from gridmap_cli.mapping.grid import GridSpec, LogOddsAccumulator
 from gridmap_cli.mapping.models import kernels
@@ -20,6 +21,9 @@ from gridmap_cli.mapping.models.standard import (
     accumulate_sectors,
     accumulate_sectors_numpy,
 )
+from gridmap_cli.poses.sync import SensorReadings
+from gridmap_cli.poses.uncertainty.pose_uncertainty import PoseUncertainty
+from gridmap_cli.robot import RangeSensor
 
 SPEC = GridSpec(-3.05, -2.0, 0.05, 97, 83)
 
@@ -248,3 +252,29 @@ def test_the_moved_kernels_refuse_a_key_pose_that_is_not_there() -> None:
             0.0, 0.0, 0.05, SPEC.width, SPEC.height, m, m, m, m, bad, bad, one, one, two, -0.4,
             0.8, grid.scale, values, counts,
         )  # fmt: skip
+
+
+def test_spread_layer_kernel_equals_the_numpy_reference(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The pose-spread layer's compiled sums are the numpy path's, rays in and off the grid."""
+    rng = np.random.default_rng(11)
+    n = 3000
+    laser = RangeSensor("laser_0", 0.0, 0.0, 0.0, 0.0, 0.1, 6.0, kind="laser")
+    readings = SensorReadings(
+        stamp_ns=np.sort(rng.integers(0, 1000, n)).astype(np.int64),
+        sensor=np.zeros(n, np.int32),
+        range_m=rng.uniform(0.0, 8.0, n),
+        x_m=np.round(rng.uniform(-4.0, 3.0, n), 2),
+        y_m=rng.uniform(-3.0, 3.0, n),
+        theta_rad=rng.uniform(-math.pi, math.pi, n),
+        sensors=(laser,),
+    )
+    cov = np.zeros((2, 3, 3))
+    cov[1, 0, 0] = cov[1, 1, 1] = 0.3**2
+    stamps = np.array([0, 1000], dtype=np.int64)
+    uncertainty = PoseUncertainty(stamps, np.zeros(2), np.zeros(2), cov)
+    layers = []
+    for choice in ("numpy", "compiled"):
+        monkeypatch.setattr(extensions, "KERNELS", choice)
+        layers.append(spread_layer(SPEC, iter([readings]), uncertainty))
+    assert np.isfinite(layers[0]).sum() > 1000
+    np.testing.assert_array_equal(layers[0], layers[1])

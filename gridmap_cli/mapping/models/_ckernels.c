@@ -309,6 +309,68 @@ done:
     return result;
 }
 
+/* Rays' runs with a whole-number value per ray (evaluation/spread_map.py spread_layer): each
+ * run adds its ray's value to one int64 difference array and 1 to another, as SpanSums.add
+ * does with np.add.at; integer sums, so any order gives the same grid. */
+static PyObject *ray_sums(PyObject *self, PyObject *args)
+{
+    (void)self;
+    int64_t width;
+    int clip;
+    PyObject *o[11];
+    if (!PyArg_ParseTuple(args, "LOOOOOOOOpOOO", &width, &o[0], &o[1], &o[2], &o[3], &o[4],
+                          &o[5], &o[6], &o[7], &clip, &o[8], &o[9], &o[10]))
+        return NULL;
+    Buf b[11] = {0};
+    PyObject *result = NULL;
+    int64_t stride = width + 1;
+    if (take(o[0], &b[0], -1, 0, "ra") != 0)
+        goto done;
+    Py_ssize_t n = b[0].view.len / 8;
+    static const char *names[] = {"ra", "rb", "p_lo", "counts", "off", "slope", "ua", "ub",
+                                  "value"};
+    for (int i = 1; i < 9; i++)
+        if (take(o[i], &b[i], n, 0, names[i]) != 0)
+            goto done;
+    if (take(o[9], &b[9], -1, 1, "value_sums") != 0 ||
+        take(o[10], &b[10], b[9].view.len / 8, 1, "count_sums") != 0)
+        goto done;
+    if (b[9].view.len / 8 % stride != 0) {
+        PyErr_SetString(PyExc_ValueError, "value_sums: not a whole number of grid rows");
+        goto done;
+    }
+    int64_t rows = b[9].view.len / 8 / stride;
+    RayRows r = {I64(b[0]), I64(b[1]), I64(b[2]), I64(b[3]),
+                 F64(b[4]), F64(b[5]), F64(b[6]), F64(b[7])};
+    const int64_t *value = I64(b[8]);
+    /* unsigned: the sums wrap like numpy's int64 instead of overflowing */
+    uint64_t *value_sums = (uint64_t *)b[9].view.buf;
+    uint64_t *count_sums = (uint64_t *)b[10].view.buf;
+    long long runs = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        int64_t p0 = r.p_lo[i], p1 = r.p_lo[i] + r.counts[i];
+        if (-r.ra[i] > p0)
+            p0 = -r.ra[i];
+        if (rows - r.ra[i] < p1)
+            p1 = rows - r.ra[i];
+        for (int64_t p = p0; p < p1; p++) {
+            int64_t col0, col1;
+            if (!ray_run(&r, i, p, clip, width, &col0, &col1))
+                continue;
+            int64_t at = (r.ra[i] + p) * stride;
+            value_sums[at + col0] += (uint64_t)value[i];
+            value_sums[at + col1 + 1] -= (uint64_t)value[i];
+            count_sums[at + col0] += 1u;
+            count_sums[at + col1 + 1] -= 1u;
+            runs++;
+        }
+    }
+    result = PyLong_FromLongLong(runs);
+done:
+    release(b, 11);
+    return result;
+}
+
 /* ---- cones and rays moved by a sampled track (mapping/expected.py) ------------------ */
 
 /* Check the per-key motion arrays (cos, sin: keys items; txy: tx then ty, 2 keys) and the
@@ -504,6 +566,9 @@ static PyMethodDef methods[] = {
      "outer sectors' cells."},
     {"ray_batch", ray_batch, METH_VARARGS,
      "One chunk of rays' free runs into the running difference arrays; returns the cells."},
+    {"ray_sums", ray_sums, METH_VARARGS,
+     "One chunk of rays' runs, each adding its ray's int64 value and a count of 1 to two "
+     "running int64 difference arrays; returns the runs."},
     {"moved_sector_batch", moved_sector_batch, METH_VARARGS,
      "One batch of sonar sectors moved by a sampled track's key-pose motions into the running "
      "difference arrays; returns the outer sectors' cells."},

@@ -22,6 +22,8 @@ import numpy.typing as npt
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 
 FloatArray = npt.NDArray[np.float64]
+#: The Cauchy kernel's scale in each stage of :meth:`PoseGraph.optimise`, times ``cauchy_k``.
+KERNEL_STAGES: tuple[float, ...] = (100.0, 10.0, 3.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -57,6 +59,12 @@ class PoseGraph:
     initial: FloatArray
     edges: list[Edge] = field(default_factory=list)
     cauchy_k: float = 3.0
+    _plain: dict[Edge, gtsam.BetweenFactorPose2] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
+    _noise: dict[Edge, gtsam.noiseModel.Base] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     def _factors(self, cauchy_k: float | None = None) -> gtsam.NonlinearFactorGraph:
         graph = gtsam.NonlinearFactorGraph()
@@ -64,26 +72,44 @@ class PoseGraph:
         graph.add(gtsam.PriorFactorPose2(0, gtsam.Pose2(*self.initial[0]), prior))
         kernel = gtsam.noiseModel.mEstimator.Cauchy.Create(cauchy_k or self.cauchy_k)
         for e in self.edges:
-            gaussian = (
+            if e.closure:
+                noise = gtsam.noiseModel.Robust.Create(kernel, self._gaussian(e))
+                rel = gtsam.Pose2(e.dx_m, e.dy_m, e.dtheta_rad)
+                graph.add(gtsam.BetweenFactorPose2(e.i, e.j, rel, noise))
+                continue
+            # a Gaussian edge's factor does not depend on the kernel: made once, shared by
+            # every graph built from this one (the closure search rebuilds it per stage)
+            factor = self._plain.get(e)
+            if factor is None:
+                rel = gtsam.Pose2(e.dx_m, e.dy_m, e.dtheta_rad)
+                factor = gtsam.BetweenFactorPose2(e.i, e.j, rel, self._gaussian(e))
+                self._plain[e] = factor
+            graph.add(factor)
+        return graph
+
+    def _gaussian(self, e: Edge) -> gtsam.noiseModel.Base:
+        noise = self._noise.get(e)
+        if noise is None:
+            noise = (
                 gtsam.noiseModel.Gaussian.Covariance(e.covariance())
                 if e.weak_sigma_m > 0
                 else gtsam.noiseModel.Diagonal.Sigmas(
                     np.array([e.sigma_xy_m, e.sigma_xy_m, e.sigma_theta_rad])
                 )
             )
-            noise = gtsam.noiseModel.Robust.Create(kernel, gaussian) if e.closure else gaussian
-            rel = gtsam.Pose2(e.dx_m, e.dy_m, e.dtheta_rad)
-            graph.add(gtsam.BetweenFactorPose2(e.i, e.j, rel, noise))
-        return graph
+            self._noise[e] = noise
+        return noise
 
-    def optimise(self, start: FloatArray | None = None) -> FloatArray:
+    def optimise(
+        self, start: FloatArray | None = None, scales: tuple[float, ...] = KERNEL_STAGES
+    ) -> FloatArray:
         """The optimised poses (N, 3), from ``start`` (default: the initial poses).
 
-        The kernel is tightened in stages (``cauchy_k``, 3 whitened sigmas, times 100, 10, 3,
-        1): a closure far from a drifted start would get almost no weight from a tight kernel
-        and never pull; a wide one first lets the true closures (which agree with each other)
-        win, and the tight one last takes the weight off those the rest of the graph disagrees
-        with.
+        The kernel is tightened in stages (``cauchy_k``, 3 whitened sigmas, times each of
+        ``scales``, by default :data:`KERNEL_STAGES`): a closure far from a drifted start
+        would get almost no weight from a tight kernel and never pull; a wide one first lets
+        the true closures (which agree with each other) win, and the tight one last takes the
+        weight off those the rest of the graph disagrees with.
         """
         seed = self.initial if start is None else start
         values = gtsam.Values()
@@ -92,7 +118,7 @@ class PoseGraph:
         params = gtsam.LevenbergMarquardtParams()
         params.setMaxIterations(100)
         params.setRelativeErrorTol(1e-6)
-        for scale in (100.0, 10.0, 3.0, 1.0):
+        for scale in scales:
             factors = self._factors(self.cauchy_k * scale)
             values = gtsam.LevenbergMarquardtOptimizer(factors, values, params).optimize()
         return _poses(values, len(seed))

@@ -39,7 +39,13 @@ from gridmap_cli.poses.correction.loop_closure import (
     relative,
     verify,
 )
-from gridmap_cli.poses.correction.pose_graph import Edge, PoseGraph, edge_errors, edge_residuals
+from gridmap_cli.poses.correction.pose_graph import (
+    KERNEL_STAGES,
+    Edge,
+    PoseGraph,
+    edge_errors,
+    edge_residuals,
+)
 from gridmap_cli.poses.correction.scan_match import (
     FALLBACK,
     NoLaserError,
@@ -254,11 +260,16 @@ def optimise_with_closures(
             new += 1
         if new == 0:
             break
+        stages = KERNEL_STAGES
         while True:
             graph.edges = [e for e in graph.edges if not e.closure] + [
                 _closure_edge(c, params) for c in accepted.values()
             ]
-            estimate = graph.optimise(estimate)
+            estimate = graph.optimise(estimate, stages)
+            # once a closure is dropped, the estimate is already the tight kernel's optimum
+            # with that one closure more: none of the rest is far from it for the wide kernels
+            # to pull in, so the tight stage alone solves again, from close by
+            stages = KERNEL_STAGES[-1:]
             closure_edges = [e for e in graph.edges if e.closure]
             res = edge_residuals(estimate, closure_edges)
             bad = (res[:, 0] > params.reject_m) | (res[:, 1] > params.reject_rad)
