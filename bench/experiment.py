@@ -545,6 +545,34 @@ def scan_matching() -> tuple[float, list[str]]:
     ]
 
 
+REAL_HEADING = "## Real logs (CARMEN)"
+
+
+def real_only(doc: Path, image: Path, out: Path) -> None:
+    """Run the real part of the experiment and replace the doc's real-log sections with it; the
+    simulated sections above them are kept as the last full run wrote them, and the closing line
+    says which part this run made."""
+    kept = doc.read_text().split("\n" + REAL_HEADING, 1)[0].rstrip("\n")
+    started = time.perf_counter()
+    real_runs, real_cal, real_truths = carmen.run_all(out / "carmen")
+    real_image = image.with_name("experiments-carmen.png")
+    carmen_figure(real_runs, real_truths, real_image)
+    lines = carmen_lines(real_runs, real_cal, real_image)
+    scan_seconds, scan_lines = scan_matching()
+    seconds = time.perf_counter() - started
+    lines += [
+        *scan_lines,
+        "",
+        f"The real-log sections were regenerated alone (`bench/experiment.py --real-only`) in "
+        f"{seconds:.0f} s on {_machine()} ({len(real_runs) + len(real_truths)} CARMEN maps, "
+        f"references included, {scan_seconds:.0f} s of scan matching); the simulated sections "
+        "above are from the last full `make experiment`.",
+        "",
+    ]
+    doc.write_text(kept + "\n" + "\n".join(lines))
+    print(f"wrote the real-log sections of {doc} in {seconds:.0f} s", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--modes", default=",".join(MODE_ARGS), help="comma-separated")
@@ -559,7 +587,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--no-scan-match", action="store_true", help="skip bench/scan_match.py on the CARMEN logs"
     )
+    parser.add_argument(
+        "--real-only",
+        action="store_true",
+        help="regenerate the real-log sections of the doc alone, keeping its simulated sections "
+        "(for a change that cannot reach the simulator's sonar runs, such as pose correction)",
+    )
     args = parser.parse_args(argv)
+    if args.real_only:
+        real_only(args.doc, args.image, args.out)
+        return
     args.modes = tuple(m for m in args.modes.split(",") if m)
     args.worlds = tuple(w for w in args.worlds.split(",") if w)
     args.drifts = tuple(float(d) for d in args.drifts.split(","))
