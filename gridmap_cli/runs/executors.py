@@ -13,9 +13,10 @@ import contextlib
 import os
 import re
 import signal
+import threading
 import time
 from collections.abc import Callable, Generator, Iterator, Sequence
-from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import TYPE_CHECKING, Any
 
 from gridmap_cli.errors import GridmapError, UsageError
@@ -88,12 +89,18 @@ def local_processes(workers: int) -> Submit:
         futures: dict[Future[JobResult], Job] = {}
         finished = False
         try:
-            futures = {pool.submit(_in_worker, run_job, job): job for job in jobs}
-            for future in as_completed(futures):
-                try:
-                    yield future.result()
-                except Exception as exc:  # the worker died (killed, out of memory)
-                    yield lost(futures[future], exc)
+            with _ctrl_c_as_flag() as stopped:
+                futures = {pool.submit(_in_worker, run_job, job): job for job in jobs}
+                pending: set[Future[JobResult]] = set(futures)
+                while pending:
+                    done, pending = wait(pending, timeout=0.1, return_when=FIRST_COMPLETED)
+                    for future in done:
+                        try:
+                            yield future.result()
+                        except Exception as exc:  # the worker died (killed, out of memory)
+                            yield lost(futures[future], exc)
+                    if stopped.is_set():
+                        raise KeyboardInterrupt
             finished = True
         finally:
             if not finished:  # Ctrl-C, or the caller stopped reading: end the jobs too
@@ -101,6 +108,24 @@ def local_processes(workers: int) -> Submit:
             pool.shutdown(wait=True)
 
     return submit
+
+
+@contextlib.contextmanager
+def _ctrl_c_as_flag() -> Iterator[threading.Event]:
+    """Ctrl-C sets the flag this yields instead of raising wherever the main thread is. Raised
+    inside the pool's own waiting (between the locks of its futures), KeyboardInterrupt can leave
+    a future's lock held, and the pool's manager thread, which must take it to report a result,
+    then waits for ever, and so does the shutdown that joins it. Off the main thread (the
+    Python API run from a thread) signals cannot be handled, and the flag never sets."""
+    stopped = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield stopped
+        return
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: stopped.set())
+    try:
+        yield stopped
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 #: True in a worker process while it runs a job (what Ctrl-C does there depends on it).
