@@ -134,6 +134,9 @@ def test_a_laser_log_drops_a_bias_it_does_not_show_and_narrows_walks(laser_log: 
         assert getattr(check.model, walk) < 0.1 * getattr(wrong, walk), walk
     assert "heading_drift_bias not corrected" in check.summary()
     assert "narrowed to this log's own" in check.summary()
+    # two laps of the room: the closure search finds the places seen twice
+    assert check.revisits >= 8
+    assert f"the log's {check.revisits} revisits show the odometry within" in check.summary()
 
 
 def test_the_build_says_what_it_did_with_the_file(tmp_path: Path, laser_log: RangeLog) -> None:

@@ -20,6 +20,11 @@ the file:
   walks predict (the factor below 1), the walks are scaled down by the factor: a spread wider
   than the log's own error blurs its map for nothing. They are never scaled up: an error beyond
   the walks may be the scan matcher's, and spread over the whole map it would blur every part.
+* **the random walks at a map's lengths**, on the log's own revisits (:mod:`.revisit_check`):
+  the places the closure search finds seen twice, far apart along the path, registered scan on
+  scan. When the corrected odometry strays less between the two visits than the walks predict,
+  the walks this log's windows do not show (:data:`~.calibrate.WALK_SIGNIFICANT` standard errors)
+  are cut by that factor, as calibrate cuts them on its own positions; none is raised.
 
 A log without a laser, or too short to fit (:data:`~.calibrate.MIN_WINDOWS` windows), keeps the
 file as it is; :class:`FileCheck` says which happened.
@@ -35,15 +40,28 @@ from gridmap_cli.poses.calibration import bias_check
 from gridmap_cli.poses.calibration.calibrate import (
     MAGNITUDE_KEYS,
     WALK_KEYS,
+    WALK_SIGNIFICANT,
     calibrate_tracks,
     signed_biases,
 )
 from gridmap_cli.poses.calibration.consistency import consistency
-from gridmap_cli.poses.correction.scan_match import NoLaserError, match_log
+from gridmap_cli.poses.calibration.revisit_check import revisit_factor
+from gridmap_cli.poses.correction.scan_match import (
+    NoLaserError,
+    ScanMatchParams,
+    log_scans,
+    match_scans,
+)
+from gridmap_cli.poses.correction.slam import SlamParams, optimise_with_closures
 from gridmap_cli.poses.odometry_error import BIAS_KEYS, OdometryError, correct_track
 from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise
 from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RobotDescription
+
+#: The closure search of the check on the revisits: one round on the scan-matched track. Later
+#: rounds seek more closures on the track the first ones bent, which a graph's map needs and a
+#: median over the revisits does not; one round costs about half as much.
+REVISIT_SEARCH = SlamParams(rounds=1)
 
 
 @dataclass(frozen=True)
@@ -61,6 +79,10 @@ class FileCheck:
     consistency: float = math.nan
     #: The random walks narrowed to this log's own (:data:`~.calibrate.WALK_KEYS`).
     narrowed: tuple[str, ...] = ()
+    #: The check on the revisits: how many, the factor, and the walks it cut (by the factor).
+    revisits: int = 0
+    revisit_factor: float = math.nan
+    revisit_cut: tuple[str, ...] = ()
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -73,6 +95,11 @@ class FileCheck:
             "walks_narrowed_to_this_log": list(self.narrowed),
             "position_check": self.consistency if math.isfinite(self.consistency) else None,
             "random_walk_scale": self.walk_factor,
+            "revisits": {
+                "count": self.revisits,
+                "factor": self.revisit_factor if math.isfinite(self.revisit_factor) else None,
+                "walks_cut": list(self.revisit_cut),
+            },
         }
 
     def summary(self) -> str:
@@ -87,6 +114,12 @@ class FileCheck:
             parts.append(f"{', '.join(self.narrowed)} narrowed to this log's own")
         if self.walk_factor < 1.0:
             parts.append(f"random walks x {self.walk_factor:.2f} (the log strays less)")
+        if math.isfinite(self.revisit_factor):
+            cut = f"walks cut by {self.revisit_factor:.2f}" if self.revisit_cut else "walks kept"
+            parts.append(
+                f"the log's {self.revisits} revisits show the odometry within "
+                f"{self.revisit_factor:.2f} of what the file predicts: {cut}"
+            )
         if not parts:
             parts.append("the file holds")
         return "odometry error checked against the laser: " + "; ".join(parts)
@@ -96,10 +129,12 @@ def check_file(log: RangeLog, robot: RobotDescription | None, model: OdometryErr
     """Check ``model`` against ``log``'s own scan-matched track (module docstring)."""
     if StepNoise.of(model).is_zero and not model.has_bias:
         return FileCheck(model, False, "the file holds no error")
+    params = ScanMatchParams()
     try:
-        match = match_log(log, robot)
+        scans = log_scans(log, robot, params)
     except NoLaserError:
         return FileCheck(model, False, "no laser in the log")
+    match = match_scans(scans, log.poses, params)
     # the odometry at the scans' stamps and the matched poses there
     odometry, reference = match.odometry, match.track
     if len(reference) < 2:
@@ -132,4 +167,22 @@ def check_file(log: RangeLog, robot: RobotDescription | None, model: OdometryErr
     scale = factor if math.isfinite(factor) and factor < 1.0 else 1.0
     if scale < 1.0:
         kept = dataclasses.replace(kept, **{w: getattr(kept, w) * scale for w in WALK_KEYS})
-    return FileCheck(kept, True, "", tuple(dropped), scale, factor, narrowed)
+    # the walks at a map's lengths, on the places the log comes back to
+    nodes, _, _, closures, *_ = optimise_with_closures(scans, match, REVISIT_SEARCH)
+    on_revisits = revisit_factor(
+        correct_track(odometry, kept), nodes, closures, StepNoise.of(kept.random_part()),
+        own.jitter_m, own.jitter_rad,
+    )  # fmt: skip
+    cut: tuple[str, ...] = ()
+    r = on_revisits.factor
+    if math.isfinite(r) and r < 1.0:
+        cut = tuple(
+            w
+            for w, se in zip(WALK_KEYS, own.walk_variance_se, strict=True)
+            if getattr(kept, w) > 0.0 and getattr(kept, w) ** 2 < WALK_SIGNIFICANT * se
+        )
+        kept = dataclasses.replace(kept, **{w: getattr(kept, w) * r for w in cut})
+    return FileCheck(
+        kept, True, "", tuple(dropped), scale, factor, narrowed,
+        on_revisits.revisits, r, cut,
+    )  # fmt: skip

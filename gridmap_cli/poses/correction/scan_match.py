@@ -454,6 +454,11 @@ def match_log(
 ) -> ScanMatch:
     """Match the laser scans of ``log`` that lie within its odometry's time span."""
     params = params or ScanMatchParams()
+    return match_scans(log_scans(log, robot, params), log.poses, params, progress)
+
+
+def log_scans(log: RangeLog, robot: RobotDescription | None, params: ScanMatchParams) -> Scans:
+    """The laser scans of ``log`` that lie within its odometry's time span."""
     sensors = sensors_for_log(log, robot)
     scans = laser_scans(log, sensors, params)
     t = log.poses.stamp_ns
@@ -463,11 +468,10 @@ def match_log(
             f"{log.source}: no laser scan lies within the odometry's time span "
             "(recorded at different times?); scan matching needs both"
         )
-    kept = Scans(
+    return Scans(
         stamp_ns=scans.stamp_ns[inside],
         points=[p for p, ok in zip(scans.points, inside, strict=True) if ok],
     )
-    return match_scans(kept, log.poses, params, progress)
 
 
 def corrected_track(odometry: PoseTrack, match: ScanMatch) -> PoseTrack:

@@ -1,0 +1,85 @@
+"""The random walks checked at a map's lengths on the log's own revisits.
+
+A random walk fitted over windows of tens of metres, extrapolated over a whole log, predicts a
+spread that grows without end; an error that wanders and comes back (a heading error that
+reverts) passes the windows and the scan-to-scan check alike, whose own drift is as large.
+Where the robot comes back to a place, far along its path, the pose graph's closure search
+(:mod:`~gridmap_cli.poses.correction.loop_closure`) registers the second visit's scans on the
+first's: the relative pose of the two, as the scans see it, with no drift in between. The
+odometry the map uses (the file's biases corrected) is compared with it, against the position
+covariance the walks predict for the travel between the two visits
+(:class:`~.consistency.SegmentCovariance`, plus the scan registration's jitter at the far end):
+the same normalised squared error and the same factor as the check on the positions
+(:mod:`.consistency`), at exactly the horizons where the map suffers.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from gridmap_cli.geometry import inverse
+from gridmap_cli.poses.calibration.consistency import (
+    CHI2_2_MEDIAN,
+    MIN_STARTS,
+    SegmentCovariance,
+)
+from gridmap_cli.poses.correction.loop_closure import Closure
+from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise
+from gridmap_cli.records import PoseTrack
+
+F64 = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class RevisitFactor:
+    """Actual over predicted standard deviation of the odometry's position error on the
+    revisits (NaN: fewer than :data:`~.consistency.MIN_STARTS`), and how many it rests on."""
+
+    factor: float
+    revisits: int
+
+
+def revisit_factor(
+    odometry: PoseTrack,
+    keyframes: npt.NDArray[np.intp],
+    closures: list[Closure],
+    noise: StepNoise,
+    jitter_m: float,
+    jitter_rad: float,
+) -> RevisitFactor:
+    """The factor on ``closures`` (node ``j``'s pose in node ``i``'s frame, the nodes indices
+    into ``keyframes``, these into ``odometry``): ``odometry`` is the corrected odometry at the
+    scans' stamps."""
+    if len(closures) < MIN_STARTS or noise.is_zero:
+        return RevisitFactor(math.nan, len(closures))
+    node_i = keyframes[np.array([c.i for c in closures], dtype=np.intp)]
+    node_j = keyframes[np.array([c.j for c in closures], dtype=np.intp)]
+    start, end = np.minimum(node_i, node_j), np.maximum(node_i, node_j)
+    rel = np.array([(c.dx_m, c.dy_m, c.dtheta_rad) for c in closures])
+    # a closure places node j in node i's frame; the end's pose in the start's frame is that,
+    # or its inverse when node j is the earlier one
+    rx, ry, _ = inverse(rel[:, 0], rel[:, 1], rel[:, 2])
+    direct = node_i < node_j
+    rx, ry = np.where(direct, rel[:, 0], rx), np.where(direct, rel[:, 1], ry)
+    keys = np.arange(len(odometry), dtype=np.int64)
+    grown = SegmentCovariance(odometry, keys, noise)
+    px, py, th = odometry.x_m, odometry.y_m, odometry.theta_rad
+    c, s = np.cos(th[start]), np.sin(th[start])
+    ex = (px[end] - px[start]) - (c * rx - s * ry)
+    ey = (py[end] - py[start]) - (s * rx + c * ry)
+    sxx, sxy, syy = grown.between(start.astype(np.int64), end.astype(np.int64))
+    # the registration's own error: its heading turns the far end about the near one, its
+    # position is off at both ends
+    lx, ly = px[end] - px[start], py[end] - py[start]
+    jr, jm = jitter_rad**2, 2.0 * jitter_m**2
+    sxx, sxy, syy = sxx + jr * ly * ly + jm, sxy - jr * lx * ly, syy + jr * lx * lx + jm
+    det = sxx * syy - sxy * sxy
+    ok = det > 0.0
+    nees = (syy * ex * ex - 2 * sxy * ex * ey + sxx * ey * ey)[ok] / det[ok]
+    if nees.shape[0] < MIN_STARTS:
+        return RevisitFactor(math.nan, int(nees.shape[0]))
+    return RevisitFactor(math.sqrt(float(np.median(nees)) / CHI2_2_MEDIAN), int(nees.shape[0]))
