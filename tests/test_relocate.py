@@ -12,13 +12,16 @@ import numpy as np
 import pytest
 
 from gridmap_cli.geometry import compose, inverse
+from gridmap_cli.poses.correction.relocate import odometry_gaps, usual_interval
 from gridmap_cli.poses.correction.scan_match import FALLBACK, ScanMatchParams, match_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from tests.test_scan_match import errors, laser_robot, room_world, run
 
 #: the robot reaches the corner (10, 1.5) at 16 s and turns 90 degrees in place at 40 deg/s:
-#: the gap loses 20 degrees of it, beyond the matcher's 15-degree bound and 16-degree retries
-CORNER_S = (16.6, 17.1)
+#: the gap (11 of the odometry's 0.1 s intervals, so a gap to the matcher) loses the last 0.3 m
+#: of the drive and 20 degrees of the turn, beyond the matcher's 15-degree bound and 16-degree
+#: retries
+CORNER_S = (15.4, 16.5)
 
 
 def reanchored(odo: PoseTrack, keep: np.ndarray, a: int, k: int, turn_rad: float) -> PoseTrack:
@@ -87,3 +90,18 @@ def test_a_lost_turn_is_found_again(which: str, request: pytest.FixtureRequest) 
     _, _, blind_eth = errors(log, blind.track)
     assert np.count_nonzero(blind.status == FALLBACK) >= 1
     assert np.abs(blind_eth).max() > math.radians(10.0)
+
+
+def test_a_clock_that_stamps_in_bursts_has_gaps_only_where_it_stops() -> None:
+    # odometry at 2 Hz, each message stamped with four more within a millisecond (as a clock
+    # that runs in bursts does), scans at 10 Hz, and the odometry silent for 10 s in the middle
+    waits = np.arange(0.0, 60.0, 0.5)
+    waits = waits[(waits < 30.0) | (waits >= 40.0)]
+    odometry_s = (waits[:, None] + np.arange(5) * 2e-4).ravel()
+    scans_s = np.arange(0.05, 59.5, 0.1)
+    gap = odometry_gaps((odometry_s * 1e9).astype(np.int64), (scans_s * 1e9).astype(np.int64))
+    # the usual interval is the wait between bursts, not the spacing inside one
+    assert usual_interval((odometry_s * 1e9).astype(np.int64)) == pytest.approx(0.5e9, rel=0.01)
+    across = (scans_s > 29.5) & (scans_s < 40.5)
+    assert gap[across].any()
+    assert not gap[~across].any()

@@ -29,6 +29,7 @@ import numpy.typing as npt
 import small_gicp
 from scipy.spatial import cKDTree
 
+from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
 from gridmap_cli.poses.correction.planar import placed_points, planar_pose, pose_matrix
 
@@ -48,12 +49,13 @@ RANGE_M = 15.0
 #: Matches needed before the log's usual fit is known; until then a turn beyond the matcher's
 #: heading bound needs a perfect fit.
 MIN_MATCHES = 10
-#: A lost scan's heading window: all round across a gap in the odometry (no message for this
-#: many of its usual intervals: a corrected CARMEN log keeps no motion across one); twice the
-#: heading bound
-#: where the robot moved at least ``MOVED_M``; within the bound where it did not (a robot that
-#: stood cannot have lost more than the retries cover: a scan that fits only turned further is
-#: out of place, stale or mis-stamped, and keeping the odometry is right).
+#: A lost scan's heading window: all round across a gap in the odometry (the step spans this
+#: many of its usual intervals, :func:`usual_interval`: a corrected CARMEN log keeps no motion
+#: across one); twice the heading bound where the robot moved at least ``MOVED_M``; within the
+#: bound where it did not (a robot that stood cannot have lost more than the retries cover: a
+#: scan that fits only turned further is out of place, stale or mis-stamped, and keeping the
+#: odometry is right). The window bounds the answer, not only the search: GICP from the best
+#: pose must stay inside it.
 GAP_INTERVALS = 10.0
 MOVED_M = 0.01
 
@@ -82,17 +84,30 @@ class Settings(Protocol):
 def odometry_gaps(
     odometry_ns: npt.NDArray[np.int64], scans_ns: npt.NDArray[np.int64]
 ) -> npt.NDArray[np.bool_]:
-    """Whether the odometry sent nothing for :data:`GAP_INTERVALS` of its usual (median)
-    intervals across the step into each scan, shape (S,); the first scan's is False."""
+    """Whether the step into each scan spans more than :data:`GAP_INTERVALS` of the
+    odometry's usual intervals (:func:`usual_interval`), from its last message at or before the
+    previous scan to its first at or after this one: a silence, or scans that far apart; shape
+    (S,), the first scan's False."""
     gap = np.zeros(len(scans_ns), dtype=bool)
     if len(odometry_ns) < 2 or len(scans_ns) < 2:
         return gap
-    usual = float(np.median(np.diff(odometry_ns)))
+    usual = usual_interval(odometry_ns)
     before = np.searchsorted(odometry_ns, scans_ns[:-1], side="right") - 1
     after = np.minimum(np.searchsorted(odometry_ns, scans_ns[1:]), len(odometry_ns) - 1)
     span = odometry_ns[after] - odometry_ns[np.maximum(before, 0)]
     gap[1:] = span > GAP_INTERVALS * usual
     return gap
+
+
+def usual_interval(stamps_ns: npt.NDArray[np.int64]) -> float:
+    """The interval (ns) between messages that half the log's time is spent in, ``stamps_ns``
+    (N,) sorted, N >= 2: the median of the intervals weighted by their length. A clock that
+    stamps messages in bursts (several at nearly the same time, then a wait) has a median
+    interval of almost nothing, so that every step would look like a gap; weighted by time, the
+    wait between bursts is the usual interval, as it is the robot's real rate."""
+    ordered = np.sort(np.diff(stamps_ns).astype(np.float64))
+    elapsed = np.cumsum(ordered)
+    return float(ordered[min(int(np.searchsorted(elapsed, 0.5 * elapsed[-1])), len(ordered) - 1)])
 
 
 def typical_fit(fractions: FloatArray, floor: float) -> float:
@@ -115,7 +130,8 @@ def relocate(
     """GICP of ``source`` (the scan, as the matcher gives it to GICP) from the best pose of its
     ``planar`` points (K, 2, robot frame) on the local map within ``window_m`` (capped at
     :data:`REACH_M`) and ``window_rad`` of ``guess``: the inlier fraction, pose and
-    Hessian; None when no pose scores :data:`MIN_SCORE` or GICP leaves the window."""
+    Hessian; None when no pose scores :data:`MIN_SCORE` or GICP leaves the window (in
+    translation or heading)."""
     assert local.cloud is not None and local.tree is not None and local.tree2d is not None
     if local.grid is None:
         local.grid = LikelihoodGrid(np.asarray(local.tree2d.data), CELL_M, CELL_M, 4, REACH_M)
@@ -140,7 +156,11 @@ def relocate(
         num_threads=1,
     )
     pose = planar_pose(np.asarray(result.T_target_source))
+    # the window is what the odometry can have lost: GICP drifting out of it (a stale scan that
+    # fits only turned further than a robot standing still can have turned) is no answer either
     if math.hypot(pose[0] - guess[0], pose[1] - guess[1]) > window_m + CELL_M:
+        return None
+    if abs(float(wrap_angle(pose[2] - guess[2]))) > window_rad + step_rad:
         return None
     dist, _ = local.tree2d.query(placed_points(planar, pose), distance_upper_bound=params.inlier_m)
     return float(np.mean(np.isfinite(dist))), pose, np.asarray(result.H)
