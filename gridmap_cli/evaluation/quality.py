@@ -1,6 +1,6 @@
 """What a log can tell of its own map, without ground truth.
 
-Three things, each a check a user can read without a reference:
+Four things, each a check a user can read without a reference:
 
 - **Pose spread** (:func:`spread_summary`): the share of the map's known cells whose readings
   were taken with a position spread within 0.1, 0.5 and 1 m (the layer of
@@ -8,22 +8,18 @@ Three things, each a check a user can read without a reference:
   passes each of them (:func:`spread_timeline`). It says how far the map *may* be wrong under
   the pose model it was built with; it cannot see an error the model does not describe.
 - **Echo consistency** (:func:`echo_consistency`): the share of a laser's echoes that end in a
-  cell the map calls free. A map is the sum of its readings; where the poses are right, every
-  pass through a place puts its echoes on the same walls, and a wall cell is occupied. Where
-  two passes disagree (the poses drifted between them), the second pass's echoes land where
-  the first saw free space, and the map, summing both, calls many of those cells free. The
-  share needs no model and no truth: it counts how much the map contradicts the scans it was
-  built from. A sonar echo does not say where on its arc it came from, so sonar readings are
-  not counted.
+  cell the map calls free. Where two passes through a place disagree (the poses drifted
+  between them), the second pass's echoes land where the first saw free space, and the map,
+  summing both, calls many of those cells free: the share counts how much the map contradicts
+  the scans it was built from, with no model and no truth. Sonar echoes are not counted (an
+  echo does not say where on its arc it came from).
 - **Closure consistency** (:func:`closure_consistency`): a pose graph's loop closures at the
   optimum, each residual whitened by the closure's own covariance (a NEES, chi-square with 3
   degrees of freedom, median 2.37, when the noise is right and the closure true).
 - **Revisits** (:mod:`.revisits`): the places the pose graph's closure search found the robot
   back at, each a relative pose registered from the scans; the map's track scored on them (the
   graph's own track on the ones held out of its solve). The echo share is local; this sees a
-  map bent or drifted as a whole wherever the robot came back.
-
-Numpy only, no file I/O; the callers read the log and build the map.
+  map bent or drifted as a whole wherever the robot came back. Numpy only, no file I/O.
 """
 
 from __future__ import annotations

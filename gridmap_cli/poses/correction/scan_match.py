@@ -2,22 +2,20 @@
 
 Each laser scan is registered against a local map made of the last few keyframe scans, starting
 from the pose the odometry predicts (the previous corrected pose composed with the odometry's
-increment since). The registration is small_gicp's GICP; a planar scan becomes a thin vertical
-sheet (three copies of its points, one voxel apart in z) so that GICP's local covariances see
-walls as planes instead of degenerate lines. Only x, y and yaw of the result are kept.
+increment since), with small_gicp's GICP: a planar scan becomes a thin vertical sheet (three
+copies one voxel apart in z) so that GICP sees walls as planes, and x, y and yaw are kept.
 
 A match is judged before it is trusted (``docs/scan-matching.md``):
 
-- *poor*: too few points, too few of them within ``inlier_m`` of the local map after the
-  match, or a correction larger than the odometry can plausibly be wrong by: the step keeps the
-  odometry's increment (a *fallback*);
+- *poor*: too few points or inliers (within ``inlier_m`` of the local map), or a correction
+  larger than the odometry can be wrong by: the scan is relocated (:mod:`.relocate`) or, failing
+  that, the step keeps the odometry's increment (a *fallback*);
 - *degenerate*: the translation is constrained in one direction only (a featureless corridor):
   the correction is kept across the corridor and the odometry is kept along it, its distance
   scale corrected by what the fully constrained steps measured (:mod:`.degeneracy`).
 
-Frames: the corrected track is in the odometry frame, starting at the odometry's pose at the
-first scan. Poses between scans, and other sensors' readings, are placed by carrying the
-odometry with the correction (corrected (-) odometry) interpolated between the scans around them.
+Frames: the corrected track is in the odometry frame, from the odometry's pose at the first
+scan; poses between scans carry the odometry with the correction interpolated between scans.
 """
 
 from __future__ import annotations
