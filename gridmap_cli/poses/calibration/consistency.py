@@ -92,6 +92,31 @@ class SegmentCovariance:
         return pp[:, 0] + myy, pp[:, 1] - mxy, pp[:, 2] + mxx
 
 
+def position_nees(
+    grown: SegmentCovariance,
+    start: npt.NDArray[np.int64],
+    end: npt.NDArray[np.int64],
+    error: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]],
+    length: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]],
+    jitter_m: float,
+    jitter_rad: float,
+) -> npt.NDArray[np.float64]:
+    """The position ``error`` of each segment ``start`` -> ``end`` (vector ``length``) whitened
+    by the covariance the walks grow along it plus the jitter of what it is compared with (its
+    heading turns the far end about the near one; its position is off at both ends); segments
+    whose covariance is singular are left out."""
+    ex, ey = error
+    lx, ly = length
+    sxx, sxy, syy = grown.between(start, end)
+    jr, jm = jitter_rad**2, 2.0 * jitter_m**2
+    sxx, sxy, syy = sxx + jr * ly * ly + jm, sxy - jr * lx * ly, syy + jr * lx * lx + jm
+    det = sxx * syy - sxy * sxy
+    ok = det > 0.0
+    quad = syy * ex * ex - 2 * sxy * ex * ey + sxx * ey * ey
+    nees: npt.NDArray[np.float64] = quad[ok] / det[ok]
+    return nees
+
+
 def consistency(
     odometry: PoseTrack,
     truth: PoseTrack,
@@ -127,15 +152,11 @@ def consistency(
         rx, ry = tx[e] - tx[start], ty[e] - ty[start]
         ex = (px[e] - px[start]) - (cr * rx - sr * ry)
         ey = (py[e] - py[start]) - (sr * rx + cr * ry)
-        sxx, sxy, syy = grown.between(start, e)
         # the reference's jitter: its heading at the start turns the whole segment about it,
         # its position is off at both ends
-        lx, ly = px[e] - px[start], py[e] - py[start]
-        jr, jm = jitter_rad**2, 2.0 * jitter_m**2
-        sxx, sxy, syy = sxx + jr * ly * ly + jm, sxy - jr * lx * ly, syy + jr * lx * lx + jm
-        det = sxx * syy - sxy * sxy
-        ok = det > 0.0
-        nees = (syy * ex * ex - 2 * sxy * ex * ey + sxx * ey * ey)[ok] / det[ok]
+        nees = position_nees(
+            grown, start, e, (ex, ey), (px[e] - px[start], py[e] - py[start]), jitter_m, jitter_rad
+        )
         if nees.shape[0] < MIN_STARTS:
             continue
         ratios.append(math.sqrt(float(np.median(nees)) / CHI2_2_MEDIAN))

@@ -26,6 +26,7 @@ from gridmap_cli.poses.calibration.consistency import (
     CHI2_2_MEDIAN,
     MIN_STARTS,
     SegmentCovariance,
+    position_nees,
 )
 from gridmap_cli.poses.correction.loop_closure import Closure
 from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise
@@ -71,15 +72,16 @@ def revisit_factor(
     c, s = np.cos(th[start]), np.sin(th[start])
     ex = (px[end] - px[start]) - (c * rx - s * ry)
     ey = (py[end] - py[start]) - (s * rx + c * ry)
-    sxx, sxy, syy = grown.between(start.astype(np.int64), end.astype(np.int64))
-    # the registration's own error: its heading turns the far end about the near one, its
-    # position is off at both ends
-    lx, ly = px[end] - px[start], py[end] - py[start]
-    jr, jm = jitter_rad**2, 2.0 * jitter_m**2
-    sxx, sxy, syy = sxx + jr * ly * ly + jm, sxy - jr * lx * ly, syy + jr * lx * lx + jm
-    det = sxx * syy - sxy * sxy
-    ok = det > 0.0
-    nees = (syy * ex * ex - 2 * sxy * ex * ey + sxx * ey * ey)[ok] / det[ok]
+    # the jitter is the registration's own error
+    nees = position_nees(
+        grown,
+        start.astype(np.int64),
+        end.astype(np.int64),
+        (ex, ey),
+        (px[end] - px[start], py[end] - py[start]),
+        jitter_m,
+        jitter_rad,
+    )
     if nees.shape[0] < MIN_STARTS:
         return RevisitFactor(math.nan, int(nees.shape[0]))
     return RevisitFactor(math.sqrt(float(np.median(nees)) / CHI2_2_MEDIAN), int(nees.shape[0]))
