@@ -24,6 +24,7 @@ from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RobotDescription
 
 if TYPE_CHECKING:
+    from gridmap_cli.poses.correction.free_space import RevisitCheck
     from gridmap_cli.poses.correction.scan_match import ScanMatch
     from gridmap_cli.poses.correction.slam import SlamResult
     from gridmap_cli.poses.uncertainty.pose_belief import PoseBelief
@@ -68,6 +69,8 @@ class PosedLog:
     warnings: tuple[str, ...] = ()
     #: where the track's motion came from when the log had no odometry (None: its odometry)
     motion: str | None = None
+    #: the pose graph's track checked against its scans where the robot came back
+    free_space: RevisitCheck | None = None
 
 
 Runner = Callable[[RangeLog, RobotDescription | None, PoseSettings], PosedLog]
@@ -227,9 +230,18 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
 
         belief = slam_belief(slam, settings.belief_samples, settings.belief_seed)
         summary["belief_noise_scale"] = [round(f, 3) for f in belief.scale]
-    warnings = (f"{given('pose', 'slam')}: {slam.warning}",) if slam.warning else ()
+    warnings = [f"{given('pose', 'slam')}: {slam.warning}"] if slam.warning else []
+    check = None
+    if slam.scans is not None:
+        from gridmap_cli.poses.correction.free_space import check_poses
+
+        check = check_poses(slam.track, slam.scans.points)
+        summary["revisit_check"] = check.as_dict()
+        if check.fails:
+            warnings.append(f"{given('pose', 'slam')}: {check.reason()}; check the map")
     return PosedLog(placed, "slam", match=slam.match, slam=slam, belief=belief,
-                    summary={"slam": summary}, warnings=warnings, motion=motion)  # fmt: skip
+                    summary={"slam": summary}, warnings=tuple(warnings), motion=motion,
+                    free_space=check)  # fmt: skip
 
 
 def _scan_motion(
@@ -268,28 +280,78 @@ def auto_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
     assert slam is not None
     failed = graph_failure(slam)
     if failed is None:
+        if posed.free_space is not None and posed.free_space.fails:
+            return _revisit_fallback(log, robot, settings, posed)
         return _chosen(posed, "slam", "a laser", posed.warnings)
     matched = slam.scan_matched
     scans = max(len(matched.status), 1)
     if matched.fallbacks / scans > MATCHED_SHARE_MIN and log.odometry_missing is None:
-        fallback = odometry_poses(log, robot, settings)
         name = "odometry"
         detail = (
             f"the scan matcher fell back to the odometry on {matched.fallbacks} of {scans} scans"
         )
     else:
-        from gridmap_cli.poses.correction.scan_match import corrected_track
-
-        placed = dataclasses.replace(log, poses=corrected_track(log.poses, matched))
-        fallback = PosedLog(placed, "scan-matched", match=matched,
-                            summary={"scan_match": matched.summary()})  # fmt: skip
         name, detail = "scan-matched", "the scan-matched track has no closure to be wrong"
+    fallback = _fallback(log, robot, settings, slam, name)
     why = (f"{given('pose', 'auto')}: the pose graph failed its own check ({failed}); "
            f"mapped with the {name} track instead ({detail}); {given('pose', 'slam')} maps "
            "with the graph anyway")  # fmt: skip
     summary = {**fallback.summary, "slam": posed.summary.get("slam", {})}
     fallback = dataclasses.replace(fallback, summary=summary)
     return _chosen(fallback, name, "the pose graph failed its check", (why,))
+
+
+def _fallback(
+    log: RangeLog, robot: RobotDescription | None, settings: PoseSettings, slam: SlamResult,
+    name: str,
+) -> PosedLog:  # fmt: skip
+    """The log placed by the graph's own scan match (``name`` "scan-matched") or the odometry."""
+    if name == "odometry":
+        return odometry_poses(log, robot, settings)
+    from gridmap_cli.poses.correction.scan_match import corrected_track
+
+    matched = slam.scan_matched
+    placed = dataclasses.replace(log, poses=corrected_track(log.poses, matched))
+    return PosedLog(placed, "scan-matched", match=matched,
+                    summary={"scan_match": matched.summary()})  # fmt: skip
+
+
+def _revisit_fallback(
+    log: RangeLog, robot: RobotDescription | None, settings: PoseSettings, posed: PosedLog
+) -> PosedLog:
+    """The automatic choice when the graph's track fails its revisit check: the scan-matched
+    track or the odometry, whichever contradicts itself at fewer of its revisits, when it does
+    so at fewer than the graph's track and brings at least half as many places back together
+    (a track that brings fewer avoids the check by missing loops, not by agreeing); else the
+    graph's track, with the warning."""
+    from gridmap_cli.poses.correction.free_space import check_poses, judged_together
+
+    slam, own = posed.slam, posed.free_space
+    assert slam is not None and slam.scans is not None and own is not None
+    tracks = {"scan-matched": slam.scan_matched.track}
+    if log.odometry_missing is None:
+        tracks["odometry"] = slam.scan_matched.odometry
+    checks = judged_together(
+        {"slam": own} | {n: check_poses(t, slam.scans.points) for n, t in tracks.items()}
+    )
+    graph = checks["slam"]
+    better = [n for n in tracks if checks[n].revisits >= graph.revisits / 2
+              and checks[n].share < graph.share]  # fmt: skip
+    summary = {**posed.summary, "revisit_check": {n: c.as_dict() for n, c in checks.items()}}
+    figures = ", ".join(f"{n} {c.contradicting} of {c.revisits}" for n, c in checks.items())
+    head = f"{given('pose', 'auto')}: the pose graph's track fails its revisit check: "
+    if not better:
+        why = (f"{head}{graph.reason()}; kept it, no other track does better (contradicting "
+               f"places: {figures}); check the map")  # fmt: skip
+        kept = dataclasses.replace(posed, summary=summary)
+        also = (f"{given('pose', 'slam')}: {slam.warning}",) if slam.warning else ()
+        return _chosen(kept, "slam", "a laser; no other track did better", (why, *also))
+    name = min(better, key=lambda n: checks[n].share)
+    fallback = _fallback(log, robot, settings, slam, name)
+    why = (f"{head}{graph.reason()}; mapped with the {name} track instead (contradicting "
+           f"places: {figures}); {given('pose', 'slam')} maps with the graph anyway")  # fmt: skip
+    fallback = dataclasses.replace(fallback, summary={**fallback.summary, **summary})
+    return _chosen(fallback, name, "the pose graph's track failed its revisit check", (why,))
 
 
 def graph_failure(slam: SlamResult) -> str | None:

@@ -126,6 +126,8 @@ class SlamResult:
     #: the optimised graph, for its marginals and draws (:mod:`.pose_belief`)
     graph: PoseGraph | None = None
     bend_sigma: float = 0.0
+    #: the scans matched, one per pose of :attr:`track` (for checks of the track against them)
+    scans: Scans | None = None
 
     @property
     def track(self) -> PoseTrack:
@@ -372,6 +374,7 @@ def slam_scans(
         seconds=time.perf_counter() - started,
         graph=graph,
         bend_sigma=bend_sigma,
+        scans=scans,
     )
 
 

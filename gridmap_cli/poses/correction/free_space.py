@@ -1,0 +1,337 @@
+"""Whether a track's revisits agree with its scans: free-space contradictions, no ground truth.
+
+A laser echo says two things: there is a surface at the echo, and the space between the sensor
+and the echo is free. Where a track puts the robot back at a place it saw before, the two
+visits' scans must agree on both: the echoes of one fall on or behind the surfaces the other
+saw, never in the free space its beams crossed. A loop closed wrongly, or missed (the second
+pass drawn beside or across the first), puts one visit's walls across the other's corridors.
+
+**A pair of scans.** Each echo of one scan, placed by the track, is looked up in the other
+scan's beams at its bearing (from the other's robot origin): it *contradicts* when it lies more
+than :data:`DEPTH_M` nearer than every echo of the other's beams within :data:`ANGLE_RAD` of
+that bearing, deep inside the space they crossed. Bearings the other scan has no echo at are
+not compared. The pair's share is that of the way (the first scan's echoes in the second's
+free space, or back) that contradicts less: something that came or went between the visits (a
+person, a door) contradicts one way only, since the other visit's echoes stand behind it; a
+misplaced visit puts each scan's walls across the other's free space, both ways.
+
+**The log's own noise is the yardstick.** Scans near in time (each node of the track with the
+next two, a few decimetres and degrees apart, placed relative to each other by the scan
+matcher or the odometry over that short step) show what a consistent track still leaves:
+range noise, grazing beams, people walking by, glass. Their shares' 99th percentile is the
+noise's tail. Scans far apart along the path (more than the loop-closure search's shortest
+loop: no scan match related them) that the track puts within :data:`REVISIT_M` are its
+*revisits*. On a consistent track a revisit is one more pair of overlapping scans: at most 1 %
+of revisits would pass the noise's tail, and fewer pass twice it. A revisit *contradicts* when
+its share passes twice the tail (the level); the track *fails* when more revisits contradict
+than 1 % of them would by chance, at a binomial significance of :data:`SIGNIFICANCE`. A loop
+closed wrongly or missed makes every revisit along it contradict (a third to a half of their
+echoes), a consistent track next to none.
+
+Several tracks of one log are judged against one noise (:func:`judged_together`): the least
+noisy of their near pairs, since each track's near pairs hold the sensor's noise plus that
+track's own short-step error. Numpy and scipy only; no file I/O.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from scipy.spatial import cKDTree
+from scipy.stats import binom
+
+from gridmap_cli.records import PoseTrack
+
+F64 = npt.NDArray[np.float64]
+Ints = npt.NDArray[np.intp]
+
+#: Nodes are taken along the track every this far or this much turned (as the pose graph's
+#: keyframes are): consecutive nodes overlap almost wholly.
+NODE_M = 0.5
+NODE_RAD = math.radians(20.0)
+#: Near pairs: each node with the next this many nodes.
+NEAR_STEPS = 2
+#: A revisit: two nodes this close on the track (the near pairs' own spacing, so both kinds of
+#: pair see the place from as far apart) and farther apart along the path than
+#: :data:`FAR_PATH_M` (the loop-closure search's shortest loop: no scan match related them).
+REVISIT_M = 1.0
+FAR_PATH_M = 8.0
+#: How deep inside another scan's free space an echo must lie to contradict it: a wall's
+#: thickness and what a good match leaves between two visits (the pose graph's closures are
+#: held to 5 cm), so only a misplaced wall counts, not a blurred one.
+DEPTH_M = 0.2
+#: ... and how far off its bearing: the free range at a bearing is the least of the beams
+#: within this angle, so a contradiction holds under any turn of the pose within twice the
+#: pose graph's closure sigma (1 degree), and a wall seen grazing does not count.
+ANGLE_RAD = math.radians(2.0)
+#: Echoes nearer than this to the looking scan's origin are not compared (the robot's own body,
+#: and bearings that a few centimetres of pose turn through many beams).
+MIN_RANGE_M = 0.5
+#: A way of a pair counts when at least this many echoes were compared.
+MIN_COMPARED = 20
+#: A bearing is covered by a scan when its two neighbouring beams are within this many beam
+#: spacings of it.
+GAP_SPACINGS = 1.5
+#: Pairs compared at most of each kind, spread evenly over the log: bounds the cost.
+MAX_PAIRS = 2000
+#: Echoes of a scan compared at most, evenly spread over its beams (every beam still carves
+#: free space): a share needs a few dozen.
+MAX_ECHOES = 90
+#: The noise's tail: the near pairs' quantile a consistent revisit passes this rarely.
+TAIL_QUANTILE = 0.99
+#: A revisit contradicts beyond this many times the tail.
+TAIL_FACTOR = 2.0
+#: ... and beyond this share at least: fewer than one echo in twenty is a chair's legs or a
+#: corner, never a wall across a corridor (a track checked in a world without noise).
+LEVEL_MIN = 0.05
+#: The chance that a consistent track fails anyway: one log in a thousand.
+SIGNIFICANCE = 1e-3
+
+
+@dataclass(frozen=True)
+class Polar:
+    """The scans of some nodes by bearing: ``key`` (E,) node slot times 8 plus the bearing
+    shifted into [0, 2 pi], sorted; ``range_m`` (E,) the free range there (:func:`_eroded`);
+    ``spacing`` (N,) each scan's median beam spacing (rad)."""
+
+    key: F64
+    range_m: F64
+    spacing: F64
+
+
+@dataclass(frozen=True)
+class RevisitCheck:
+    """A track's revisits against the noise: ``shares`` (R,) the contradicting share of each
+    revisit counted, ``near`` the near pairs counted, ``near_tail`` their shares' tail
+    (:data:`TAIL_QUANTILE`), and ``noise_tail`` the tail the track is judged against (its own
+    unless :func:`judged_together` gave the log's)."""
+
+    shares: F64
+    near: int
+    near_tail: float
+    noise_tail: float
+
+    @property
+    def revisits(self) -> int:
+        return len(self.shares)
+
+    @property
+    def level(self) -> float:
+        """The share beyond which a revisit contradicts."""
+        return max(TAIL_FACTOR * self.noise_tail, LEVEL_MIN)
+
+    @property
+    def contradicting(self) -> int:
+        return int((self.shares > self.level).sum())
+
+    @property
+    def share(self) -> float:
+        """The share of the revisits that contradict (NaN without a revisit)."""
+        return self.contradicting / self.revisits if self.revisits else math.nan
+
+    @property
+    def fails(self) -> bool:
+        """More revisits contradict than the noise's tail would make by chance."""
+        if self.revisits == 0 or math.isnan(self.noise_tail):
+            return False
+        chance = 1.0 - TAIL_QUANTILE
+        return bool(binom.sf(self.contradicting - 1, self.revisits, chance) < SIGNIFICANCE)
+
+    def reason(self) -> str:
+        """What fails, in one clause."""
+        return (
+            f"{self.contradicting} of {self.revisits} places the robot came back to "
+            f"contradict the first visit (over {100 * self.level:.0f} % of their echoes inside "
+            "the free space it saw, beyond what 99 % of scans near in time show): a loop closed "
+            "wrongly or missed"
+        )
+
+    def as_dict(self) -> dict[str, Any]:
+        def r(v: float) -> float | None:
+            return None if math.isnan(v) else round(v, 4)
+
+        return {
+            "revisits": self.revisits,
+            "contradicting": self.contradicting,
+            "contradicting_share": r(self.share),
+            "level": r(self.level),
+            "near_pairs": self.near,
+            "fails": self.fails,
+        }
+
+
+def judged_together(checks: dict[str, RevisitCheck]) -> dict[str, RevisitCheck]:
+    """The checks of several tracks of one log judged against one noise: the least noisy of
+    their near pairs' tails."""
+    tails = [c.near_tail for c in checks.values() if not math.isnan(c.near_tail)]
+    if not tails:
+        return checks
+    noise = min(tails)
+    return {name: dataclasses.replace(c, noise_tail=noise) for name, c in checks.items()}
+
+
+def nodes(xyz: F64) -> Ints:
+    """Indices of the track's poses (N, 3) taken as nodes: the first, then each that moved
+    :data:`NODE_M` or turned :data:`NODE_RAD` from the last."""
+    keep = [0]
+    lx, ly, lt = xyz[0]
+    for k in range(1, len(xyz)):
+        x, y, t = xyz[k]
+        if math.hypot(x - lx, y - ly) >= NODE_M or abs(math.remainder(t - lt, math.tau)) >= (
+            NODE_RAD
+        ):
+            keep.append(k)
+            lx, ly, lt = x, y, t
+    return np.array(keep, dtype=np.intp)
+
+
+def polar(points: list[F64]) -> Polar:
+    """The scans ``points`` (each (K, 2), robot frame) by bearing from the robot's origin."""
+    keys, ranges, spacing = [], [], np.full(len(points), np.nan)
+    for slot, p in enumerate(points):
+        if len(p) < 2:
+            continue
+        bearing = np.arctan2(p[:, 1], p[:, 0]) + math.pi
+        order = np.argsort(bearing)
+        keys.append(8.0 * slot + bearing[order])
+        ranges.append(np.hypot(p[order, 0], p[order, 1]))
+        spacing[slot] = float(np.median(np.diff(bearing[order])))
+    if not keys:
+        return Polar(np.zeros(0), np.zeros(0), spacing)
+    key = np.concatenate(keys)
+    return Polar(key, _eroded(key, np.concatenate(ranges), float(np.nanmin(spacing))), spacing)
+
+
+def _eroded(key: F64, range_m: F64, spacing: float) -> F64:
+    """Each beam's range as the least over the beams of its scan within :data:`ANGLE_RAD` of
+    it (``key`` sorted, scans 8 apart so never two at once)."""
+    out = range_m.copy()
+    reach = math.ceil(ANGLE_RAD / max(spacing, math.radians(0.1)))
+    for o in range(1, min(reach, len(key) - 1) + 1):
+        close = (key[o:] - key[:-o]) <= ANGLE_RAD
+        np.minimum(out[:-o], np.where(close, range_m[o:], np.inf), out=out[:-o])
+        np.minimum(out[o:], np.where(close, range_m[:-o], np.inf), out=out[o:])
+    return out
+
+
+def _one_way(look: Ints, echo: Ints, xyz: F64, points: list[F64], table: Polar) -> F64:
+    """Per pair (P, 2): the echoes of node slots ``echo`` compared with the free space of node
+    slots ``look`` (each (P,)), and those that contradict it; ``xyz`` (N, 3) the nodes' poses."""
+    counts = [len(points[e]) for e in echo.tolist()]
+    pair = np.repeat(np.arange(len(look)), counts)
+    if len(pair) == 0:
+        return np.zeros((len(look), 2))
+    p = np.concatenate([points[e] for e in echo.tolist()])
+    # the echoing scan's pose in the looking scan's frame, per pair, then each echo
+    a, b = xyz[look], xyz[echo]
+    ca, sa = np.cos(a[:, 2]), np.sin(a[:, 2])
+    dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+    tx, ty, turn = ca * dx + sa * dy, -sa * dx + ca * dy, b[:, 2] - a[:, 2]
+    c, s = np.cos(turn)[pair], np.sin(turn)[pair]
+    qx = tx[pair] + c * p[:, 0] - s * p[:, 1]
+    qy = ty[pair] + s * p[:, 0] + c * p[:, 1]
+    r = np.hypot(qx, qy)
+    slot = look[pair]
+    key = 8.0 * slot + np.arctan2(qy, qx) + math.pi
+    hi = np.searchsorted(table.key, key)
+    lo = hi - 1
+    n = len(table.key)
+    hi_c, lo_c = np.minimum(hi, n - 1), np.maximum(lo, 0)
+    gap = GAP_SPACINGS * table.spacing[slot]
+    covered = (
+        (hi < n)
+        & (lo >= 0)
+        & (np.floor(table.key[hi_c] / 8.0) == slot)
+        & (np.floor(table.key[lo_c] / 8.0) == slot)
+        & (table.key[hi_c] - key <= gap)
+        & (key - table.key[lo_c] <= gap)
+        & (r >= MIN_RANGE_M)
+    )
+    free = np.minimum(table.range_m[hi_c], table.range_m[lo_c])
+    inside = covered & (r < free - DEPTH_M)
+    return np.column_stack(
+        [
+            np.bincount(pair, weights=covered, minlength=len(look)),
+            np.bincount(pair, weights=inside, minlength=len(look)),
+        ]
+    )
+
+
+def pair_shares(pairs: Ints, xyz: F64, points: list[F64], table: Polar) -> F64:
+    """The contradicting share of each of the node-slot ``pairs`` (P, 2) that has a way with
+    :data:`MIN_COMPARED` echoes compared: the lesser of its two ways' (see the module)."""
+    if len(pairs) == 0:
+        return np.zeros(0)
+    one = _one_way(pairs[:, 0], pairs[:, 1], xyz, points, table)
+    back = _one_way(pairs[:, 1], pairs[:, 0], xyz, points, table)
+    ways = np.column_stack([one[:, 1] / np.maximum(one[:, 0], 1), back[:, 1] / np.maximum(
+        back[:, 0], 1)])  # fmt: skip
+    ways[np.column_stack([one[:, 0], back[:, 0]]) < MIN_COMPARED] = np.inf
+    least: F64 = ways.min(axis=1)
+    return least[np.isfinite(least)]
+
+
+def near_pairs(count: int) -> Ints:
+    """Each node slot with the next :data:`NEAR_STEPS` (P, 2)."""
+    rows = [
+        np.column_stack([np.arange(count - s), np.arange(s, count)])
+        for s in range(1, NEAR_STEPS + 1)
+        if s < count
+    ]
+    return np.concatenate(rows).astype(np.intp) if rows else np.zeros((0, 2), dtype=np.intp)
+
+
+def revisit_pairs(xyz: F64) -> Ints:
+    """Node slots within :data:`REVISIT_M` of each other on the track (``xyz`` (N, 3)) and
+    more than :data:`FAR_PATH_M` apart along it (P, 2), in order."""
+    if len(xyz) < 2:
+        return np.zeros((0, 2), dtype=np.intp)
+    steps = np.hypot(np.diff(xyz[:, 0]), np.diff(xyz[:, 1]))
+    path = np.concatenate([[0.0], np.cumsum(steps)])
+    found = cKDTree(xyz[:, :2]).query_pairs(REVISIT_M, output_type="ndarray")
+    if len(found) == 0:
+        return np.zeros((0, 2), dtype=np.intp)
+    found = np.sort(found, axis=1)
+    kept = found[path[found[:, 1]] - path[found[:, 0]] > FAR_PATH_M]
+    ordered: Ints = kept[np.lexsort((kept[:, 1], kept[:, 0]))].astype(np.intp)
+    return ordered
+
+
+def _thinned(points: F64) -> F64:
+    """At most :data:`MAX_ECHOES` of a scan's echoes, every n-th."""
+    step = -(-len(points) // MAX_ECHOES)
+    return points[::step] if step > 1 else points
+
+
+def _spread(pairs: Ints, limit: int) -> Ints:
+    """At most ``limit`` of ``pairs``, evenly spread over them."""
+    if len(pairs) <= limit:
+        return pairs
+    return pairs[np.linspace(0, len(pairs) - 1, limit).round().astype(np.intp)]
+
+
+def check_track(xyz: F64, points: list[F64]) -> RevisitCheck:
+    """The revisit check of the poses ``xyz`` (S, 3) of the scans ``points`` (S arrays (K, 2),
+    robot frame, echoes only), against the track's own near pairs."""
+    if len(xyz) == 0:
+        return RevisitCheck(np.zeros(0), 0, math.nan, math.nan)
+    at = nodes(xyz)
+    node_xyz = xyz[at]
+    table = polar([points[k] for k in at.tolist()])
+    echoes = [_thinned(points[k]) for k in at.tolist()]
+    near = pair_shares(_spread(near_pairs(len(at)), MAX_PAIRS), node_xyz, echoes, table)
+    far = pair_shares(_spread(revisit_pairs(node_xyz), MAX_PAIRS), node_xyz, echoes, table)
+    tail = float(np.quantile(near, TAIL_QUANTILE)) if len(near) else math.nan
+    return RevisitCheck(far, len(near), tail, tail)
+
+
+def check_poses(track: PoseTrack, points: list[F64]) -> RevisitCheck:
+    """:func:`check_track` of ``track``, one pose per scan of ``points``."""
+    if len(track.x_m) != len(points):
+        raise ValueError(f"{len(track.x_m)} poses for {len(points)} scans")
+    return check_track(np.column_stack([track.x_m, track.y_m, track.theta_rad]), points)

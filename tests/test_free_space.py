@@ -1,0 +1,157 @@
+"""The revisit check (:mod:`gridmap_cli.poses.correction.free_space`): a track whose revisits put
+one visit's walls in the free space the other saw fails it, a consistent one does not; and the
+automatic pose choice acts on it with a one-line warning."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gridmap_cli.poses.correction import free_space as fs
+from gridmap_cli.records import PoseTrack
+from tests.helpers import run
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+
+
+def _corridor_scan() -> np.ndarray:
+    """The echoes (robot frame, facing +x, in the middle) of a corridor 2 m wide whose end wall
+    is 6 m ahead, beams every degree over the front half circle."""
+    out = []
+    for b in np.radians(np.arange(-89.0, 90.0, 1.0)):
+        side = 1.0 / abs(math.sin(b)) if abs(math.sin(b)) > 1e-9 else math.inf
+        r = min(side, 6.0 / math.cos(b))
+        out.append((r * math.cos(b), r * math.sin(b)))
+    return np.array(out)
+
+
+def _shares(second_pose: tuple[float, float, float]) -> float:
+    scan = _corridor_scan()
+    xyz = np.array([[0.0, 0.0, 0.0], second_pose])
+    table = fs.polar([scan, scan])
+    return float(fs.pair_shares(np.array([[0, 1]]), xyz, [scan, scan], table)[0])
+
+
+def test_a_visit_placed_where_it_was_agrees_and_one_turned_across_contradicts() -> None:
+    # the same corridor seen twice from the same place: the walls agree
+    assert _shares((0.0, 0.0, 0.0)) == 0.0
+    # placed turned by 30 degrees, its walls cross the corridor the first visit saw free
+    assert _shares((0.5, 0.0, math.radians(30.0))) > 0.3
+
+
+def test_something_seen_once_contradicts_one_way_only() -> None:
+    first = _corridor_scan()
+    # the second visit sees a person standing in the corridor 3 m ahead: its echoes there lie
+    # in the first visit's free space, while the first's walls stay behind the person
+    person = np.array([[3.0, y] for y in np.arange(-0.2, 0.21, 0.05)])
+    ahead = np.abs(np.arctan2(first[:, 1], first[:, 0])) > math.radians(6.0)
+    second = np.vstack([first[ahead], person])
+    xyz = np.zeros((2, 3))
+    table = fs.polar([first, second])
+    one = fs._one_way(np.array([0]), np.array([1]), xyz, [first, second], table)
+    assert one[0, 1] == len(person)  # one way: every echo on the person contradicts
+    assert fs.pair_shares(np.array([[0, 1]]), xyz, [first, second], table)[0] == 0.0
+
+
+def test_the_judgement_needs_more_contradicting_places_than_the_noise_makes() -> None:
+    noise = np.full(300, 0.02)  # shares of consistent revisits
+    ok = fs.RevisitCheck(noise, 500, 0.05, 0.05)
+    assert ok.contradicting == 0 and not ok.fails
+    # a loop closed wrongly: a fifth of the revisits put a third of their echoes in free space
+    broken = fs.RevisitCheck(np.concatenate([noise[:240], np.full(60, 0.35)]), 500, 0.05, 0.05)
+    assert broken.contradicting == 60 and broken.fails
+    assert "60 of 300 places the robot came back to contradict" in broken.reason()
+    # one such place is what a changed world does now and then: no failure
+    assert not fs.RevisitCheck(np.concatenate([noise[:299], [0.35]]), 500, 0.05, 0.05).fails
+    # judged together, every track takes the least noisy near pairs' tail
+    together = fs.judged_together({"a": broken, "b": dataclasses.replace(ok, near_tail=0.2)})
+    assert together["b"].noise_tail == 0.05 and together["a"].level == pytest.approx(0.1)
+
+
+@pytest.fixture(scope="module")
+def laser_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    log = tmp_path_factory.mktemp("free") / "laser.2d"
+    code, _, stderr = run(
+        "simulate", str(SAMPLES / "worlds" / "office.yaml"), str(SAMPLES / "paths" / "office.yaml"),
+        "--robot", "p3at-lms200", "--duration", "60", "--drift", "2", "-o", str(log),
+    )  # fmt: skip
+    assert code == 0, stderr
+    return log
+
+
+def _turned_half(track: PoseTrack, degrees: float) -> PoseTrack:
+    """``track`` with its second half turned by ``degrees`` about the pose in its middle."""
+    h = len(track.x_m) // 2
+    cx, cy = track.x_m[h], track.y_m[h]
+    a = math.radians(degrees)
+    x, y = track.x_m.copy(), track.y_m.copy()
+    x[h:] = cx + math.cos(a) * (track.x_m[h:] - cx) - math.sin(a) * (track.y_m[h:] - cy)
+    y[h:] = cy + math.sin(a) * (track.x_m[h:] - cx) + math.cos(a) * (track.y_m[h:] - cy)
+    theta = track.theta_rad.copy()
+    theta[h:] += a
+    return dataclasses.replace(track, x_m=x, y_m=y, theta_rad=theta)
+
+
+def test_the_graphs_track_passes_and_a_broken_one_fails(laser_log: Path) -> None:
+    from gridmap_cli.poses.correction.slam import slam_log
+    from gridmap_cli.readers import read_logs
+    from gridmap_cli.readers.options import ReadOptions
+    from gridmap_cli.robot import robot_from_log
+
+    log = read_logs((laser_log,), None, ReadOptions())
+    result = slam_log(log, robot_from_log(laser_log, log.metadata))
+    assert result.scans is not None
+    points = result.scans.points
+    good = fs.check_poses(result.track, points)
+    assert good.revisits >= 20 and not good.fails, good
+    broken = fs.check_poses(_turned_half(result.track, 5.0), points)
+    assert broken.fails and broken.contradicting > 5 * max(good.contradicting, 1), broken
+    # the drifting odometry's revisits contradict too
+    assert fs.check_poses(result.scan_matched.odometry, points).fails
+
+
+def _broken_slam(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Make the pose graph return its track with the second half turned by 5 degrees."""
+    from gridmap_cli.poses.correction import slam
+
+    solve = slam.slam_log
+
+    def broken(*args: object, **kwargs: object) -> slam.SlamResult:
+        result = solve(*args, **kwargs)  # type: ignore[arg-type]
+        match = dataclasses.replace(result.match, track=_turned_half(result.track, 5.0))
+        return dataclasses.replace(result, match=match)
+
+    monkeypatch.setattr(slam, "slam_log", broken)
+
+
+def test_a_broken_graph_track_falls_back_with_one_warning_line(
+    laser_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _broken_slam(monkeypatch)
+    out = tmp_path / "auto.png"
+    code, stdout, stderr = run("build", str(laser_log), "-o", str(out), "--json")
+    assert code == 0, stderr
+    summary = json.loads(stdout)
+    choice = summary["pose_choice"]
+    assert choice["source"] == "scan-matched", (choice, stderr)
+    assert choice["because"] == "the pose graph's track failed its revisit check"
+    checks = summary["revisit_check"]
+    assert checks["slam"]["fails"] and not checks["scan-matched"]["fails"], checks
+    lines = [line for line in stderr.splitlines() if line.startswith("Warning:")]
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith(
+        "Warning: --pose auto: the pose graph's track fails its revisit check: "
+    )
+    assert "mapped with the scan-matched track instead" in lines[0]
+    # --pose slam keeps the graph's track and says the map may be broken
+    code, stdout, stderr = run("build", str(laser_log), "-o", str(tmp_path / "s.png"),
+                               "--pose", "slam", "--json")  # fmt: skip
+    assert code == 0
+    assert json.loads(stdout)["slam"]["revisit_check"]["fails"]
+    assert "places the robot came back to contradict the first visit" in stderr
+    assert "check the map" in stderr
