@@ -33,10 +33,14 @@ import traceback
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from gridmap_cli.records import PoseTrack, RangeLog
+
+if TYPE_CHECKING:
+    from gridmap_cli.poses.correction.slam import SlamResult
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data"
@@ -109,13 +113,28 @@ def _tracks(log: RangeLog, path: Path, sources: tuple[str, ...]) -> dict[str, Ce
                 warning = f"; {result.warning}" if result.warning else ""
                 out["note:slam"] = Cell(
                     note=f"{s['closures_accepted']:,} closures, {s['closures_rejected']:,} "
-                    f"rejected{warning}"
+                    f"rejected{warning}{_revisit_note(result)}"
                 )
         except Exception as exc:  # a failure is a result: the row says so, the rest runs
             out[source] = Cell(error=f"{type(exc).__name__}: {exc}".splitlines()[0])
             traceback.print_exc(file=sys.stderr)
         out["seconds:" + source] = Cell(seconds=time.process_time() - started)
     return out
+
+
+def _revisit_note(result: SlamResult) -> str:
+    """What the revisit check says of the graph's track (as ``build`` checks it), its cost."""
+    from gridmap_cli.poses.correction.free_space import check_poses
+
+    if result.scans is None:
+        return ""
+    started = time.process_time()
+    check = check_poses(result.track, result.scans.points)
+    verdict = f"fails it: {check.reason()}" if check.fails else "passes"
+    return (
+        f"; revisit check: {check.contradicting} of {check.revisits} places contradict, "
+        f"{verdict} ({time.process_time() - started:.2f} s)"
+    )
 
 
 def _cell(tracks: dict[str, Cell | PoseTrack], source: str, score: tuple[float, ...]) -> Cell:
