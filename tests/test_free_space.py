@@ -53,7 +53,7 @@ def test_something_seen_once_contradicts_one_way_only() -> None:
     second = np.vstack([first[ahead], person])
     xyz = np.zeros((2, 3))
     table = fs.polar([first, second])
-    one = fs._one_way(np.array([0]), np.array([1]), xyz, [first, second], table)
+    one = fs.one_way(np.array([0]), np.array([1]), xyz, [first, second], table)
     assert one[0, 1] == len(person)  # one way: every echo on the person contradicts
     assert fs.pair_shares(np.array([[0, 1]]), xyz, [first, second], table)[0] == 0.0
 

@@ -219,7 +219,7 @@ def _eroded(key: F64, range_m: F64, spacing: float) -> F64:
     return out
 
 
-def _one_way(look: Ints, echo: Ints, xyz: F64, points: list[F64], table: Polar) -> F64:
+def one_way(look: Ints, echo: Ints, xyz: F64, points: list[F64], table: Polar) -> F64:
     """Per pair (P, 2): the echoes of node slots ``echo`` compared with the free space of node
     slots ``look`` (each (P,)), and those that contradict it; ``xyz`` (N, 3) the nodes' poses."""
     counts = [len(points[e]) for e in echo.tolist()]
@@ -267,8 +267,8 @@ def pair_shares(pairs: Ints, xyz: F64, points: list[F64], table: Polar) -> F64:
     :data:`MIN_COMPARED` echoes compared: the lesser of its two ways' (see the module)."""
     if len(pairs) == 0:
         return np.zeros(0)
-    one = _one_way(pairs[:, 0], pairs[:, 1], xyz, points, table)
-    back = _one_way(pairs[:, 1], pairs[:, 0], xyz, points, table)
+    one = one_way(pairs[:, 0], pairs[:, 1], xyz, points, table)
+    back = one_way(pairs[:, 1], pairs[:, 0], xyz, points, table)
     ways = np.column_stack([one[:, 1] / np.maximum(one[:, 0], 1), back[:, 1] / np.maximum(
         back[:, 0], 1)])  # fmt: skip
     ways[np.column_stack([one[:, 0], back[:, 0]]) < MIN_COMPARED] = np.inf
