@@ -23,10 +23,10 @@ noise's tail. Scans far apart along the path (more than the loop-closure search'
 loop: no scan match related them) that the track puts within :data:`REVISIT_M` are its
 *revisits*. On a consistent track a revisit is one more pair of overlapping scans: at most 1 %
 of revisits would pass the noise's tail, and fewer pass twice it. A revisit *contradicts* when
-its share passes twice the tail (the level); the track *fails* when more revisits contradict
-than 1 % of them would by chance, at a binomial significance of :data:`SIGNIFICANCE`. A loop
-closed wrongly or missed makes every revisit along it contradict (a third to a half of their
-echoes), a consistent track next to none.
+its share passes twice the tail and :data:`LEVEL_MIN` (the level); the track *fails* when more
+revisits contradict than 1 % of them would by chance, at a binomial significance of
+:data:`SIGNIFICANCE`. A loop closed wrongly or missed makes every revisit along it contradict
+(a third to a half of their echoes), a consistent track next to none.
 
 Several tracks of one log are judged against one noise (:func:`judged_together`): the least
 noisy of their near pairs, since each track's near pairs hold the sensor's noise plus that
