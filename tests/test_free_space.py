@@ -115,16 +115,22 @@ def test_the_graphs_track_passes_and_a_broken_one_fails(laser_log: Path) -> None
     assert fs.check_poses(result.scan_matched.odometry, points).fails
 
 
-def _broken_slam(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Make the pose graph return its track with the second half turned by 5 degrees."""
+def _broken_slam(monkeypatch: pytest.MonkeyPatch, all_tracks: bool = False) -> None:
+    """Make the pose graph return its track with the second half turned by 5 degrees; with
+    ``all_tracks``, its scan-matched and odometry tracks turned alike."""
     from gridmap_cli.poses.correction import slam
 
     solve = slam.slam_log
 
     def broken(*args: object, **kwargs: object) -> slam.SlamResult:
         result = solve(*args, **kwargs)  # type: ignore[arg-type]
-        match = dataclasses.replace(result.match, track=_turned_half(result.track, 5.0))
-        return dataclasses.replace(result, match=match)
+        turned = _turned_half(result.track, 5.0)
+        match = dataclasses.replace(result.match, track=turned)
+        result = dataclasses.replace(result, match=match)
+        if all_tracks:
+            matched = dataclasses.replace(result.scan_matched, track=turned, odometry=turned)
+            result = dataclasses.replace(result, scan_matched=matched)
+        return result
 
     monkeypatch.setattr(slam, "slam_log", broken)
 
@@ -155,3 +161,17 @@ def test_a_broken_graph_track_falls_back_with_one_warning_line(
     assert json.loads(stdout)["slam"]["revisit_check"]["fails"]
     assert "places the robot came back to contradict the first visit" in stderr
     assert "check the map" in stderr
+
+
+def test_a_broken_graph_track_is_kept_with_a_warning_when_nothing_does_better(
+    laser_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _broken_slam(monkeypatch, all_tracks=True)  # the other tracks are as broken
+    code, stdout, stderr = run("build", str(laser_log), "-o", str(tmp_path / "a.png"), "--json")
+    assert code == 0, stderr
+    summary = json.loads(stdout)
+    assert summary["pose_choice"]["source"] == "slam"
+    assert all(c["fails"] for c in summary["revisit_check"].values()), summary["revisit_check"]
+    lines = [line for line in stderr.splitlines() if line.startswith("Warning:")]
+    assert len(lines) == 1, stderr
+    assert "kept it, no other track does better" in lines[0] and "check the map" in lines[0]
