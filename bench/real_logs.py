@@ -123,7 +123,7 @@ def _tracks(log: RangeLog, path: Path, sources: tuple[str, ...]) -> dict[str, Ce
 
 
 def _revisit_note(result: SlamResult) -> str:
-    """What the revisit check says of the graph's track (as ``build`` checks it), its cost."""
+    """What the free-space check says of the graph's track (as ``build`` checks it), its cost."""
     from gridmap_cli.poses.correction.free_space import check_poses
 
     if result.scans is None:
@@ -132,7 +132,7 @@ def _revisit_note(result: SlamResult) -> str:
     check = check_poses(result.track, result.scans.points)
     verdict = f"fails it: {check.reason()}" if check.fails else "passes"
     return (
-        f"; revisit check: {check.contradicting} of {check.revisits} places contradict, "
+        f"; free-space check: {check.contradicting} of {check.revisits} places contradict, "
         f"{verdict} ({time.process_time() - started:.2f} s)"
     )
 

@@ -1,4 +1,4 @@
-"""The revisit check (:mod:`gridmap_cli.poses.correction.free_space`): a track whose revisits put
+"""The free-space check (:mod:`gridmap_cli.poses.correction.free_space`): a track whose revisits put
 one visit's walls in the free space the other saw fails it, a consistent one does not; and the
 automatic pose choice acts on it with a one-line warning."""
 
@@ -145,20 +145,20 @@ def test_a_broken_graph_track_falls_back_with_one_warning_line(
     summary = json.loads(stdout)
     choice = summary["pose_choice"]
     assert choice["source"] == "scan-matched", (choice, stderr)
-    assert choice["because"] == "the pose graph's track failed its revisit check"
-    checks = summary["revisit_check"]
+    assert choice["because"] == "the pose graph's track failed its free-space check"
+    checks = summary["free_space_check"]
     assert checks["slam"]["fails"] and not checks["scan-matched"]["fails"], checks
     lines = [line for line in stderr.splitlines() if line.startswith("Warning:")]
     assert len(lines) == 1, stderr
     assert lines[0].startswith(
-        "Warning: --pose auto: the pose graph's track fails its revisit check: "
+        "Warning: --pose auto: the pose graph's track fails its free-space check: "
     )
     assert "mapped with the scan-matched track instead" in lines[0]
     # --pose slam keeps the graph's track and says the map may be broken
     code, stdout, stderr = run("build", str(laser_log), "-o", str(tmp_path / "s.png"),
                                "--pose", "slam", "--json")  # fmt: skip
     assert code == 0
-    assert json.loads(stdout)["slam"]["revisit_check"]["fails"]
+    assert json.loads(stdout)["slam"]["free_space_check"]["fails"]
     assert "places the robot came back to contradict the first visit" in stderr
     assert "check the map" in stderr
 
@@ -171,7 +171,8 @@ def test_a_broken_graph_track_is_kept_with_a_warning_when_nothing_does_better(
     assert code == 0, stderr
     summary = json.loads(stdout)
     assert summary["pose_choice"]["source"] == "slam"
-    assert all(c["fails"] for c in summary["revisit_check"].values()), summary["revisit_check"]
+    checks = summary["free_space_check"]
+    assert all(c["fails"] for c in checks.values()), checks
     lines = [line for line in stderr.splitlines() if line.startswith("Warning:")]
     assert len(lines) == 1, stderr
     assert "kept it, no other track does better" in lines[0] and "check the map" in lines[0]

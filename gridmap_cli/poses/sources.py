@@ -236,7 +236,7 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
         from gridmap_cli.poses.correction.free_space import check_poses
 
         check = check_poses(slam.track, slam.scans.points)
-        summary["revisit_check"] = check.as_dict()
+        summary["free_space_check"] = check.as_dict()
         if check.fails:
             warnings.append(f"{given('pose', 'slam')}: {check.reason()}; check the map")
     return PosedLog(placed, "slam", match=slam.match, slam=slam, belief=belief,
@@ -319,7 +319,7 @@ def _fallback(
 def _revisit_fallback(
     log: RangeLog, robot: RobotDescription | None, settings: PoseSettings, posed: PosedLog
 ) -> PosedLog:
-    """The automatic choice when the graph's track fails its revisit check: the scan-matched
+    """The automatic choice when the graph's track fails its free-space check: the scan-matched
     track or the odometry, whichever contradicts itself at fewer of its revisits, when it does
     so at fewer than the graph's track and brings at least half as many places back together
     (a track that brings fewer avoids the check by missing loops, not by agreeing); else the
@@ -337,9 +337,9 @@ def _revisit_fallback(
     graph = checks["slam"]
     better = [n for n in tracks if checks[n].revisits >= graph.revisits / 2
               and checks[n].share < graph.share]  # fmt: skip
-    summary = {**posed.summary, "revisit_check": {n: c.as_dict() for n, c in checks.items()}}
+    summary = {**posed.summary, "free_space_check": {n: c.as_dict() for n, c in checks.items()}}
     figures = ", ".join(f"{n} {c.contradicting} of {c.revisits}" for n, c in checks.items())
-    head = f"{given('pose', 'auto')}: the pose graph's track fails its revisit check: "
+    head = f"{given('pose', 'auto')}: the pose graph's track fails its free-space check: "
     if not better:
         why = (f"{head}{graph.reason()}; kept it, no other track does better (contradicting "
                f"places: {figures}); check the map")  # fmt: skip
@@ -351,7 +351,7 @@ def _revisit_fallback(
     why = (f"{head}{graph.reason()}; mapped with the {name} track instead (contradicting "
            f"places: {figures}); {given('pose', 'slam')} maps with the graph anyway")  # fmt: skip
     fallback = dataclasses.replace(fallback, summary={**fallback.summary, **summary})
-    return _chosen(fallback, name, "the pose graph's track failed its revisit check", (why,))
+    return _chosen(fallback, name, "the pose graph's track failed its free-space check", (why,))
 
 
 def graph_failure(slam: SlamResult) -> str | None:

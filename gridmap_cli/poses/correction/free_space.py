@@ -316,7 +316,7 @@ def _spread(pairs: Ints, limit: int) -> Ints:
 
 
 def check_track(xyz: F64, points: list[F64]) -> RevisitCheck:
-    """The revisit check of the poses ``xyz`` (S, 3) of the scans ``points`` (S arrays (K, 2),
+    """The free-space check of the poses ``xyz`` (S, 3) of the scans ``points`` (S arrays (K, 2),
     robot frame, echoes only), against the track's own near pairs."""
     if len(xyz) == 0:
         return RevisitCheck(np.zeros(0), 0, math.nan, math.nan)

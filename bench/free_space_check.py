@@ -1,4 +1,4 @@
-"""The revisit check (``gridmap_cli.poses.correction.free_space``) on every shared real log.
+"""The free-space check (``gridmap_cli.poses.correction.free_space``) on every shared real log.
 
 For each log: the pose graph's track, the scan-matched one under it and the odometry, judged
 together as ``--pose auto`` judges them when the graph's track fails; then the graph's track
@@ -14,8 +14,8 @@ broken on purpose, judged alone as ``--pose slam`` judges it:
 A row per track: the revisits counted, how many contradict, the level a revisit's share must
 pass, whether the track fails, and the check's CPU seconds. Prints a markdown table.
 
-    .venv/bin/python bench/revisit_check.py                       # every log
-    .venv/bin/python bench/revisit_check.py --logs seattle --quarter
+    .venv/bin/python bench/free_space_check.py                       # every log
+    .venv/bin/python bench/free_space_check.py --logs seattle --quarter
 """
 
 from __future__ import annotations
