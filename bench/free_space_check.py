@@ -34,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from real_logs import BAGS, CARMEN, DATA
 
 from gridmap_cli.poses.correction.free_space import (
-    RevisitCheck,
+    FreeSpaceCheck,
     check_poses,
     judged_together,
 )
@@ -91,7 +91,7 @@ def every_fourth(log: RangeLog) -> RangeLog:
     return dataclasses.replace(log, readings=dataclasses.replace(r, **fields))
 
 
-def _timed(track: PoseTrack, points: list[np.ndarray]) -> tuple[RevisitCheck, float]:
+def _timed(track: PoseTrack, points: list[np.ndarray]) -> tuple[FreeSpaceCheck, float]:
     started = time.process_time()
     check = check_poses(track, points)
     return check, time.process_time() - started
@@ -112,14 +112,14 @@ def rows_for(name: str, quarter: bool) -> list[str]:
     assert result.scans is not None
     points = result.scans.points
     seconds: dict[str, float] = {}
-    checks: dict[str, RevisitCheck] = {}
+    checks: dict[str, FreeSpaceCheck] = {}
     tracks = {"slam": result.track, "scan-matched": result.scan_matched.track}
     if log.odometry_missing is None:
         tracks["odometry"] = result.scan_matched.odometry
     for label, track in tracks.items():
         checks[label], seconds[label] = _timed(track, points)
     checks = judged_together(checks)
-    broken: dict[str, tuple[RevisitCheck, float]] = {}
+    broken: dict[str, tuple[FreeSpaceCheck, float]] = {}
     for deg in TURNS_DEG:
         broken[f"slam turned {deg:g} deg"] = _timed(turned_half(result.track, deg), points)
     moved = false_closures(result)
@@ -137,7 +137,7 @@ def rows_for(name: str, quarter: bool) -> list[str]:
     return out
 
 
-def _row(name: str, label: str, c: RevisitCheck, seconds: float, slam_s: float) -> str:
+def _row(name: str, label: str, c: FreeSpaceCheck, seconds: float, slam_s: float) -> str:
     return (
         f"| {name} | {label} | {c.revisits:,} | {c.contradicting:,} | {c.level:.3f} | "
         f"{'**fails**' if c.fails else 'passes'} | {seconds:.2f} s ({100 * seconds / slam_s:.1f} "

@@ -60,14 +60,14 @@ def test_something_seen_once_contradicts_one_way_only() -> None:
 
 def test_the_judgement_needs_more_contradicting_places_than_the_noise_makes() -> None:
     noise = np.full(300, 0.02)  # shares of consistent revisits
-    ok = fs.RevisitCheck(noise, 500, 0.05, 0.05)
+    ok = fs.FreeSpaceCheck(noise, 500, 0.05, 0.05)
     assert ok.contradicting == 0 and not ok.fails
     # a loop closed wrongly: a fifth of the revisits put a third of their echoes in free space
-    broken = fs.RevisitCheck(np.concatenate([noise[:240], np.full(60, 0.35)]), 500, 0.05, 0.05)
+    broken = fs.FreeSpaceCheck(np.concatenate([noise[:240], np.full(60, 0.35)]), 500, 0.05, 0.05)
     assert broken.contradicting == 60 and broken.fails
     assert "60 of 300 places the robot came back to contradict" in broken.reason()
     # one such place is what a changed world does now and then: no failure
-    assert not fs.RevisitCheck(np.concatenate([noise[:299], [0.35]]), 500, 0.05, 0.05).fails
+    assert not fs.FreeSpaceCheck(np.concatenate([noise[:299], [0.35]]), 500, 0.05, 0.05).fails
     # judged together, every track takes the least noisy near pairs' tail
     together = fs.judged_together({"a": broken, "b": dataclasses.replace(ok, near_tail=0.2)})
     assert together["b"].noise_tail == 0.05 and together["a"].level == pytest.approx(0.1)

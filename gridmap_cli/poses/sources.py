@@ -24,7 +24,7 @@ from gridmap_cli.records import RangeLog
 from gridmap_cli.robot import RobotDescription
 
 if TYPE_CHECKING:
-    from gridmap_cli.poses.correction.free_space import RevisitCheck
+    from gridmap_cli.poses.correction.free_space import FreeSpaceCheck
     from gridmap_cli.poses.correction.scan_match import ScanMatch
     from gridmap_cli.poses.correction.slam import SlamResult
     from gridmap_cli.poses.uncertainty.pose_belief import PoseBelief
@@ -70,7 +70,7 @@ class PosedLog:
     #: where the track's motion came from when the log had no odometry (None: its odometry)
     motion: str | None = None
     #: the pose graph's track checked against its scans where the robot came back
-    free_space: RevisitCheck | None = None
+    free_space: FreeSpaceCheck | None = None
 
 
 Runner = Callable[[RangeLog, RobotDescription | None, PoseSettings], PosedLog]
@@ -281,7 +281,7 @@ def auto_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
     failed = graph_failure(slam)
     if failed is None:
         if posed.free_space is not None and posed.free_space.fails:
-            return _revisit_fallback(log, robot, settings, posed)
+            return _free_space_fallback(log, robot, settings, posed)
         return _chosen(posed, "slam", "a laser", posed.warnings)
     matched = slam.scan_matched
     scans = max(len(matched.status), 1)
@@ -316,7 +316,7 @@ def _fallback(
                     summary={"scan_match": matched.summary()})  # fmt: skip
 
 
-def _revisit_fallback(
+def _free_space_fallback(
     log: RangeLog, robot: RobotDescription | None, settings: PoseSettings, posed: PosedLog
 ) -> PosedLog:
     """The automatic choice when the graph's track fails its free-space check: the scan-matched

@@ -105,7 +105,7 @@ class Polar:
 
 
 @dataclass(frozen=True)
-class RevisitCheck:
+class FreeSpaceCheck:
     """A track's revisits against the noise: ``shares`` (R,) the contradicting share of each
     revisit counted, ``near`` the near pairs counted, ``near_tail`` their shares' tail
     (:data:`TAIL_QUANTILE`), and ``noise_tail`` the tail the track is judged against (its own
@@ -165,7 +165,7 @@ class RevisitCheck:
         }
 
 
-def judged_together(checks: dict[str, RevisitCheck]) -> dict[str, RevisitCheck]:
+def judged_together(checks: dict[str, FreeSpaceCheck]) -> dict[str, FreeSpaceCheck]:
     """The checks of several tracks of one log judged against one noise: the least noisy of
     their near pairs' tails."""
     tails = [c.near_tail for c in checks.values() if not math.isnan(c.near_tail)]
@@ -315,11 +315,11 @@ def _spread(pairs: Ints, limit: int) -> Ints:
     return pairs[np.linspace(0, len(pairs) - 1, limit).round().astype(np.intp)]
 
 
-def check_track(xyz: F64, points: list[F64]) -> RevisitCheck:
+def check_track(xyz: F64, points: list[F64]) -> FreeSpaceCheck:
     """The free-space check of the poses ``xyz`` (S, 3) of the scans ``points`` (S arrays (K, 2),
     robot frame, echoes only), against the track's own near pairs."""
     if len(xyz) == 0:
-        return RevisitCheck(np.zeros(0), 0, math.nan, math.nan)
+        return FreeSpaceCheck(np.zeros(0), 0, math.nan, math.nan)
     at = nodes(xyz)
     node_xyz = xyz[at]
     table = polar([points[k] for k in at.tolist()])
@@ -327,10 +327,10 @@ def check_track(xyz: F64, points: list[F64]) -> RevisitCheck:
     near = pair_shares(_spread(near_pairs(len(at)), MAX_PAIRS), node_xyz, echoes, table)
     far = pair_shares(_spread(revisit_pairs(node_xyz), MAX_PAIRS), node_xyz, echoes, table)
     tail = float(np.quantile(near, TAIL_QUANTILE)) if len(near) else math.nan
-    return RevisitCheck(far, len(near), tail, tail)
+    return FreeSpaceCheck(far, len(near), tail, tail)
 
 
-def check_poses(track: PoseTrack, points: list[F64]) -> RevisitCheck:
+def check_poses(track: PoseTrack, points: list[F64]) -> FreeSpaceCheck:
     """:func:`check_track` of ``track``, one pose per scan of ``points``."""
     if len(track.x_m) != len(points):
         raise ValueError(f"{len(track.x_m)} poses for {len(points)} scans")
