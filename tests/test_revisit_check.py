@@ -7,9 +7,10 @@ import math
 
 import numpy as np
 import numpy.typing as npt
+from scipy.stats import chi2
 
 from gridmap_cli.geometry import compose, inverse
-from gridmap_cli.poses.calibration.revisit_check import revisit_factor
+from gridmap_cli.poses.calibration.revisit_check import revisit_factor, small_sample_factor
 from gridmap_cli.poses.correction.loop_closure import Closure
 from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise
 from gridmap_cli.records import PoseTrack
@@ -87,10 +88,34 @@ def test_an_error_that_grows_is_seen_wider_and_the_factor_follows_the_walk() -> 
     assert math.isclose(wider.factor, found.factor / 2.0, rel_tol=1e-9)
 
 
-def test_too_few_revisits_say_nothing() -> None:
+def test_no_revisit_says_nothing() -> None:
     truth = laps(2)
-    per_lap = truth.shape[0] // 2
     odometry = odometry_of(truth, np.zeros(truth.shape[0]))
     nodes = np.arange(truth.shape[0], dtype=np.intp)
+    found = revisit_factor(odometry, nodes, [], WALK, 0.01, 0.001)
+    assert math.isnan(found.factor) and found.revisits == 0
+
+
+def test_a_few_revisits_of_an_error_that_comes_back_cut_the_walk() -> None:
+    truth = laps(2)
+    per_lap = truth.shape[0] // 2
+    wobble = np.radians(5.0) * np.sin(8 * np.pi * np.arange(truth.shape[0]) / per_lap)
+    odometry = odometry_of(truth, wobble)
+    nodes = np.arange(truth.shape[0], dtype=np.intp)
     found = revisit_factor(odometry, nodes, revisits(truth, per_lap)[:3], WALK, 0.01, 0.001)
-    assert math.isnan(found.factor) and found.revisits == 3
+    assert found.revisits == 3
+    assert found.factor < 0.5
+
+
+def test_the_few_revisits_factor_is_the_scale_posterior_median() -> None:
+    rng = np.random.default_rng(3)
+    nees = rng.chisquare(2, size=5) * 0.3**2
+    # the sum of n chi-square(2) scaled by f^2: half of the scale's posterior lies below
+    expected = math.sqrt(float(nees.sum()) / float(chi2.median(2 * nees.shape[0])))
+    assert math.isclose(small_sample_factor(nees), expected, rel_tol=1e-12)
+    # one revisit: the median rule of many, on the one there is
+    one = nees[:1]
+    assert math.isclose(small_sample_factor(one), math.sqrt(one[0] / (2 * math.log(2))))
+    # many revisits of one scale: the estimate comes to that scale
+    many = rng.chisquare(2, size=4000) * 0.3**2
+    assert abs(small_sample_factor(many) - 0.3) < 0.01

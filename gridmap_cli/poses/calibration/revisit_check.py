@@ -11,6 +11,12 @@ covariance the walks predict for the travel between the two visits
 (:class:`~.consistency.SegmentCovariance`, plus the scan registration's jitter at the far end):
 the same normalised squared error and the same factor as the check on the positions
 (:mod:`.consistency`), at exactly the horizons where the map suffers.
+
+A log that comes back to a place only a few times still says something about the walks: with
+fewer revisits than a robust median needs (:data:`~.consistency.MIN_STARTS`), the factor is
+the median of the scale's posterior instead, under the Gaussian model the walks themselves
+assume (:func:`small_sample_factor`). The two err the same way: the walks are only ever cut,
+and a spread cut too far costs a map little where one too wide blurs it (docs/odometry-error.md).
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from scipy.special import gammaincinv
 
 from gridmap_cli.geometry import inverse
 from gridmap_cli.poses.calibration.consistency import (
@@ -38,7 +45,7 @@ F64 = npt.NDArray[np.float64]
 @dataclass(frozen=True)
 class RevisitFactor:
     """Actual over predicted standard deviation of the odometry's position error on the
-    revisits (NaN: fewer than :data:`~.consistency.MIN_STARTS`), and how many it rests on."""
+    revisits (NaN: none to check on), and how many it rests on."""
 
     factor: float
     revisits: int
@@ -55,7 +62,7 @@ def revisit_factor(
     """The factor on ``closures`` (node ``j``'s pose in node ``i``'s frame, the nodes indices
     into ``keyframes``, these into ``odometry``): ``odometry`` is the corrected odometry at the
     scans' stamps."""
-    if len(closures) < MIN_STARTS or noise.is_zero:
+    if not closures or noise.is_zero:
         return RevisitFactor(math.nan, len(closures))
     node_i = keyframes[np.array([c.i for c in closures], dtype=np.intp)]
     node_j = keyframes[np.array([c.j for c in closures], dtype=np.intp)]
@@ -82,6 +89,19 @@ def revisit_factor(
         jitter_m,
         jitter_rad,
     )
+    if nees.shape[0] == 0:
+        return RevisitFactor(math.nan, 0)
     if nees.shape[0] < MIN_STARTS:
-        return RevisitFactor(math.nan, int(nees.shape[0]))
+        return RevisitFactor(small_sample_factor(nees), int(nees.shape[0]))
     return RevisitFactor(math.sqrt(float(np.median(nees)) / CHI2_2_MEDIAN), int(nees.shape[0]))
+
+
+def small_sample_factor(nees: F64) -> float:
+    """The factor from a few revisits' normalised squared errors (shape (n,), n >= 1): if the
+    odometry's error is the walks' prediction times a scale ``f``, their sum is ``f^2`` times a
+    chi-square with ``2 n`` degrees of freedom; with the scale-free prior (``1 / f^2``) the
+    posterior of ``f^2`` is then ``sum / chi2(2 n)``, and the factor is its median,
+    ``sqrt(sum / median(chi2(2 n)))``. For many revisits it tends to the mean's estimate."""
+    n = int(nees.shape[0])
+    chi2_median = 2.0 * float(gammaincinv(n, 0.5))
+    return math.sqrt(float(np.sum(nees)) / chi2_median)
