@@ -105,19 +105,17 @@ def candidates(
     tree = cKDTree(poses[:, :2])
     pairs: list[tuple[int, int]] = []
     for i in queries:
-        near = tree.query_ball_point(poses[i, :2], params.max_search_m)
-        found: list[tuple[float, int]] = []
-        for j in near:
-            gap = path[i] - path[j]
-            if j >= i or gap < params.min_path_m:
-                continue
-            radius = min(params.max_search_m, params.min_search_m + params.drift_per_m * gap)
-            d = math.hypot(poses[i, 0] - poses[j, 0], poses[i, 1] - poses[j, 1])
-            if d <= radius:
-                found.append((d, int(j)))
-        found.sort()
+        near = np.asarray(tree.query_ball_point(poses[i, :2], params.max_search_m), dtype=np.intp)
+        gap = path[i] - path[near]
+        earlier = (near < i) & (gap >= params.min_path_m)
+        near, gap = near[earlier], gap[earlier]
+        radius = np.minimum(params.max_search_m, params.min_search_m + params.drift_per_m * gap)
+        d = np.hypot(poses[i, 0] - poses[near, 0], poses[i, 1] - poses[near, 1])
+        inside = d <= radius
+        near, d = near[inside], d[inside]
         taken: list[int] = []
-        for _, j in found:
+        # nearest first, ties to the lower index
+        for j in near[np.lexsort((near, d))].tolist():
             # one candidate per stretch of path: skip j near an already taken one
             if all(abs(path[j] - path[k]) > 2.0 for k in taken):
                 taken.append(j)
