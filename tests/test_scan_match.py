@@ -18,6 +18,7 @@ from gridmap_cli.poses.correction.scan_match import (
     NoLaserError,
     ScanMatchParams,
     Scans,
+    _LocalMap,
     corrected_track,
     laser_scans,
     match_log,
@@ -166,6 +167,19 @@ def test_a_scan_that_matches_nothing_falls_back_to_odometry(room_run: RangeLog) 
     step_odometry = math.hypot(o.x_m[bad] - o.x_m[bad - 1], o.y_m[bad] - o.y_m[bad - 1])
     assert step_matched == pytest.approx(step_odometry, abs=1e-9)
     assert match.summary()["fallbacks"] == 1
+
+
+def test_a_scan_the_matcher_could_not_place_joins_the_local_map_only_once_the_robot_moved() -> None:
+    """A fallback scan's pose is the odometry's guess: turned in place, the local map still
+    holds the place and the scan at a wrong heading would only add a rotated copy of it."""
+    params = ScanMatchParams()
+    local = _LocalMap(params)
+    local.add(np.array([[1.0, 0.0], [0.0, 1.0]]), (0.0, 0.0, 0.0))
+    turned = (0.0, 0.0, 2.0 * params.keyframe_rad)
+    moved = (2.0 * params.keyframe_m, 0.0, 0.0)
+    assert local.wants(turned) and local.wants(moved)
+    assert not local.wants(turned, fallback=True)
+    assert local.wants(moved, fallback=True)
 
 
 def test_log_without_a_laser_is_refused() -> None:

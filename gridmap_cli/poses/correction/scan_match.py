@@ -72,7 +72,8 @@ class ScanMatchParams:
     ``max_range_m``: beams longer than this are left out of matching (far points are sparse and
     their angular error large). ``downsample_m``: voxel size for the scan and the local map.
     ``keyframe_m``/``keyframe_rad``: a scan joins the local map when the robot has moved this far
-    or turned this much since the last one that did; ``local_map_scans`` keyframes are kept.
+    or turned this much since the last one that did (a fallback only when it moved: turned in
+    place, its guessed heading can be far off); ``local_map_scans`` keyframes are kept.
     ``correspondence_m``: GICP's maximum correspondence distance. ``inlier_m``: a matched point
     within this of the local map counts as an inlier; ``min_inlier_fraction`` of them are needed
     and at least ``min_points`` points. ``max_correction_m``/``max_correction_rad`` plus
@@ -84,10 +85,9 @@ class ScanMatchParams:
     (:mod:`.relocate`), over this much heading either side of the guess at most (0: none).
     ``scale_min_m``/``scale_max_error``: the odometry's distance scale is learned from the
     straight (turning under ``scale_turn_rad``) matched steps once they cover this many metres,
-    within 1 +- this (:class:`DistanceScale`);
-    ``scale_min_m`` infinite keeps the odometry's own scale. When the matcher kept more than
-    ``rescale_blind_m`` of odometry along weak axes before the scale was learned,
-    the scans are matched again with the learned scale from the start.
+    within 1 +- this (:class:`DistanceScale`); ``scale_min_m`` infinite keeps the odometry's own
+    scale. When the matcher kept more than ``rescale_blind_m`` of odometry along weak axes before
+    the scale was learned, the scans are matched again with the learned scale from the start.
     """
 
     max_range_m: float = 30.0
@@ -243,11 +243,11 @@ class _LocalMap:
         self.tree2d: cKDTree | None = None
         self.grid: LikelihoodGrid | None = None  # built when a poor match first needs it
 
-    def wants(self, pose: tuple[float, float, float]) -> bool:
+    def wants(self, pose: tuple[float, float, float], fallback: bool = False) -> bool:
         if self.last_pose is None:
             return True
         dx, dy = pose[0] - self.last_pose[0], pose[1] - self.last_pose[1]
-        turn = abs(float(wrap_angle(pose[2] - self.last_pose[2])))
+        turn = 0.0 if fallback else abs(float(wrap_angle(pose[2] - self.last_pose[2])))
         return math.hypot(dx, dy) >= self.params.keyframe_m or turn >= self.params.keyframe_rad
 
     def add(self, world_points: FloatArray, pose: tuple[float, float, float]) -> None:
@@ -356,7 +356,7 @@ def _match_pass(
                 # rotation error moves the step sideways
                 mx, my, _ = compose(*inverse(*poses[k - 1]), *poses[k])
                 scale.add((float(mx), float(my)), (float(dx), float(dy)))
-        if len(pts) and local.wants(tuple(poses[k])):
+        if len(pts) and local.wants(tuple(poses[k]), status[k] == FALLBACK):
             local.add(placed_points(pts, tuple(poses[k])), tuple(poses[k]))
         if progress is not None:
             progress("scan matching", k + 1, n)
