@@ -343,13 +343,14 @@ def _cpu_seconds() -> float:
     return own.ru_utime + own.ru_stime + workers.ru_utime + workers.ru_stime
 
 
-def write_section(lines: list[str], path: Path) -> None:
-    """Put the section into ``path``: in place of the old one, else at the end."""
+def write_section(lines: list[str], path: Path, begin: str = BEGIN, end: str = END) -> None:
+    """Put the section (``lines``, from ``begin`` to ``end``) into ``path``: in place of the
+    old one, else at the end."""
     text = path.read_text(encoding="utf-8") if path.exists() else ""
     new = "\n".join(lines)
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        text = head + new + rest.split(END, 1)[1]
+    if begin in text and end in text:
+        head, rest = text.split(begin, 1)
+        text = head + new + rest.split(end, 1)[1]
     else:
         text = text.rstrip("\n") + "\n\n" + new + "\n"
     path.write_text(text, encoding="utf-8")

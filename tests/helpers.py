@@ -55,3 +55,16 @@ def log_with_truth(
         truth=PoseTrack.from_rows(stamps, truth),
         metadata={"robot": "p3dx"},
     )
+
+
+def simulated_laser_log(folder: Path) -> Path:
+    """A minute of the office world's laser robot whose odometry drifts: loops the pose graph
+    closes (the log the automatic pose choice and the free-space check are tried on)."""
+    samples = Path(__file__).resolve().parents[1] / "samples"
+    log = folder / "laser.2d"
+    code, _, stderr = run(
+        "simulate", str(samples / "worlds" / "office.yaml"), str(samples / "paths" / "office.yaml"),
+        "--robot", "p3at-lms200", "--duration", "60", "--drift", "2", "-o", str(log),
+    )  # fmt: skip
+    assert code == 0, stderr
+    return log

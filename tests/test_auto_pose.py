@@ -9,20 +9,14 @@ from pathlib import Path
 import pytest
 
 from gridmap_cli.poses import sources
-from tests.helpers import run
+from tests.helpers import run, simulated_laser_log
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 
 
 @pytest.fixture(scope="module")
 def laser_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    log = tmp_path_factory.mktemp("auto") / "laser.2d"
-    code, _, stderr = run(
-        "simulate", str(SAMPLES / "worlds" / "office.yaml"), str(SAMPLES / "paths" / "office.yaml"),
-        "--robot", "p3at-lms200", "--duration", "60", "--drift", "2", "-o", str(log),
-    )  # fmt: skip
-    assert code == 0, stderr
-    return log
+    return simulated_laser_log(tmp_path_factory.mktemp("auto"))
 
 
 def _build(log: Path, out: Path, *args: str) -> tuple[int, dict[str, object], str]:

@@ -14,9 +14,7 @@ import pytest
 
 from gridmap_cli.poses.correction import free_space as fs
 from gridmap_cli.records import PoseTrack
-from tests.helpers import run
-
-SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+from tests.helpers import run, simulated_laser_log
 
 
 def _corridor_scan() -> np.ndarray:
@@ -75,13 +73,7 @@ def test_the_judgement_needs_more_contradicting_places_than_the_noise_makes() ->
 
 @pytest.fixture(scope="module")
 def laser_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    log = tmp_path_factory.mktemp("free") / "laser.2d"
-    code, _, stderr = run(
-        "simulate", str(SAMPLES / "worlds" / "office.yaml"), str(SAMPLES / "paths" / "office.yaml"),
-        "--robot", "p3at-lms200", "--duration", "60", "--drift", "2", "-o", str(log),
-    )  # fmt: skip
-    assert code == 0, stderr
-    return log
+    return simulated_laser_log(tmp_path_factory.mktemp("free"))
 
 
 def _turned_half(track: PoseTrack, degrees: float) -> PoseTrack:
