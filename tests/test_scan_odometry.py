@@ -10,7 +10,7 @@ import numpy as np
 
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.poses.correction.scan_match import ScanMatchParams, laser_scans
-from gridmap_cli.poses.correction.scan_odometry import scan_odometry
+from gridmap_cli.poses.correction.scan_odometry import ScanOdometryParams, _Keyframes, scan_odometry
 from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
 from gridmap_cli.robot import load_robot
 from gridmap_cli.sim.path import WaypointPath
@@ -40,3 +40,32 @@ def test_fast_turns_are_followed_from_the_scans_alone() -> None:
     assert np.abs(np.diff(np.unwrap(tth))).max() > math.radians(15)  # the turns are there
     assert np.hypot(x - tx, y - ty).max() < 0.05
     assert np.degrees(np.abs(heading)).max() < 0.5
+
+
+def test_a_match_that_fits_worse_than_usual_is_searched_for() -> None:
+    """GICP from a start turned 45 degrees off lands near the true heading but off the pose,
+    with half the scan's points on the local map; fitting worse than the log's scans usually
+    do (``bar``), the correlative search around the prediction finds the pose where the scan
+    fits as well as usual."""
+    robot = load_robot("p3at-lms200")
+    path = WaypointPath(np.asarray(LOOP, dtype=np.float64), speed_m_s=1.0,
+                        turn_rate_rad_s=math.pi)  # fmt: skip
+    log = simulate(room_world(), path, robot, seed=5, drift=1.0)
+    scans = laser_scans(log, sensors_for_log(log, robot), ScanMatchParams())
+    truth = log.truth
+    assert truth is not None
+    tx, ty, tth, _ = interpolate_pose(truth, scans.stamp_ns)
+    found = {}
+    for bar in (0.0, 0.95):  # none asked for; then the fit the scans here reach
+        keyframes = _Keyframes(ScanOdometryParams())
+        for k in range(5):
+            keyframes.offer(scans.points[k], (float(tx[k]), float(ty[k]), float(tth[k])))
+        off = (float(tx[6]), float(ty[6]), float(tth[6]) + math.radians(45.0))
+        found[bar] = keyframes.match(scans.points[6], [off, off], bar)
+    alone, searched = found[0.0], found[0.95]
+    assert alone is not None and searched is not None
+    assert alone[1] < 0.6  # held, but only just
+    (x, y, th), fit = searched
+    assert fit >= 0.95
+    assert math.hypot(x - tx[6], y - ty[6]) < 0.05
+    assert abs(math.degrees(float(wrap_angle(th - tth[6])))) < 1.0

@@ -8,9 +8,11 @@ constant-velocity prediction: the last matched step, applied again. A prediction
 good as the motion is steady, so the match from where the last scan was (a stop) is tried too
 and the better kept; when neither holds, the step scaled to the time since the last scan (a gap)
 and turned headings, wider than the matcher's retries (a fast turn the velocity did not see
-coming), until one does. The track that comes out is then
-the "odometry" the matcher and the graph consume, unchanged: they match every scan again
-against their own local maps and close loops as they do with wheel odometry.
+coming), until one does; a match that holds but fits worse than the log's scans usually do
+(a wrong minimum: a late scan or a turn the prediction carried the wrong way) sends a
+correlative search around the prediction, kept when it fits as well as usual. The track that
+comes out is then the "odometry" the matcher and the graph consume, unchanged: they match every
+scan again against their own local maps and close loops as they do with wheel odometry.
 """
 
 from __future__ import annotations
@@ -26,8 +28,10 @@ import small_gicp
 from scipy.spatial import cKDTree
 
 from gridmap_cli.geometry import compose, inverse, wrap_angle
+from gridmap_cli.poses.correction.correlative import LikelihoodGrid
 from gridmap_cli.poses.correction.degeneracy import keep_across, weak_axis
 from gridmap_cli.poses.correction.planar import placed_points, planar_pose, pose_matrix
+from gridmap_cli.poses.correction.relocate import relocate, typical_fit
 from gridmap_cli.poses.correction.scan_match import (
     Progress,
     ScanMatchParams,
@@ -61,6 +65,11 @@ class ScanOdometryParams:
     ``max_gap_ratio``: the constant-velocity step is scaled by the time since the last scan
     over the last step's time, at most this much (a gap in the recording is not a long
     straight drive).
+    ``search_m``: a match that holds but fits worse than the log's matches usually do
+    (:func:`.relocate.typical_fit`) may be a wrong minimum a wrong prediction led GICP into:
+    the correlative search (:func:`.relocate.relocate`) looks this far and as far round as
+    ``heading_starts_rad`` go around the prediction, and its match is kept when it fits as
+    well as usual.
     """
 
     downsample_m: float = 0.1
@@ -74,6 +83,7 @@ class ScanOdometryParams:
     min_points: int = 20
     degenerate_ratio: float = 0.002
     max_gap_ratio: float = 3.0
+    search_m: float = 0.5
     heading_starts_rad: tuple[float, ...] = tuple(
         math.radians(d) for d in (-15.0, 15.0, -30.0, 30.0, -45.0, 45.0, -60.0, 60.0)
     )
@@ -89,6 +99,7 @@ class _Keyframes:
         self.cloud: small_gicp.PointCloud | None = None
         self.tree: small_gicp.KdTree | None = None
         self.tree2d: cKDTree | None = None
+        self.grid: LikelihoodGrid | None = None
 
     def offer(self, points: FloatArray, pose: Pose) -> None:
         """Take the scan as a keyframe if the track moved or turned enough since the last."""
@@ -107,12 +118,17 @@ class _Keyframes:
             planar_sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
         )
         self.tree2d = cKDTree(flat)
+        self.grid = None
 
-    def match(self, points: FloatArray, starts: list[Pose]) -> Pose | None:
-        """The pose of the best match from ``starts``, or None when none holds: the first two
-        (the prediction and the last pose) are always tried, the others until one holds.
-        Along a degenerate match's weak axis the pose is the first start's (the prediction):
-        a corridor's walls say nothing of the motion along it."""
+    def match(
+        self, points: FloatArray, starts: list[Pose], bar: float
+    ) -> tuple[Pose, float] | None:
+        """The pose and inlier fraction of the best match from ``starts``, or None when none
+        holds: the first two (the prediction and the last pose) are always tried, the others
+        until one holds; one that fits under ``bar`` (the log's usual fit) is searched for
+        around the prediction (``search_m``). Along a degenerate match's weak axis the pose
+        is the first start's (the prediction): a corridor's walls say nothing of the motion
+        along it."""
         p = self.params
         if self.cloud is None or self.tree is None or self.tree2d is None:
             return None
@@ -147,7 +163,17 @@ class _Keyframes:
                 continue
             axis = weak_axis(np.asarray(result.H), p.degenerate_ratio, pose[2])
             best = (fraction, pose if axis is None else keep_across(starts[0], pose, axis))
-        return None if best is None else best[1]
+        if best is not None and best[0] < bar:
+            # the correlative search around the prediction, as wide as the turned starts go
+            window_rad = max(abs(d) for d in p.heading_starts_rad)
+            found = relocate(self, source, planar, starts[0], p.search_m, window_rad, p)
+            if found is not None and found[0] >= bar:
+                axis = weak_axis(found[2], p.degenerate_ratio, found[1][2])
+                best = (
+                    found[0],
+                    found[1] if axis is None else keep_across(starts[0], found[1], axis),
+                )
+        return None if best is None else (best[1], best[0])
 
 
 def _moved(pose: FloatArray, step: Pose, ratio: float) -> Pose:
@@ -166,6 +192,7 @@ def scan_odometry(
     n = len(scans)
     poses = np.zeros((n, 3))
     keyframes = _Keyframes(params)
+    fits = np.full(n, np.nan)
     t = scans.stamp_ns.astype(np.float64)
     for k in range(n):
         if k == 0:
@@ -183,7 +210,12 @@ def scan_odometry(
                 scaled = _moved(poses[k - 1], (float(dx), float(dy), float(dth)), ratio)
         starts = [guess, last, scaled]
         starts += [(guess[0], guess[1], guess[2] + d) for d in params.heading_starts_rad]
-        pose = keyframes.match(scans.points[k], starts) or guess
+        found = keyframes.match(
+            scans.points[k], starts, typical_fit(fits[:k], params.min_inlier_fraction)
+        )
+        pose = guess if found is None else found[0]
+        if found is not None:
+            fits[k] = found[1]
         poses[k] = pose
         keyframes.offer(scans.points[k], pose)
         if progress is not None:
