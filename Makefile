@@ -7,7 +7,7 @@ DEMO_OUT := out/demo
 KERNELS := setup.py gridmap_cli/mapping/models/_ckernels.c gridmap_cli/readers/ros/_cwalk.c \
 	gridmap_cli/poses/correction/_cbranch.c
 
-.PHONY: install dev demo test lint format bench samples goldens doc-outputs experiment quality corpus overview-image clean
+.PHONY: install dev demo test lint format bench samples goldens doc-outputs experiment stress quality corpus overview-image clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -65,6 +65,15 @@ samples: install
 # change on a few logs: .venv/bin/python bench/real_logs.py --logs aces,intel --pose slam --no-doc
 experiment: dev
 	$(BIN)/python bench/experiment.py
+
+# the pose graph on logs made unlike the ones it was developed on, as stand-ins for held-out
+# logs: the raw benchmark bags at every 2nd/3rd/4th scan, from a third or two thirds on, with
+# every 2nd beam (bench/slam_stress.py, rewrites the table in docs/slam-stress.md), then the
+# same bags with their odometry left out (bench/no_odometry.py, prints its table); about 40
+# minutes on 2 cores; needs ../shared/data
+stress: dev
+	$(BIN)/python bench/slam_stress.py --jobs 2
+	$(BIN)/python bench/no_odometry.py
 
 # the quality score without ground truth against the NLL with it, on the six shared CARMEN logs
 # (bench/quality_ranking.py); rewrites the table in docs/quality.md; 15 minutes on 2 cores
