@@ -56,6 +56,26 @@ def test_something_seen_once_contradicts_one_way_only() -> None:
     assert fs.pair_shares(np.array([[0, 1]]), xyz, [first, second], table)[0] == 0.0
 
 
+def test_a_pair_seen_one_way_only_is_not_judged() -> None:
+    # the second visit's scan covers a narrow window ahead (the two visits facing apart overlap
+    # at their edges only) with a person in it: its echoes there contradict the first visit,
+    # but the first's echoes in that window are too few to tell whether the first's walls stand
+    # behind the person, so the pair cannot be told from something that came or went
+    first = _corridor_scan()
+    bearings = np.radians(np.arange(-6.0, 6.01, 0.5))
+    second = (
+        np.column_stack([np.cos(bearings), np.sin(bearings)])
+        * np.where(np.abs(bearings) < math.radians(3.5), 3.0, 6.0 / np.cos(bearings))[:, None]
+    )
+    xyz = np.zeros((2, 3))
+    table = fs.polar([first, second])
+    one = fs.one_way(np.array([0]), np.array([1]), xyz, [first, second], table)
+    back = fs.one_way(np.array([1]), np.array([0]), xyz, [first, second], table)
+    assert one[0, 0] >= fs.MIN_COMPARED and one[0, 1] > 0.3 * one[0, 0]
+    assert back[0, 0] < fs.MIN_COMPARED
+    assert len(fs.pair_shares(np.array([[0, 1]]), xyz, [first, second], table)) == 0
+
+
 def test_the_judgement_needs_more_contradicting_places_than_the_noise_makes() -> None:
     noise = np.full(300, 0.02)  # shares of consistent revisits
     ok = fs.FreeSpaceCheck(noise, 500, 0.05, 0.05)

@@ -13,7 +13,10 @@ that bearing, deep inside the space they crossed. Bearings the other scan has no
 not compared. The pair's share is that of the way (the first scan's echoes in the second's
 free space, or back) that contradicts less: something that came or went between the visits (a
 person, a door) contradicts one way only, since the other visit's echoes stand behind it; a
-misplaced visit puts each scan's walls across the other's free space, both ways.
+misplaced visit puts each scan's walls across the other's free space, both ways. So a pair is
+judged only when both ways compared :data:`MIN_COMPARED` echoes: one way alone cannot tell the
+two apart. Two visits facing apart overlap at the edges of their views only, where one way
+often compares a handful of echoes; near pairs, facing alike, always compare both ways.
 
 **The log's own noise is the yardstick.** Scans near in time (each node of the track with the
 next two, a few decimetres and degrees apart, placed relative to each other by the scan
@@ -72,7 +75,7 @@ ANGLE_RAD = math.radians(2.0)
 #: Echoes nearer than this to the looking scan's origin are not compared (the robot's own body,
 #: and bearings that a few centimetres of pose turn through many beams).
 MIN_RANGE_M = 0.5
-#: A way of a pair counts when at least this many echoes were compared.
+#: A pair is judged when each of its two ways compared at least this many echoes.
 MIN_COMPARED = 20
 #: A bearing is covered by a scan when its two neighbouring beams are within this many beam
 #: spacings of it.
@@ -263,17 +266,18 @@ def one_way(look: Ints, echo: Ints, xyz: F64, points: list[F64], table: Polar) -
 
 
 def pair_shares(pairs: Ints, xyz: F64, points: list[F64], table: Polar) -> F64:
-    """The contradicting share of each of the node-slot ``pairs`` (P, 2) that has a way with
-    :data:`MIN_COMPARED` echoes compared: the lesser of its two ways' (see the module)."""
+    """The contradicting share of each of the node-slot ``pairs`` (P, 2) whose two ways both
+    compared :data:`MIN_COMPARED` echoes: the lesser of its two ways' (see the module)."""
     if len(pairs) == 0:
         return np.zeros(0)
     one = one_way(pairs[:, 0], pairs[:, 1], xyz, points, table)
     back = one_way(pairs[:, 1], pairs[:, 0], xyz, points, table)
     ways = np.column_stack([one[:, 1] / np.maximum(one[:, 0], 1), back[:, 1] / np.maximum(
         back[:, 0], 1)])  # fmt: skip
-    ways[np.column_stack([one[:, 0], back[:, 0]]) < MIN_COMPARED] = np.inf
-    least: F64 = ways.min(axis=1)
-    return least[np.isfinite(least)]
+    # one way alone cannot tell a misplaced visit from something that came or went
+    both = (np.column_stack([one[:, 0], back[:, 0]]) >= MIN_COMPARED).all(axis=1)
+    least: F64 = ways[both].min(axis=1)
+    return least
 
 
 def near_pairs(count: int) -> Ints:
