@@ -12,7 +12,12 @@ import numpy as np
 import pytest
 
 from gridmap_cli.geometry import compose, inverse
-from gridmap_cli.poses.correction.relocate import odometry_gaps, usual_interval
+from gridmap_cli.poses.correction.relocate import (
+    TypicalFit,
+    odometry_gaps,
+    typical_fit,
+    usual_interval,
+)
 from gridmap_cli.poses.correction.scan_match import FALLBACK, ScanMatchParams, match_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from tests.test_scan_match import errors, laser_robot, room_world, run
@@ -105,3 +110,19 @@ def test_a_clock_that_stamps_in_bursts_has_gaps_only_where_it_stops() -> None:
     across = (scans_s > 29.5) & (scans_s < 40.5)
     assert gap[across].any()
     assert not gap[~across].any()
+
+
+def test_the_running_typical_fit_is_typical_fit_at_every_step() -> None:
+    """Asked after each match, the running value is numpy's percentile of the fits so far,
+    bit for bit: fallbacks (under the floor) and NaN left out, 1.0 before there are enough."""
+    rng = np.random.default_rng(3)
+    fits = rng.uniform(0.3, 1.0, 400)
+    fits[rng.random(400) < 0.1] = np.nan
+    fits[:5] = [0.9, 0.95, 0.6, 0.4, 0.97]
+    running = TypicalFit(0.5)
+    values = []
+    for k, fraction in enumerate(fits):
+        assert running.value() == typical_fit(fits[:k], 0.5), k
+        values.append(running.value())
+        running.add(float(fraction))
+    assert values[0] == 1.0 and min(values) < 0.8  # both branches were compared

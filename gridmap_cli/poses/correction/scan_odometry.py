@@ -31,7 +31,7 @@ from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid
 from gridmap_cli.poses.correction.degeneracy import keep_across, weak_axis
 from gridmap_cli.poses.correction.planar import placed_points, planar_pose, pose_matrix
-from gridmap_cli.poses.correction.relocate import relocate, typical_fit
+from gridmap_cli.poses.correction.relocate import TypicalFit, relocate
 from gridmap_cli.poses.correction.scan_match import (
     Progress,
     ScanMatchParams,
@@ -66,7 +66,7 @@ class ScanOdometryParams:
     over the last step's time, at most this much (a gap in the recording is not a long
     straight drive).
     ``search_m``: a match that holds but fits worse than the log's matches usually do
-    (:func:`.relocate.typical_fit`) may be a wrong minimum a wrong prediction led GICP into:
+    (:class:`.relocate.TypicalFit`) may be a wrong minimum a wrong prediction led GICP into:
     the correlative search (:func:`.relocate.relocate`) looks this far and as far round as
     ``heading_starts_rad`` go around the prediction, and its match is kept when it fits as
     well as usual.
@@ -192,7 +192,7 @@ def scan_odometry(
     n = len(scans)
     poses = np.zeros((n, 3))
     keyframes = _Keyframes(params)
-    fits = np.full(n, np.nan)
+    fits = TypicalFit(params.min_inlier_fraction)
     t = scans.stamp_ns.astype(np.float64)
     for k in range(n):
         if k == 0:
@@ -210,12 +210,10 @@ def scan_odometry(
                 scaled = _moved(poses[k - 1], (float(dx), float(dy), float(dth)), ratio)
         starts = [guess, last, scaled]
         starts += [(guess[0], guess[1], guess[2] + d) for d in params.heading_starts_rad]
-        found = keyframes.match(
-            scans.points[k], starts, typical_fit(fits[:k], params.min_inlier_fraction)
-        )
+        found = keyframes.match(scans.points[k], starts, fits.value())
         pose = guess if found is None else found[0]
         if found is not None:
-            fits[k] = found[1]
+            fits.add(found[1])
         poses[k] = pose
         keyframes.offer(scans.points[k], pose)
         if progress is not None:
