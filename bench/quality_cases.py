@@ -50,6 +50,7 @@ import dataclasses
 import sys
 import time
 import traceback
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -60,7 +61,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
+from gridmap_cli.mapping.grid import OccupancyMap  # noqa: E402
 from gridmap_cli.records import PoseTrack, RangeLog  # noqa: E402
+from gridmap_cli.robot import RobotDescription  # noqa: E402
+
+#: a case's reference value of one source: (source, its posed log, its track, its map) -> value
+Order = Callable[[str, RangeLog, PoseTrack, OccupancyMap], float]
 
 DATA = ROOT.parent / "shared" / "data"
 DOC = ROOT / "docs" / "quality.md"
@@ -124,7 +130,9 @@ def half_log(log: RangeLog, half: str) -> RangeLog:
     )
 
 
-def _score(log: RangeLog, robot: object, order: object) -> tuple[dict, dict, str]:
+def _score(
+    log: RangeLog, robot: RobotDescription | None, order: Order
+) -> tuple[dict[str, float], dict[str, dict[str, float]], str]:
     """Reference values (``order(source, log_of_source, track)``) and the scores of each source."""
     from gridmap_cli.evaluation.quality import echo_consistency, map_readings
     from gridmap_cli.evaluation.revisits import graph_revisits, map_revisits
@@ -132,9 +140,9 @@ def _score(log: RangeLog, robot: object, order: object) -> tuple[dict, dict, str
     from gridmap_cli.poses.correction.scan_match import corrected_track, match_log
     from gridmap_cli.poses.correction.slam import slam_log
 
-    slam = slam_log(log, robot)  # type: ignore[arg-type]
-    revisits = graph_revisits(slam, log, robot)  # type: ignore[arg-type]
-    match = match_log(log, robot)  # type: ignore[arg-type]
+    slam = slam_log(log, robot)
+    revisits = graph_revisits(slam, log, robot)
+    match = match_log(log, robot)
     logs = {
         "odometry": log,
         "scan-matched": dataclasses.replace(log, poses=corrected_track(log.poses, match)),
@@ -146,14 +154,9 @@ def _score(log: RangeLog, robot: object, order: object) -> tuple[dict, dict, str
     scores: dict[str, dict[str, float]] = {s: {} for s in SCORES}
     nan = float("nan")
     for source in SOURCES:
-        omap = build_map(logs[source], robot, options).map  # type: ignore[arg-type]
-        reference[source] = order(source, logs[source], tracks[source], omap)  # type: ignore[operator]
-        echoes = echo_consistency(
-            omap,
-            map_readings(logs[source], robot, options),
-            OCCUPIED,
-            FREE,  # type: ignore[arg-type]
-        )
+        omap = build_map(logs[source], robot, options).map
+        reference[source] = order(source, logs[source], tracks[source], omap)
+        echoes = echo_consistency(omap, map_readings(logs[source], robot, options), OCCUPIED, FREE)
         scores["echo share"][source] = echoes.in_free if echoes else nan
         own = map_revisits(revisits, logs[source].poses, graph_track=source == "slam")
         scores["revisits median"][source] = own.median_m if own else nan
@@ -181,7 +184,7 @@ def bag_case(name: str, variant: str) -> Case:
     )
     robot = robot_from_log(path, log.metadata)
 
-    def order(source: str, mapped: RangeLog, track: PoseTrack, omap: object) -> float:
+    def order(source: str, mapped: RangeLog, track: PoseTrack, omap: OccupancyMap) -> float:
         return score_track(mapped.poses, relations, log.poses).trans_mean_m
 
     reference, scores, note = _score(log, robot, order)
@@ -201,13 +204,13 @@ def carmen_case(name: str, half: str) -> Case:
     assert log.truth is not None
     ref_map = build_map(dataclasses.replace(log, poses=log.truth), None, BuildOptions()).map
 
-    def order(source: str, mapped: RangeLog, track: PoseTrack, omap: object) -> float:
+    def order(source: str, mapped: RangeLog, track: PoseTrack, omap: OccupancyMap) -> float:
         assert log.truth is not None
         x, y, th, ok = interpolate_pose(log.truth, track.stamp_ns)
         at = PoseTrack(track.stamp_ns[ok], track.x_m[ok], track.y_m[ok], track.theta_rad[ok])
         ref = PoseTrack(track.stamp_ns[ok], x[ok], y[ok], th[ok])
         error = track_error(at, ref, DELTA_M)
-        return map_scores(omap, ref_map, error.alignment)[3]  # type: ignore[arg-type]
+        return map_scores(omap, ref_map, error.alignment)[3]
 
     reference, scores, note = _score(log, None, order)
     return Case(f"carmen/{name}/{half}", "NLL against the reference", reference, scores, note)
