@@ -105,3 +105,18 @@ def small_sample_factor(nees: F64) -> float:
     n = int(nees.shape[0])
     chi2_median = 2.0 * float(gammaincinv(n, 0.5))
     return math.sqrt(float(np.sum(nees)) / chi2_median)
+
+
+def likelihood_ratio(corrected: RevisitFactor, uncorrected: RevisitFactor) -> float:
+    """``2 ln`` of the likelihood ratio of the uncorrected track over the corrected one on the
+    same revisits, under the same walks: with ``n`` revisits of two degrees of freedom each and
+    the scale of the walks unknown (its maximum-likelihood value taken in each), the
+    log-likelihood of a track is ``-n ln S`` up to a constant, ``S`` its sum of normalised
+    squared errors, and ``S`` goes as the factor squared, so the statistic is
+    ``4 n ln(f_corrected / f_uncorrected)``: positive when the revisits fit the track better
+    without the correction, about a chi-square with one degree of freedom when the two are
+    worth the same. 0 without revisits to compare on."""
+    a, b = corrected.factor, uncorrected.factor
+    if not (math.isfinite(a) and math.isfinite(b) and a > 0.0 and b > 0.0):
+        return 0.0
+    return 4.0 * corrected.revisits * math.log(a / b)
