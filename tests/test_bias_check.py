@@ -252,5 +252,9 @@ def test_the_likelihood_ratio_of_the_revisits() -> None:
         12.0 * math.log(2.0)
     )
     assert likelihood_ratio(RevisitFactor(1.0, 3), RevisitFactor(2.0, 3)) < 0.0
+    # the same errors whitened by a narrower spread (a track a scale correction shrinks) are
+    # no worse a fit for it: the determinants take back what the factor gives
+    narrow = RevisitFactor(2.0, 3, log_determinant=3 * 2 * math.log(0.25))
+    assert likelihood_ratio(narrow, RevisitFactor(1.0, 3)) == pytest.approx(0.0, abs=1e-12)
     # nothing to compare on: no evidence either way
     assert likelihood_ratio(RevisitFactor(math.nan, 0), RevisitFactor(math.nan, 0)) == 0.0

@@ -13,6 +13,13 @@ the file:
   log's own estimate is not put in its place: a scan matcher has biases of its own (along a
   featureless corridor) and a correction of the map's log by its own reference is another
   product (``--pose scan-matched``);
+* **a bias at a map's lengths**, on the log's own revisits (:func:`biases_on_revisits`): the
+  places the closure search finds seen twice, far apart along the path, registered scan on
+  scan. A bias the windows cannot contradict (one that acts over the whole log, a turn scale
+  over every net turn, fitted on windows the scan matcher's own jitter spoils) can still turn
+  the whole track; the corrected odometry between the two visits, with the bias corrected and
+  without it, is weighed by its likelihood, and a bias the revisits reject at
+  :data:`~.bias_check.SIGMA` is not corrected;
 * **the random walks** are checked on the positions, as calibrate checks its own
   (:func:`~.consistency.consistency`): from every key pose the corrected odometry is compared
   with the scan-matched track after 20 to 500 key steps, against the covariance the walks
