@@ -8,6 +8,8 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
+import numpy.typing as npt
 import pytest
 
 from gridmap_cli.poses.calibration.bias_check import (
@@ -19,11 +21,20 @@ from gridmap_cli.poses.calibration.bias_check import (
     check_bias,
 )
 from gridmap_cli.poses.calibration.calibrate import calibrate
-from gridmap_cli.poses.calibration.log_check import check_file
-from gridmap_cli.poses.odometry_error import OdometryError, save_odometry_error
+from gridmap_cli.poses.calibration.log_check import FileCheck, biases_on_revisits, check_file
+from gridmap_cli.poses.calibration.revisit_check import (
+    RevisitFactor,
+    likelihood_ratio,
+    revisit_factor,
+)
+from gridmap_cli.poses.correction.loop_closure import Closure
+from gridmap_cli.poses.odometry_error import OdometryError, correct_track, save_odometry_error
+from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise
 from gridmap_cli.readers import read_log
-from gridmap_cli.records import RangeLog
+from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import load_robot
+from gridmap_cli.sim.odometry import OdometryErrorModel, odometry_from_truth
+from gridmap_cli.sim.path import WaypointPath, trajectory
 from gridmap_cli.writers.csv_log import save_csv_log
 from tests.helpers import log_with_truth, run
 from tests.test_scan_match import room_world
@@ -164,3 +175,86 @@ def test_a_sonar_log_keeps_the_file_and_says_so() -> None:
     check = check_file(log, load_robot("p3at"), model)
     assert not check.checked and check.model == model
     assert check.summary() == "odometry error not checked (no laser in the log)"
+
+
+def revisited_loop(
+    turn_scale: float,
+) -> tuple[PoseTrack, PoseTrack, npt.NDArray[np.intp], list[Closure]]:
+    """Three laps of a rectangle: the odometry turns ``turn_scale`` more per radian than the
+    truth, with a little random error; a node every 10th pose, and a closure (the truth's
+    relative pose, as a perfect registration gives it) between each node and every later one
+    8 m of path and more on that lies within 0.5 m of it."""
+    lap = [[0.0, 0.0], [8.0, 0.0], [8.0, 5.0], [0.0, 5.0]]
+    path = WaypointPath(waypoints=np.asarray([*lap, *lap, *lap, [0.0, 0.5]]), speed_m_s=0.5)
+    truth = trajectory(path, 5.0)
+    errors = OdometryErrorModel(
+        turn_scale_error=turn_scale,
+        scale_error=0.0,
+        heading_drift_rad_per_m=0.0,
+        sigma_dist_per_sqrt_m=0.005,
+        sigma_turn_per_sqrt_rad=0.005,
+    )
+    odometry = odometry_from_truth(truth, errors, np.random.default_rng(5))
+    nodes = np.arange(0, len(truth), 10, dtype=np.intp)
+    x, y, th = truth.x_m[nodes], truth.y_m[nodes], truth.theta_rad[nodes]
+    walked = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
+    closures = []
+    for i in range(len(nodes)):
+        for j in range(i + 1, len(nodes)):
+            if walked[j] - walked[i] >= 8.0 and math.hypot(x[j] - x[i], y[j] - y[i]) < 0.5:
+                c, s = math.cos(th[i]), math.sin(th[i])
+                dx, dy = x[j] - x[i], y[j] - y[i]
+                closures.append(
+                    Closure(i, j, c * dx + s * dy, -s * dx + c * dy, float(th[j] - th[i]), 1.0)
+                )
+    return odometry, truth, nodes, closures
+
+
+@pytest.mark.parametrize(
+    ("true_turn", "file_turn", "applied"),
+    [(0.03, 0.03, True), (0.0, 0.03, False), (0.03, -0.03, False)],
+)
+def test_revisits_drop_a_bias_they_contradict_and_keep_one_that_agrees(
+    true_turn: float, file_turn: float, applied: bool
+) -> None:
+    odometry, _, nodes, closures = revisited_loop(true_turn)
+    assert len(closures) >= 8
+    model = OdometryError(
+        range_m_per_sqrt_m=0.01,
+        bearing_rad_per_sqrt_rad=0.02,
+        bearing_rad_per_rad=abs(file_turn),
+        turn_scale_bias=file_turn,
+    )
+    noise = StepNoise.of(model.random_part())
+
+    def on_revisits(m: OdometryError) -> RevisitFactor:
+        return revisit_factor(correct_track(odometry, m), nodes, closures, noise, 0.01, 0.002)
+
+    kept, contradicted = biases_on_revisits(model, on_revisits)
+    assert (kept.turn_scale_bias == file_turn) is applied
+    assert (kept.bearing_rad_per_rad == abs(file_turn)) is applied
+    if applied:
+        assert contradicted == ()
+    else:
+        ((key, n, statistic),) = contradicted
+        assert key == "turn_scale_bias" and n == len(closures)
+        assert statistic > 4.0
+        check = FileCheck(kept, True, contradicted=contradicted)
+        assert "turn_scale_bias not corrected (this log's" in check.summary()
+        assert check.as_dict()["biases_contradicted_by_revisits"] == {
+            key: {"revisits": n, "likelihood_ratio_statistic": statistic}
+        }
+
+
+def test_the_likelihood_ratio_of_the_revisits() -> None:
+    # 4 n ln(f_corrected / f_uncorrected): positive when the revisits fit better uncorrected
+    assert likelihood_ratio(RevisitFactor(2.0, 3), RevisitFactor(1.0, 3)) == pytest.approx(
+        12.0 * math.log(2.0)
+    )
+    assert likelihood_ratio(RevisitFactor(1.0, 3), RevisitFactor(2.0, 3)) < 0.0
+    # the same errors whitened by a narrower spread (a track a scale correction shrinks) are
+    # no worse a fit for it: the determinants take back what the factor gives
+    narrow = RevisitFactor(2.0, 3, log_determinant=3 * 2 * math.log(0.25))
+    assert likelihood_ratio(narrow, RevisitFactor(1.0, 3)) == pytest.approx(0.0, abs=1e-12)
+    # nothing to compare on: no evidence either way
+    assert likelihood_ratio(RevisitFactor(math.nan, 0), RevisitFactor(math.nan, 0)) == 0.0

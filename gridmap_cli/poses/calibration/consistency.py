@@ -105,6 +105,21 @@ def position_nees(
     by the covariance the walks grow along it plus the jitter of what it is compared with (its
     heading turns the far end about the near one; its position is off at both ends); segments
     whose covariance is singular are left out."""
+    nees, _ = nees_and_determinant(grown, start, end, error, length, jitter_m, jitter_rad)
+    return nees
+
+
+def nees_and_determinant(
+    grown: SegmentCovariance,
+    start: npt.NDArray[np.int64],
+    end: npt.NDArray[np.int64],
+    error: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]],
+    length: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]],
+    jitter_m: float,
+    jitter_rad: float,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """:func:`position_nees` and the determinant of each segment's covariance (the same
+    segments): what a likelihood of the errors needs beside their normalised squares."""
     ex, ey = error
     lx, ly = length
     sxx, sxy, syy = grown.between(start, end)
@@ -114,7 +129,7 @@ def position_nees(
     ok = det > 0.0
     quad = syy * ex * ex - 2 * sxy * ex * ey + sxx * ey * ey
     nees: npt.NDArray[np.float64] = quad[ok] / det[ok]
-    return nees
+    return nees, det[ok]
 
 
 def consistency(

@@ -13,6 +13,13 @@ the file:
   log's own estimate is not put in its place: a scan matcher has biases of its own (along a
   featureless corridor) and a correction of the map's log by its own reference is another
   product (``--pose scan-matched``);
+* **a bias at a map's lengths**, on the log's own revisits (:func:`biases_on_revisits`): the
+  places the closure search finds seen twice, far apart along the path, registered scan on
+  scan. A bias the windows cannot contradict (one that acts over the whole log, a turn scale
+  over every net turn, fitted on windows the scan matcher's own jitter spoils) can still turn
+  the whole track; the corrected odometry between the two visits, with the bias corrected and
+  without it, is weighed by its likelihood, and a bias the revisits reject at
+  :data:`~.bias_check.SIGMA` is not corrected;
 * **the random walks** are checked on the positions, as calibrate checks its own
   (:func:`~.consistency.consistency`): from every key pose the corrected odometry is compared
   with the scan-matched track after 20 to 500 key steps, against the covariance the walks
@@ -34,6 +41,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from gridmap_cli.poses.calibration import bias_check
@@ -45,7 +53,11 @@ from gridmap_cli.poses.calibration.calibrate import (
     signed_biases,
 )
 from gridmap_cli.poses.calibration.consistency import consistency
-from gridmap_cli.poses.calibration.revisit_check import revisit_factor
+from gridmap_cli.poses.calibration.revisit_check import (
+    RevisitFactor,
+    likelihood_ratio,
+    revisit_factor,
+)
 from gridmap_cli.poses.correction.scan_match import (
     NoLaserError,
     ScanMatchParams,
@@ -83,6 +95,9 @@ class FileCheck:
     revisits: int = 0
     revisit_factor: float = math.nan
     revisit_cut: tuple[str, ...] = ()
+    #: The biases the log's revisits contradict (:func:`biases_on_revisits`), each with the
+    #: revisits and the likelihood-ratio statistic that did.
+    contradicted: tuple[tuple[str, int, float], ...] = ()
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -91,6 +106,10 @@ class FileCheck:
             "biases_dropped": {
                 key: {"file": f, "this_log": own, "standard_error": se}
                 for key, f, own, se in self.dropped
+            },
+            "biases_contradicted_by_revisits": {
+                key: {"revisits": n, "likelihood_ratio_statistic": x}
+                for key, n, x in self.contradicted
             },
             "walks_narrowed_to_this_log": list(self.narrowed),
             "position_check": self.consistency if math.isfinite(self.consistency) else None,
@@ -110,6 +129,11 @@ class FileCheck:
         if self.dropped:
             names = ", ".join(key.removesuffix("_rad_per_m") for key, *_ in self.dropped)
             parts.append(f"{names} not corrected (this log's laser disagrees)")
+        for key, n, statistic in self.contradicted:
+            parts.append(
+                f"{key.removesuffix('_rad_per_m')} not corrected (this log's {n} revisits fit "
+                f"better without it: likelihood ratio {statistic:.1f} > {bias_check.SIGMA**2:g})"
+            )
         if self.narrowed:
             parts.append(f"{', '.join(self.narrowed)} narrowed to this log's own")
         if self.walk_factor < 1.0:
@@ -160,6 +184,14 @@ def check_file(log: RangeLog, robot: RobotDescription | None, model: OdometryErr
     narrowed = tuple(w for w in WALK_KEYS if walks[w] < getattr(kept, w))
     kept = dataclasses.replace(kept, **walks)
     noise = StepNoise.of(kept.random_part())
+    # the places the log comes back to, registered scan on scan: the biases judged there
+    nodes, _, _, closures, *_ = optimise_with_closures(scans, match, REVISIT_SEARCH)
+
+    def on_revisits_of(m: OdometryError) -> RevisitFactor:
+        track = correct_track(odometry, m)
+        return revisit_factor(track, nodes, closures, noise, own.jitter_m, own.jitter_rad)
+
+    kept, contradicted = biases_on_revisits(kept, on_revisits_of)
     factor, _ = consistency(
         correct_track(odometry, kept), reference, noise, own.jitter_m, own.jitter_rad,
         own.window_m, own.window_rad,
@@ -168,7 +200,6 @@ def check_file(log: RangeLog, robot: RobotDescription | None, model: OdometryErr
     if scale < 1.0:
         kept = dataclasses.replace(kept, **{w: getattr(kept, w) * scale for w in WALK_KEYS})
     # the walks at a map's lengths, on the places the log comes back to
-    nodes, _, _, closures, *_ = optimise_with_closures(scans, match, REVISIT_SEARCH)
     on_revisits = revisit_factor(
         correct_track(odometry, kept), nodes, closures, StepNoise.of(kept.random_part()),
         own.jitter_m, own.jitter_rad,
@@ -184,5 +215,33 @@ def check_file(log: RangeLog, robot: RobotDescription | None, model: OdometryErr
         kept = dataclasses.replace(kept, **{w: getattr(kept, w) * r for w in cut})
     return FileCheck(
         kept, True, "", tuple(dropped), scale, factor, narrowed,
-        on_revisits.revisits, r, cut,
+        on_revisits.revisits, r, cut, contradicted,
     )  # fmt: skip
+
+
+def biases_on_revisits(
+    model: OdometryError, on_revisits: Callable[[OdometryError], RevisitFactor]
+) -> tuple[OdometryError, tuple[tuple[str, int, float], ...]]:
+    """``model`` without the biases the log's own revisits contradict, and which (each with
+    the revisits and the statistic that did). ``on_revisits`` gives the check on the revisits
+    of a model's corrected odometry. Each bias of the file is a claim about this log; leaving
+    it out is the drift-blind alternative, and the revisits (no drift between the two visits)
+    weigh the two at a map's lengths by their likelihood ratio
+    (:func:`~.revisit_check.likelihood_ratio`): the bias is not corrected when the track
+    without it is the likelier by more than :data:`~.bias_check.SIGMA` standard errors would
+    say (the statistic over ``SIGMA**2``, a chi-square with one degree of freedom, as the
+    biases' own checks ask 2 standard errors). A wrong correction turns the whole track; a
+    right one left out leaves the track the drift-blind map has. Each bias is judged with
+    those before it decided."""
+    contradicted = []
+    base = on_revisits(model)
+    for k, key in enumerate(BIAS_KEYS):
+        if getattr(model, key) == 0.0:
+            continue
+        without = dataclasses.replace(model, **{key: 0.0, MAGNITUDE_KEYS[k]: 0.0})
+        other = on_revisits(without)
+        statistic = likelihood_ratio(base, other)
+        if statistic > bias_check.SIGMA**2:
+            contradicted.append((key, other.revisits, statistic))
+            model, base = without, other
+    return model, tuple(contradicted)

@@ -33,7 +33,7 @@ from gridmap_cli.poses.calibration.consistency import (
     CHI2_2_MEDIAN,
     MIN_STARTS,
     SegmentCovariance,
-    position_nees,
+    nees_and_determinant,
 )
 from gridmap_cli.poses.correction.loop_closure import Closure
 from gridmap_cli.poses.uncertainty.pose_uncertainty import StepNoise
@@ -49,6 +49,9 @@ class RevisitFactor:
 
     factor: float
     revisits: int
+    #: The sum of the logarithms of the covariances' determinants the revisits were whitened
+    #: by (m**4): the part of their likelihood the factor does not hold.
+    log_determinant: float = 0.0
 
 
 def revisit_factor(
@@ -80,7 +83,7 @@ def revisit_factor(
     ex = (px[end] - px[start]) - (c * rx - s * ry)
     ey = (py[end] - py[start]) - (s * rx + c * ry)
     # the jitter is the registration's own error
-    nees = position_nees(
+    nees, det = nees_and_determinant(
         grown,
         start.astype(np.int64),
         end.astype(np.int64),
@@ -91,9 +94,10 @@ def revisit_factor(
     )
     if nees.shape[0] == 0:
         return RevisitFactor(math.nan, 0)
-    if nees.shape[0] < MIN_STARTS:
-        return RevisitFactor(small_sample_factor(nees), int(nees.shape[0]))
-    return RevisitFactor(math.sqrt(float(np.median(nees)) / CHI2_2_MEDIAN), int(nees.shape[0]))
+    n, log_det = int(nees.shape[0]), float(np.sum(np.log(det)))
+    if n < MIN_STARTS:
+        return RevisitFactor(small_sample_factor(nees), n, log_det)
+    return RevisitFactor(math.sqrt(float(np.median(nees)) / CHI2_2_MEDIAN), n, log_det)
 
 
 def small_sample_factor(nees: F64) -> float:
@@ -105,3 +109,25 @@ def small_sample_factor(nees: F64) -> float:
     n = int(nees.shape[0])
     chi2_median = 2.0 * float(gammaincinv(n, 0.5))
     return math.sqrt(float(np.sum(nees)) / chi2_median)
+
+
+def likelihood_ratio(corrected: RevisitFactor, uncorrected: RevisitFactor) -> float:
+    """``2 ln`` of the likelihood ratio of the uncorrected track over the corrected one on the
+    same revisits: positive when the revisits fit the track better without the correction,
+    about a chi-square with one degree of freedom when the two are worth the same; 0 without
+    revisits to compare on. Each track is whitened by the covariance its own walks grow along
+    it (a track a scale correction shrinks predicts a smaller spread), so the likelihood holds
+    the covariances' determinants beside the errors: with ``n`` revisits of two degrees of
+    freedom each and the walks' scale unknown (its maximum-likelihood value taken in each),
+    ``-2 ln L = 2 n ln S + sum ln det`` up to a constant, ``S`` the sum of normalised squared
+    errors, which goes as the factor squared; so the statistic is
+    ``4 n ln(f_corrected / f_uncorrected) + sum ln det_corrected - sum ln det_uncorrected``."""
+    a, b = corrected.factor, uncorrected.factor
+    same = corrected.revisits == uncorrected.revisits
+    if not (same and math.isfinite(a) and math.isfinite(b) and a > 0.0 and b > 0.0):
+        return 0.0
+    return (
+        4.0 * corrected.revisits * math.log(a / b)
+        + corrected.log_determinant
+        - uncorrected.log_determinant
+    )
