@@ -2,15 +2,22 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 
+import gtsam
 import numpy as np
 import pytest
 
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
 from gridmap_cli.poses.correction.loop_closure import ClosureParams, candidates
-from gridmap_cli.poses.correction.pose_graph import Edge, PoseGraph, edge_residuals
+from gridmap_cli.poses.correction.pose_graph import (
+    Edge,
+    PoseGraph,
+    _edge_covariances,
+    edge_residuals,
+)
 from gridmap_cli.poses.correction.slam import SlamParams, keyframes
 
 
@@ -195,3 +202,26 @@ def test_the_closure_search_hands_the_heap_back_at_every_grid_let_go(
     assert len(calls) == 3
     submaps.grid(node)  # a kept grid: nothing let go, nothing handed back
     assert len(calls) == 3
+
+
+def test_the_edge_covariances_are_gtsams_joint_marginals() -> None:
+    """The selected inverse gives each edge's joint covariance as gtsam's joint marginal of its
+    two nodes does, on a loop with closures (robust), a corridor edge (a full covariance) and
+    an edge drawn against the elimination order (j before i)."""
+    truth = _square(6, 6.0)
+    graph = _drifting_graph(truth)
+    graph.edges[3] = dataclasses.replace(graph.edges[3], weak_sigma_m=0.4, weak_axis=(0.6, 0.8))
+    graph.edges += [_closure(0, 24, truth), _closure(5, 17, truth), _closure(20, 2, truth)]
+    poses = graph.optimise()
+    values = gtsam.Values()
+    for k, (x, y, th) in enumerate(poses):
+        values.insert(k, gtsam.Pose2(float(x), float(y), float(th)))
+    marginals = gtsam.Marginals(graph._factors(), values)
+    net = graph._factors().linearize(values).eliminateSequential()
+    ours = _edge_covariances(net, graph.edges, len(poses))
+    for e, c in zip(graph.edges, ours, strict=True):
+        joint = marginals.jointMarginalCovariance(gtsam.KeyVector([e.i, e.j]))
+        want = np.block(
+            [[joint.at(e.i, e.i), joint.at(e.i, e.j)], [joint.at(e.j, e.i), joint.at(e.j, e.j)]]
+        )
+        np.testing.assert_allclose(c, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
