@@ -91,6 +91,24 @@ def test_the_judgement_needs_more_contradicting_places_than_the_noise_makes() ->
     assert together["b"].noise_tail == 0.05 and together["a"].level == pytest.approx(0.1)
 
 
+def test_the_judgement_is_the_binomial_tail_of_the_contradicting_places() -> None:
+    """A track fails from the first count of contradicting places that consistent revisits
+    (each contradicting by chance with probability 1 - TAIL_QUANTILE) reach less often than
+    SIGNIFICANCE: the tail summed term by term here."""
+    n, chance = 300, 1.0 - fs.TAIL_QUANTILE
+    noise = np.full(n, 0.02)
+    verdicts = []
+    for k in range(25):
+        shares = np.concatenate([noise[: n - k], np.full(k, 0.35)])
+        check = fs.FreeSpaceCheck(shares, 500, 0.05, 0.05)
+        assert check.contradicting == k
+        tail = 1.0 - sum(math.comb(n, i) * chance**i * (1 - chance) ** (n - i) for i in range(k))
+        assert abs(tail - fs.SIGNIFICANCE) > 1e-6  # no count sits on the threshold
+        verdicts.append(check.fails)
+        assert check.fails == (tail < fs.SIGNIFICANCE)
+    assert not verdicts[0] and verdicts[-1]  # both verdicts are reached
+
+
 @pytest.fixture(scope="module")
 def laser_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return simulated_laser_log(tmp_path_factory.mktemp("free"))
