@@ -141,28 +141,44 @@ class PoseGraph:
         joint = _edge_covariances(
             self._factors().linearize(values).eliminateSequential(), self.edges, len(poses)
         )
-        pose2 = [gtsam.Pose2(float(x), float(y), float(th)) for x, y, th in poses]
+        if not self.edges:
+            return np.zeros((2, 2))
+        i = np.array([e.i for e in self.edges])
+        j = np.array([e.j for e in self.edges])
+        # each edge's estimate (node j in node i's frame) and its error against the measured
+        # relative pose, in the tangent space as the optimiser sees it
+        est = compose(
+            *inverse(poses[i, 0], poses[i, 1], poses[i, 2]), poses[j, 0], poses[j, 1], poses[j, 2]
+        )
+        measured = np.array([(e.dx_m, e.dy_m, e.dtheta_rad) for e in self.edges])
+        r = _logmap(*compose(*inverse(*measured.T), *est))
+        # the edge's own information, looser along a corridor (:meth:`Edge.covariance`), as
+        # the optimiser weighs it; x, y and theta do not mix in it
+        info = np.linalg.inv(np.stack([e.covariance() for e in self.edges]))
+        weight = np.ones(len(self.edges))
+        closure = np.array([e.closure for e in self.edges])
+        # Cauchy: w = 1 / (1 + |r|^2 / k^2) on the whitened residual
+        whitened = np.einsum("ei,eij,ej->e", r, info, r)
+        weight[closure] = 1.0 / (1.0 + whitened[closure] / self.cauchy_k**2)
+        # the relative pose's Jacobian in the two nodes: [-Adjoint(est^-1), I]
+        ix, iy, ith = inverse(*est)
+        c, s = np.cos(ith), np.sin(ith)
+        jac = np.zeros((len(self.edges), 3, 6))
+        jac[:, 0, 0], jac[:, 0, 1], jac[:, 0, 2] = -c, s, -iy
+        jac[:, 1, 0], jac[:, 1, 1], jac[:, 1, 2] = -s, -c, ix
+        jac[:, 2, 2] = -1.0
+        jac[:, :, 3:] = np.eye(3)
+        predicted = jac @ joint @ np.transpose(jac, (0, 2, 1))
+        t_info, t_r = info[:, :2, :2], r[:, :2]
         out = np.zeros((2, 2))
-        for e, c in zip(self.edges, joint, strict=True):
-            est = pose2[e.i].between(pose2[e.j])
-            r = gtsam.Pose2.Logmap(gtsam.Pose2(e.dx_m, e.dy_m, e.dtheta_rad).between(est))
-            # the edge's own information, looser along a corridor (:meth:`Edge.covariance`),
-            # as the optimiser weighs it; x, y and theta do not mix in it
-            info = np.linalg.inv(e.covariance())
-            weight = 1.0
-            if e.closure:  # Cauchy: w = 1 / (1 + |r|^2 / k^2) on the whitened residual
-                weight = 1.0 / (1.0 + float(r @ info @ r) / self.cauchy_k**2)
-            jac = np.hstack([-est.inverse().AdjointMap(), np.eye(3)])
-            predicted = jac @ c @ jac.T
-            t_info, t_r = info[:2, :2], r[:2]
-            out[0] += (
-                weight * float(t_r @ t_info @ t_r),
-                2.0 - weight * float(np.trace(t_info @ predicted[:2, :2])),
-            )
-            out[1] += (
-                weight * info[2, 2] * r[2] ** 2,
-                1.0 - weight * info[2, 2] * predicted[2, 2],
-            )
+        out[0] = (
+            float(np.sum(weight * np.einsum("ei,eij,ej->e", t_r, t_info, t_r))),
+            float(np.sum(2.0 - weight * np.einsum("eij,eji->e", t_info, predicted[:, :2, :2]))),
+        )
+        out[1] = (
+            float(np.sum(weight * info[:, 2, 2] * r[:, 2] ** 2)),
+            float(np.sum(1.0 - weight * info[:, 2, 2] * predicted[:, 2, 2])),
+        )
         return out
 
     def sample(self, poses: FloatArray, count: int, seed: int = 0) -> FloatArray:
@@ -253,12 +269,22 @@ def _edge_covariances(net: gtsam.GaussianBayesNet, edges: list[Edge], n: int) ->
         blocks[used] = own
         at[node * n + node] = used
         used += 1
-    out = np.empty((len(edges), 6, 6))
-    for k, e in enumerate(edges):
-        for a, u in enumerate((e.i, e.j)):
-            for b, v in enumerate((e.i, e.j)):
-                out[k, 3 * a : 3 * a + 3, 3 * b : 3 * b + 3] = blocks[at[u * n + v]]
+    pairs = [[at[u * n + v] for u in (e.i, e.j) for v in (e.i, e.j)] for e in edges]
+    four = blocks[np.array(pairs, dtype=np.int64).reshape(-1, 4)].reshape(-1, 2, 2, 3, 3)
+    out: FloatArray = four.transpose(0, 1, 3, 2, 4).reshape(-1, 6, 6)
     return out
+
+
+def _logmap(x: FloatArray, y: FloatArray, theta: FloatArray) -> FloatArray:
+    """Pose2's logarithm, as gtsam's ``Pose2.Logmap``, of each pose: shape (E, 3), the
+    translation through the inverse of the left Jacobian of the rotation ``V``."""
+    small = np.abs(theta) < 1e-10
+    c1, s = np.cos(theta) - 1.0, np.sin(theta)
+    scale = np.where(small, 1.0, theta / np.where(small, 1.0, c1 * c1 + s * s))
+    # V^-1 t = theta / (s^2 + (1 - c)^2) * (s x - (c - 1) y, (c - 1) x + s y) when turning
+    vx = np.where(small, x, scale * (s * x - c1 * y))
+    vy = np.where(small, y, scale * (c1 * x + s * y))
+    return np.column_stack([vx, vy, theta])
 
 
 def _poses(values: gtsam.Values, n: int) -> FloatArray:
