@@ -19,7 +19,7 @@ import gtsam
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.geometry import compose, inverse, wrap_angle
+from gridmap_cli.geometry import compose, inverse, logmap, wrap_angle
 
 FloatArray = npt.NDArray[np.float64]
 #: The Cauchy kernel's scale in each stage of :meth:`PoseGraph.optimise`, times ``cauchy_k``.
@@ -137,12 +137,9 @@ class PoseGraph:
 
         A loop closure counts with its robust kernel's weight at the residual, as the optimiser
         weighs it. Without a loop the redundancy is 0: nothing checks the noise."""
-        values = _values(poses)
-        joint = _edge_covariances(
-            self._factors().linearize(values).eliminateSequential(), self.edges, len(poses)
-        )
         if not self.edges:
             return np.zeros((2, 2))
+        joint = self.edge_covariances(poses)
         i = np.array([e.i for e in self.edges])
         j = np.array([e.j for e in self.edges])
         # each edge's estimate (node j in node i's frame) and its error against the measured
@@ -151,7 +148,7 @@ class PoseGraph:
             *inverse(poses[i, 0], poses[i, 1], poses[i, 2]), poses[j, 0], poses[j, 1], poses[j, 2]
         )
         measured = np.array([(e.dx_m, e.dy_m, e.dtheta_rad) for e in self.edges])
-        r = _logmap(*compose(*inverse(*measured.T), *est))
+        r = np.column_stack(logmap(*compose(*inverse(*measured.T), *est)))
         # the edge's own information, looser along a corridor (:meth:`Edge.covariance`), as
         # the optimiser weighs it; x, y and theta do not mix in it
         info = np.linalg.inv(np.stack([e.covariance() for e in self.edges]))
@@ -180,6 +177,13 @@ class PoseGraph:
             float(np.sum(1.0 - weight * info[:, 2, 2] * predicted[:, 2, 2])),
         )
         return out
+
+    def edge_covariances(self, poses: FloatArray) -> FloatArray:
+        """The joint covariance of each edge's two nodes at ``poses`` (the optimum), shape
+        (E, 6, 6): node i's block first, each in the node's own frame as gtsam's joint
+        marginals give it (:func:`_edge_covariances`)."""
+        net = self._factors().linearize(_values(poses)).eliminateSequential()
+        return _edge_covariances(net, self.edges, len(poses))
 
     def sample(self, poses: FloatArray, count: int, seed: int = 0) -> FloatArray:
         """``count`` joint draws of every node's pose from the graph's Gaussian at ``poses``
@@ -273,18 +277,6 @@ def _edge_covariances(net: gtsam.GaussianBayesNet, edges: list[Edge], n: int) ->
     four = blocks[np.array(pairs, dtype=np.int64).reshape(-1, 4)].reshape(-1, 2, 2, 3, 3)
     out: FloatArray = four.transpose(0, 1, 3, 2, 4).reshape(-1, 6, 6)
     return out
-
-
-def _logmap(x: FloatArray, y: FloatArray, theta: FloatArray) -> FloatArray:
-    """Pose2's logarithm, as gtsam's ``Pose2.Logmap``, of each pose: shape (E, 3), the
-    translation through the inverse of the left Jacobian of the rotation ``V``."""
-    small = np.abs(theta) < 1e-10
-    c1, s = np.cos(theta) - 1.0, np.sin(theta)
-    scale = np.where(small, 1.0, theta / np.where(small, 1.0, c1 * c1 + s * s))
-    # V^-1 t = theta / (s^2 + (1 - c)^2) * (s x - (c - 1) y, (c - 1) x + s y) when turning
-    vx = np.where(small, x, scale * (s * x - c1 * y))
-    vy = np.where(small, y, scale * (c1 * x + s * y))
-    return np.column_stack([vx, vy, theta])
 
 
 def _poses(values: gtsam.Values, n: int) -> FloatArray:
