@@ -11,9 +11,11 @@ ways:
 - **without it**: what ``gridmap evaluate MAP --log LOG`` reports
   (:mod:`gridmap_cli.evaluation.quality`): the share of the laser's echoes that end in a cell
   the map calls free (lower is better), the revisits (:mod:`gridmap_cli.evaluation.revisits`:
-  the median distance between two visits' echoes on the places the pose graph found twice, the
-  graph's own track on the closures held out of its solve; lower is better), and for the pose
-  graph the median NEES of its closures.
+  the distance between two visits' echoes on the places the pose graph found twice, its median
+  and its mean over the places, the graph's own track on the closures held out of its solve;
+  lower is better), the cells the map knows (lower is better: a pass the track puts where no
+  other pass was uncovers cells of its own; ``bench/quality_cases.py``), and for the pose graph
+  the median NEES of its closures.
 
 Nothing is fitted: each score is as defined, the same for every log. The CPU seconds of the
 revisits (the scans' echoes summed up and the held-out solves) are printed beside those of the
@@ -32,6 +34,8 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -75,6 +79,7 @@ class Row:
     echoes: EchoConsistency | None
     closures: ClosureConsistency | None
     revisits: RevisitScore | None
+    known_cells: int
 
 
 @dataclass(frozen=True)
@@ -123,7 +128,8 @@ def run_log(name: str) -> tuple[list[Row], Found]:
         if source == "slam" and slam.graph is not None:
             closures = closure_consistency(slam.poses, slam.graph.edges)
         own = map_revisits(revisits, logs[source].poses, graph_track=source == "slam")
-        rows.append(Row(source, error.ape_rmse_m, nll, echoes, closures, own))
+        known = int(np.count_nonzero(~np.isnan(omap.prob)))
+        rows.append(Row(source, error.ape_rmse_m, nll, echoes, closures, own, known))
     on_revisits = None if revisits is None else score_track(log.truth, revisits)
     return rows, Found(on_revisits, graph_s, revisits_s)
 
@@ -133,22 +139,29 @@ def ranks(values: list[float]) -> list[int]:
     return [sorted(values).index(v) + 1 for v in values]
 
 
-def table(results: dict[str, list[Row]]) -> tuple[list[str], int, int]:
+def table(results: dict[str, list[Row]]) -> tuple[list[str], dict[str, int]]:
+    """The table, and on how many logs each score ranks the three maps as the NLL does."""
     lines = [
         "| log | map | track APE m | NLL against the reference | rank | echoes | "
-        "echoes in free cells | rank | revisits | apart, median m | mean m | mean deg | rank | "
-        "closures, median NEES |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "echoes in free cells | rank | revisits | apart, median m | rank | mean m | rank | "
+        "mean deg | known cells | rank | closures, median NEES |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    agree = agree_revisits = 0
+    agree = dict.fromkeys(("echo share", "revisits median", "revisits mean", "known cells"), 0)
     nan = float("nan")
     for name, rows in results.items():
         nll_rank = ranks([r.nll for r in rows])
         own_rank = ranks([r.echoes.in_free if r.echoes is not None else nan for r in rows])
         apart_rank = ranks([r.revisits.median_m if r.revisits is not None else nan for r in rows])
-        agree += nll_rank == own_rank
-        agree_revisits += nll_rank == apart_rank
-        for r, a, b, d in zip(rows, nll_rank, own_rank, apart_rank, strict=True):
+        mean_rank = ranks([r.revisits.mean_m if r.revisits is not None else nan for r in rows])
+        known_rank = ranks([float(r.known_cells) for r in rows])
+        agree["echo share"] += nll_rank == own_rank
+        agree["revisits median"] += nll_rank == apart_rank
+        agree["revisits mean"] += nll_rank == mean_rank
+        agree["known cells"] += nll_rank == known_rank
+        for r, a, b, d, m, k in zip(
+            rows, nll_rank, own_rank, apart_rank, mean_rank, known_rank, strict=True
+        ):
             e = r.echoes
             c = r.closures
             v = r.revisits
@@ -157,14 +170,15 @@ def table(results: dict[str, list[Row]]) -> tuple[list[str], int, int]:
                 f"| {name} | {r.source} | {r.ape_m:.2f} | {r.nll:.4f} | {a} | "
                 f"{e.echoes if e else 0:,} | {e.in_free if e else nan:.4f} | {b} | "
                 + (
-                    f"{v.relations:,}{held} | {v.median_m:.3f} | {v.mean_m:.3f} | "
-                    f"{v.rot_mean_deg:.2f} | {d} | "
+                    f"{v.relations:,}{held} | {v.median_m:.3f} | {d} | {v.mean_m:.3f} | {m} | "
+                    f"{v.rot_mean_deg:.2f} | "
                     if v
-                    else "- | - | - | - | - | "
+                    else "- | - | - | - | - | - | "
                 )
+                + f"{r.known_cells:,} | {k} | "
                 + (f"{c.closures:,}, {c.median_nees:.2f} |" if c else "- |")
             )
-    return lines, agree, agree_revisits
+    return lines, agree
 
 
 def found_table(found: dict[str, Found]) -> list[str]:
@@ -184,15 +198,22 @@ def found_table(found: dict[str, Found]) -> list[str]:
     return lines
 
 
-def write_doc(lines: list[str], agree: tuple[int, int], total: int, path: Path) -> None:
+def agreement(agree: dict[str, int], total: int) -> str:
+    return (
+        "The three maps are ranked as the NLL ranks them on "
+        + ", ".join(f"{n} of {total} logs by the {s}" for s, n in agree.items())
+        + "."
+    )
+
+
+def write_doc(lines: list[str], agree: dict[str, int], total: int, path: Path) -> None:
     text = path.read_text(encoding="utf-8")
     block = "\n".join(
         [
             "<!-- quality-ranking: generated by bench/quality_ranking.py -->",
             *lines,
             "",
-            f"The three maps are ranked as the NLL ranks them on {agree[0]} of {total} logs by "
-            f"the echo share, on {agree[1]} of {total} by the revisits.",
+            agreement(agree, total),
             "<!-- /quality-ranking -->",
         ]
     )
@@ -215,12 +236,12 @@ def main(argv: list[str] | None = None) -> None:
     for name in args.logs:
         results[name], found[name] = run_log(name)
         print(f"{name} done, {time.perf_counter() - started:.0f} s", file=sys.stderr, flush=True)
-    lines, agree, agree_revisits = table(results)
+    lines, agree = table(results)
     lines += ["", *found_table(found)]
     print("\n".join(lines))
-    print(f"agree on {agree} of {len(results)} logs (echo share), {agree_revisits} (revisits)")
+    print(agreement(agree, len(results)))
     if not args.no_doc:
-        write_doc(lines, (agree, agree_revisits), len(results), DOC)
+        write_doc(lines, agree, len(results), DOC)
         print(f"wrote {DOC}")
 
 

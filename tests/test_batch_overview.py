@@ -159,11 +159,11 @@ def test_the_quality_block_reads_as_a_few_words() -> None:
         "spread": {"share_within_m": {"0.1": 0.25, "0.5": 0.9, "1": 1.0}},
         "echo_consistency": {"echoes": 10, "in_free": 0.1234, "in_occupied": 0.5},
         "closures": {"closures": 12, "median_nees": 0.05, "expected_median": 2.366},
-        "revisits": {"relations": 12, "median_m": 0.0312, "held_out": True},
+        "revisits": {"relations": 12, "median_m": 0.0312, "mean_m": 0.0415, "held_out": True},
     }
     assert quality_text(quality) == (
         "pose spread within 0.1 m: 25 %, 0.5 m: 90 %, 1 m: 100 %; 12.3 % of laser echoes in free "
-        "cells; revisits 0.03 m apart (median of 12); 12 closures, median NEES 0.05"
+        "cells; revisits 0.04 m apart (mean of 12); 12 closures, median NEES 0.05"
     )
     # a sonar log's standard map: nothing to say, no line on its card
     assert quality_text({"spread": None, "echo_consistency": None, "closures": None}) == ""

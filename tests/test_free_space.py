@@ -32,7 +32,7 @@ def _shares(second_pose: tuple[float, float, float]) -> float:
     scan = _corridor_scan()
     xyz = np.array([[0.0, 0.0, 0.0], second_pose])
     table = fs.polar([scan, scan])
-    return float(fs.pair_shares(np.array([[0, 1]]), xyz, [scan, scan], table)[0])
+    return float(fs.pair_shares(np.array([[0, 1]]), xyz, [scan, scan], table)[0, 0])
 
 
 def test_a_visit_placed_where_it_was_agrees_and_one_turned_across_contradicts() -> None:
@@ -53,7 +53,7 @@ def test_something_seen_once_contradicts_one_way_only() -> None:
     table = fs.polar([first, second])
     one = fs.one_way(np.array([0]), np.array([1]), xyz, [first, second], table)
     assert one[0, 1] == len(person)  # one way: every echo on the person contradicts
-    assert fs.pair_shares(np.array([[0, 1]]), xyz, [first, second], table)[0] == 0.0
+    assert fs.pair_shares(np.array([[0, 1]]), xyz, [first, second], table)[0, 0] == 0.0
 
 
 def test_a_pair_seen_one_way_only_is_not_judged() -> None:
@@ -76,19 +76,52 @@ def test_a_pair_seen_one_way_only_is_not_judged() -> None:
     assert len(fs.pair_shares(np.array([[0, 1]]), xyz, [first, second], table)) == 0
 
 
+def _pairs(shares: np.ndarray, compared: float = 80.0) -> np.ndarray:
+    return np.column_stack([shares, np.full(len(shares), compared)])
+
+
+def _check(shares: np.ndarray, near: np.ndarray, compared: float = 80.0) -> fs.FreeSpaceCheck:
+    return fs.FreeSpaceCheck(shares, np.full(len(shares), compared), near, near)
+
+
 def test_the_judgement_needs_more_contradicting_places_than_the_noise_makes() -> None:
+    # near pairs: 97 % agree wholly, 3 % leave 4 of their 80 echoes in the other's free space
+    near = _pairs(np.concatenate([np.zeros(970), np.full(30, 4 / 80)]))
     noise = np.full(300, 0.02)  # shares of consistent revisits
-    ok = fs.FreeSpaceCheck(noise, 500, 0.05, 0.05)
+    ok = _check(noise, near)
+    assert ok.level == pytest.approx(0.1)
     assert ok.contradicting == 0 and not ok.fails
     # a loop closed wrongly: a fifth of the revisits put a third of their echoes in free space
-    broken = fs.FreeSpaceCheck(np.concatenate([noise[:240], np.full(60, 0.35)]), 500, 0.05, 0.05)
+    broken = _check(np.concatenate([noise[:240], np.full(60, 0.35)]), near)
     assert broken.contradicting == 60 and broken.fails
     assert "60 of 300 places the robot came back to contradict" in broken.reason()
     # one such place is what a changed world does now and then: no failure
-    assert not fs.FreeSpaceCheck(np.concatenate([noise[:299], [0.35]]), 500, 0.05, 0.05).fails
-    # judged together, every track takes the least noisy near pairs' tail
-    together = fs.judged_together({"a": broken, "b": dataclasses.replace(ok, near_tail=0.2)})
-    assert together["b"].noise_tail == 0.05 and together["a"].level == pytest.approx(0.1)
+    assert not _check(np.concatenate([noise[:299], [0.35]]), near).fails
+    # judged together, every track takes the least noisy near pairs
+    noisy = _pairs(np.concatenate([np.zeros(900), np.full(100, 0.2)]))
+    together = fs.judged_together({"a": broken, "b": _check(noise, noisy)})
+    assert together["b"].noise is near and together["a"].level == pytest.approx(0.1)
+    assert _check(noise, noisy).level == pytest.approx(0.4)
+
+
+def test_a_share_over_fewer_echoes_must_be_larger_to_contradict() -> None:
+    near = _pairs(np.concatenate([np.zeros(970), np.full(30, 4 / 80)]))
+    # compared on as many echoes as the near pairs, the level is twice their tail
+    assert fs.tail_at(near, np.array([80.0]))[0] == pytest.approx(4 / 80)
+    assert _check(np.array([9 / 80]), near).contradicting == 1
+    # over 24 echoes (two visits facing apart), three of them in free space is a share the
+    # near pairs give more than once in a hundred when cut to 24 echoes: not a contradiction
+    assert fs.tail_at(near, np.array([24.0]))[0] == pytest.approx(2 / 24)
+    assert _check(np.array([3 / 24]), near, 24.0).contradicting == 0
+    assert _check(np.array([6 / 24]), near, 24.0).contradicting == 1
+    # each near pair cut to 24 of its 80 echoes, drawn at random: the tail the rule uses
+    rng = np.random.default_rng(5)
+    drawn = [
+        rng.permutation(np.arange(80) < round(s * 80))[:24].mean()
+        for s in near[:, 0]
+        for _ in range(20)
+    ]
+    assert np.quantile(drawn, 0.99, method="inverted_cdf") == pytest.approx(2 / 24)
 
 
 def test_the_judgement_is_the_binomial_tail_of_the_contradicting_places() -> None:
@@ -96,11 +129,11 @@ def test_the_judgement_is_the_binomial_tail_of_the_contradicting_places() -> Non
     (each contradicting by chance with probability 1 - TAIL_QUANTILE) reach less often than
     SIGNIFICANCE: the tail summed term by term here."""
     n, chance = 300, 1.0 - fs.TAIL_QUANTILE
+    near = _pairs(np.concatenate([np.zeros(970), np.full(30, 4 / 80)]))
     noise = np.full(n, 0.02)
     verdicts = []
     for k in range(25):
-        shares = np.concatenate([noise[: n - k], np.full(k, 0.35)])
-        check = fs.FreeSpaceCheck(shares, 500, 0.05, 0.05)
+        check = _check(np.concatenate([noise[: n - k], np.full(k, 0.35)]), near)
         assert check.contradicting == k
         tail = 1.0 - sum(math.comb(n, i) * chance**i * (1 - chance) ** (n - i) for i in range(k))
         assert abs(tail - fs.SIGNIFICANCE) > 1e-6  # no count sits on the threshold

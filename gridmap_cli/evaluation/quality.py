@@ -487,8 +487,8 @@ def quality_table(map_name: str, log_name: str, pose: str, quality: Quality) -> 
         how = "held out of the graph's solve" if v.held_out else "the map's track"
         lines.append(
             f"revisits              {v.relations:,} places the scans found twice ({how}): "
-            f"median {v.median_m:.3f} m between the two visits' echoes, mean {v.mean_m:.3f} m, "
-            f"{v.rot_mean_deg:.2f} deg (lower is better)"
+            f"mean {v.mean_m:.3f} m between the two visits' echoes (lower is better), median "
+            f"{v.median_m:.3f} m, mean {v.rot_mean_deg:.2f} deg"
         )
     c = quality.closures
     if c is not None:

@@ -14,8 +14,20 @@ track's relative pose and the registered one differ by ``E`` (the scan at ``t2``
 places it, seen from where the registration puts it). Each echo ``p`` of that scan lands
 ``|E p - p|`` away from where the first visit saw the same wall; the relation's *displacement*
 is the root mean square of that over the scan's echoes (translation and rotation in one length,
-with no weight to choose). The score is the median over the relations: a false closure, which
-every track fails alike, does not move it.
+with no weight to choose). The score is the **mean** over the relations; the median is reported
+beside it, as the typical place.
+
+**Why the mean.** A median ignores how far apart the visits are on every relation past the
+middle one: a track broken at one place (a heading lost in a gap of the odometry), whose break
+fewer than half of the relations straddle, scores as if it were whole, although every pose after
+the break is off. The mean counts the break by its size times the share of relations across it.
+It needs no guard against a false closure to rank the maps of one log: a relation's displacement
+is the root mean square distance between the scan's echoes placed by the track and placed by the
+registration, a distance between point sets, so on any relation two tracks' displacements
+differ by at most the distance between the two tracks' placements of that scan (the triangle
+inequality), whatever the relation's own error. A false closure shifts the difference of two
+tracks' means by no more than the tracks' own disagreement on it, over the number of relations.
+It does move the mean itself, so a mean compares the maps of one log, not two logs.
 
 **The graph's own track is not scored on what it was fitted to.** Its optimum was solved with
 these closures as edges, so its fit to them is a residual, not a check. Each closure is instead

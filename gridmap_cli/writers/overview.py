@@ -208,10 +208,9 @@ def quality_text(quality: object) -> str:
     if isinstance(echoes, Mapping) and echoes.get("in_free") is not None:
         parts.append(f"{100 * float(echoes['in_free']):.1f} % of laser echoes in free cells")
     revisits = quality.get("revisits")
-    if isinstance(revisits, Mapping) and revisits.get("median_m") is not None:
+    if isinstance(revisits, Mapping) and revisits.get("mean_m") is not None:
         parts.append(
-            f"revisits {float(revisits['median_m']):.2f} m apart (median of "
-            f"{revisits['relations']})"
+            f"revisits {float(revisits['mean_m']):.2f} m apart (mean of {revisits['relations']})"
         )
     closures = quality.get("closures")
     if isinstance(closures, Mapping) and closures.get("median_nees") is not None:

@@ -28,8 +28,12 @@ loop: no scan match related them) that the track puts within :data:`REVISIT_M` a
 of revisits would pass the noise's tail, and fewer pass twice it. A revisit *contradicts* when
 its share passes twice the tail and :data:`LEVEL_MIN` (the level); the track *fails* when more
 revisits contradict than 1 % of them would by chance, at a binomial significance of
-:data:`SIGNIFICANCE`. A loop closed wrongly or missed makes every revisit along it contradict
-(a third to a half of their echoes), a consistent track next to none.
+:data:`SIGNIFICANCE`. A share taken over fewer echoes is noisier: two visits facing apart
+compare two dozen echoes where near pairs compare eighty, and two of two dozen pass a level
+that two of eighty do not. So the tail is taken at each revisit's own count: each near pair's
+share as a random draw of that many of its echoes would give it (:func:`tail_at`). A loop
+closed wrongly or missed makes every revisit along it contradict (a third to a half of their
+echoes), a consistent track next to none.
 
 Several tracks of one log are judged against one noise (:func:`judged_together`): the least
 noisy of their near pairs, since each track's near pairs hold the sensor's noise plus that
@@ -41,12 +45,13 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 from scipy.spatial import cKDTree
-from scipy.special import bdtrc
+from scipy.special import bdtrc, gammaln
 
 from gridmap_cli.records import PoseTrack
 
@@ -110,27 +115,42 @@ class Polar:
 @dataclass(frozen=True)
 class FreeSpaceCheck:
     """A track's revisits against the noise: ``shares`` (R,) the contradicting share of each
-    revisit counted, ``near`` the near pairs counted, ``near_tail`` their shares' tail
-    (:data:`TAIL_QUANTILE`), and ``noise_tail`` the tail the track is judged against (its own
-    unless :func:`judged_together` gave the log's)."""
+    revisit counted and ``compared`` (R,) the echoes it was taken over; ``near`` (P, 2) the
+    track's near pairs, share and echoes compared; ``noise`` (Q, 2) the near pairs the track is
+    judged against (its own unless :func:`judged_together` gave the log's)."""
 
     shares: F64
-    near: int
-    near_tail: float
-    noise_tail: float
+    compared: F64
+    near: F64
+    noise: F64
 
     @property
     def revisits(self) -> int:
         return len(self.shares)
 
     @property
+    def near_tail(self) -> float:
+        """The tail (:data:`TAIL_QUANTILE`) of the track's own near pairs' shares."""
+        return float(np.quantile(self.near[:, 0], TAIL_QUANTILE)) if len(self.near) else math.nan
+
+    @cached_property
+    def levels(self) -> F64:
+        """The share beyond which each revisit contradicts, at its own count of echoes."""
+        if len(self.noise) == 0:
+            return np.full(self.revisits, math.inf)
+        return np.maximum(TAIL_FACTOR * tail_at(self.noise, self.compared), LEVEL_MIN)
+
+    @cached_property
     def level(self) -> float:
-        """The share beyond which a revisit contradicts."""
-        return max(TAIL_FACTOR * self.noise_tail, LEVEL_MIN)
+        """The level of a revisit compared on as many echoes as the median near pair."""
+        if len(self.noise) == 0:
+            return math.nan
+        median = np.array([float(np.median(self.noise[:, 1]))])
+        return max(TAIL_FACTOR * float(tail_at(self.noise, median)[0]), LEVEL_MIN)
 
     @property
     def contradicting(self) -> int:
-        return int((self.shares > self.level).sum())
+        return int((self.shares > self.levels).sum())
 
     @property
     def share(self) -> float:
@@ -140,7 +160,7 @@ class FreeSpaceCheck:
     @property
     def fails(self) -> bool:
         """More revisits contradict than the noise's tail would make by chance."""
-        if self.revisits == 0 or math.isnan(self.noise_tail):
+        if self.revisits == 0 or len(self.noise) == 0:
             return False
         chance = 1.0 - TAIL_QUANTILE
         # the binomial upper tail P(X >= contradicting) from scipy.special: scipy.stats gives
@@ -165,19 +185,50 @@ class FreeSpaceCheck:
             "contradicting": self.contradicting,
             "contradicting_share": r(self.share),
             "level": r(self.level),
-            "near_pairs": self.near,
+            "near_pairs": len(self.near),
             "fails": self.fails,
         }
 
 
+def tail_at(noise: F64, counts: F64) -> F64:
+    """The tail (:data:`TAIL_QUANTILE`) of the near pairs ``noise`` (Q, 2: share, echoes
+    compared) for shares taken over each of ``counts`` (R,) echoes: a pair compared on more
+    echoes than that contributes the share a random draw of that many of its echoes gives
+    (hypergeometric), one compared on as many or fewer its own share. The quantile of that
+    mixture, a multiple of one over the count."""
+    pairs = np.column_stack([np.rint(noise[:, 0] * noise[:, 1]), noise[:, 1]])
+    kinds, weight = np.unique(pairs, axis=0, return_counts=True)
+    bad, total = kinds[:, 0], kinds[:, 1]
+    out = np.empty(len(counts))
+    for n in np.unique(counts):
+        k = np.arange(int(n) + 1, dtype=np.float64)[:, None]
+        cdf = (bad / total * n <= k + 1e-9).astype(np.float64)
+        drawn = total > n
+        b, t = bad[drawn], total[drawn]
+        # P(k of the n drawn contradict) = C(b, k) C(t - b, n - k) / C(t, n)
+        log_pmf = _log_choose(b, k) + _log_choose(t - b, n - k) - _log_choose(t, n)
+        cdf[:, drawn] = np.cumsum(np.exp(log_pmf), axis=0)
+        mixture = cdf @ weight / weight.sum()
+        out[counts == n] = int(np.argmax(mixture >= TAIL_QUANTILE - 1e-12)) / n
+    return out
+
+
+def _log_choose(n: F64, k: F64) -> F64:
+    """log C(n, k), -inf where k is outside [0, n]."""
+    with np.errstate(all="ignore"):
+        value = gammaln(n + 1) - gammaln(k + 1) - gammaln(n - k + 1)
+    out: F64 = np.where((k < 0) | (k > n), -np.inf, value)
+    return out
+
+
 def judged_together(checks: dict[str, FreeSpaceCheck]) -> dict[str, FreeSpaceCheck]:
-    """The checks of several tracks of one log judged against one noise: the least noisy of
-    their near pairs' tails."""
-    tails = [c.near_tail for c in checks.values() if not math.isnan(c.near_tail)]
+    """The checks of several tracks of one log judged against one noise: the near pairs of the
+    track whose tail is least."""
+    tails = {name: c.near_tail for name, c in checks.items() if not math.isnan(c.near_tail)}
     if not tails:
         return checks
-    noise = min(tails)
-    return {name: dataclasses.replace(c, noise_tail=noise) for name, c in checks.items()}
+    noise = checks[min(tails, key=lambda name: tails[name])].near
+    return {name: dataclasses.replace(c, noise=noise) for name, c in checks.items()}
 
 
 def nodes(xyz: F64) -> Ints:
@@ -268,18 +319,22 @@ def one_way(look: Ints, echo: Ints, xyz: F64, points: list[F64], table: Polar) -
 
 
 def pair_shares(pairs: Ints, xyz: F64, points: list[F64], table: Polar) -> F64:
-    """The contradicting share of each of the node-slot ``pairs`` (P, 2) whose two ways both
-    compared :data:`MIN_COMPARED` echoes: the lesser of its two ways' (see the module)."""
+    """The node-slot ``pairs`` (P, 2) whose two ways both compared :data:`MIN_COMPARED` echoes,
+    each as its contradicting share and the echoes it was taken over (K, 2): the way with the
+    lesser share (see the module)."""
     if len(pairs) == 0:
-        return np.zeros(0)
+        return np.zeros((0, 2))
     one = one_way(pairs[:, 0], pairs[:, 1], xyz, points, table)
     back = one_way(pairs[:, 1], pairs[:, 0], xyz, points, table)
     ways = np.column_stack([one[:, 1] / np.maximum(one[:, 0], 1), back[:, 1] / np.maximum(
         back[:, 0], 1)])  # fmt: skip
+    counts = np.column_stack([one[:, 0], back[:, 0]])
     # one way alone cannot tell a misplaced visit from something that came or went
-    both = (np.column_stack([one[:, 0], back[:, 0]]) >= MIN_COMPARED).all(axis=1)
-    least: F64 = ways[both].min(axis=1)
-    return least
+    both = (counts >= MIN_COMPARED).all(axis=1)
+    way = ways[both].argmin(axis=1)
+    rows = np.arange(int(both.sum()))
+    out: F64 = np.column_stack([ways[both][rows, way], counts[both][rows, way]])
+    return out
 
 
 def near_pairs(count: int) -> Ints:
@@ -325,15 +380,14 @@ def check_track(xyz: F64, points: list[F64]) -> FreeSpaceCheck:
     """The free-space check of the poses ``xyz`` (S, 3) of the scans ``points`` (S arrays (K, 2),
     robot frame, echoes only), against the track's own near pairs."""
     if len(xyz) == 0:
-        return FreeSpaceCheck(np.zeros(0), 0, math.nan, math.nan)
+        return FreeSpaceCheck(np.zeros(0), np.zeros(0), np.zeros((0, 2)), np.zeros((0, 2)))
     at = nodes(xyz)
     node_xyz = xyz[at]
     table = polar([points[k] for k in at.tolist()])
     echoes = [_thinned(points[k]) for k in at.tolist()]
     near = pair_shares(_spread(near_pairs(len(at)), MAX_PAIRS), node_xyz, echoes, table)
     far = pair_shares(_spread(revisit_pairs(node_xyz), MAX_PAIRS), node_xyz, echoes, table)
-    tail = float(np.quantile(near, TAIL_QUANTILE)) if len(near) else math.nan
-    return FreeSpaceCheck(far, len(near), tail, tail)
+    return FreeSpaceCheck(far[:, 0], far[:, 1], near, near)
 
 
 def check_poses(track: PoseTrack, points: list[F64]) -> FreeSpaceCheck:
