@@ -43,3 +43,19 @@ def inverse(
         np.asarray(s * x_m - c * y_m),
         wrap_angle(-np.asarray(theta_rad)),
     )
+
+
+def logmap(
+    x_m: FloatArray, y_m: FloatArray, theta_rad: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The logarithm of poses (x, y, theta): their tangent coordinates, the translation taken
+    through the inverse of the rotation's left Jacobian ``V`` (as gtsam's ``Pose2.Logmap``);
+    theta as given. Inputs broadcast together."""
+    theta = np.asarray(theta_rad, dtype=np.float64)
+    turning = np.abs(theta) >= 1e-10
+    c1, s = np.cos(theta) - 1.0, np.sin(theta)
+    # V^-1 t = theta / (s^2 + (1 - c)^2) * (s x + (1 - c) y, -(1 - c) x + s y)
+    scale = theta / np.where(turning, c1 * c1 + s * s, 1.0)
+    vx = np.where(turning, scale * (s * x_m - c1 * y_m), x_m)
+    vy = np.where(turning, scale * (c1 * x_m + s * y_m), y_m)
+    return np.asarray(vx), np.asarray(vy), theta

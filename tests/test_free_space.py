@@ -124,6 +124,24 @@ def test_a_share_over_fewer_echoes_must_be_larger_to_contradict() -> None:
     assert np.quantile(drawn, 0.99, method="inverted_cdf") == pytest.approx(2 / 24)
 
 
+def test_the_judgement_is_the_binomial_tail_of_the_contradicting_places() -> None:
+    """A track fails from the first count of contradicting places that consistent revisits
+    (each contradicting by chance with probability 1 - TAIL_QUANTILE) reach less often than
+    SIGNIFICANCE: the tail summed term by term here."""
+    n, chance = 300, 1.0 - fs.TAIL_QUANTILE
+    near = _pairs(np.concatenate([np.zeros(970), np.full(30, 4 / 80)]))
+    noise = np.full(n, 0.02)
+    verdicts = []
+    for k in range(25):
+        check = _check(np.concatenate([noise[: n - k], np.full(k, 0.35)]), near)
+        assert check.contradicting == k
+        tail = 1.0 - sum(math.comb(n, i) * chance**i * (1 - chance) ** (n - i) for i in range(k))
+        assert abs(tail - fs.SIGNIFICANCE) > 1e-6  # no count sits on the threshold
+        verdicts.append(check.fails)
+        assert check.fails == (tail < fs.SIGNIFICANCE)
+    assert not verdicts[0] and verdicts[-1]  # both verdicts are reached
+
+
 @pytest.fixture(scope="module")
 def laser_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return simulated_laser_log(tmp_path_factory.mktemp("free"))

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 
+import gtsam
 import numpy as np
 import pytest
 
+from gridmap_cli.geometry import logmap
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
 from gridmap_cli.poses.correction.loop_closure import ClosureParams, candidates
 from gridmap_cli.poses.correction.pose_graph import Edge, PoseGraph, edge_residuals
@@ -195,3 +198,66 @@ def test_the_closure_search_hands_the_heap_back_at_every_grid_let_go(
     assert len(calls) == 3
     submaps.grid(node)  # a kept grid: nothing let go, nothing handed back
     assert len(calls) == 3
+
+
+def test_the_edge_covariances_are_gtsams_joint_marginals() -> None:
+    """The selected inverse gives each edge's joint covariance as gtsam's joint marginal of its
+    two nodes does, on a loop with closures (robust), a corridor edge (a full covariance) and
+    an edge drawn against the elimination order (j before i)."""
+    truth = _square(6, 6.0)
+    graph = _drifting_graph(truth)
+    graph.edges[3] = dataclasses.replace(graph.edges[3], weak_sigma_m=0.4, weak_axis=(0.6, 0.8))
+    graph.edges += [_closure(0, 24, truth), _closure(5, 17, truth), _closure(20, 2, truth)]
+    poses = graph.optimise()
+    values = gtsam.Values()
+    for k, (x, y, th) in enumerate(poses):
+        values.insert(k, gtsam.Pose2(float(x), float(y), float(th)))
+    marginals = gtsam.Marginals(graph._factors(), values)
+    ours = graph.edge_covariances(poses)
+    for e, c in zip(graph.edges, ours, strict=True):
+        joint = marginals.jointMarginalCovariance(gtsam.KeyVector([e.i, e.j]))
+        want = np.block(
+            [[joint.at(e.i, e.i), joint.at(e.i, e.j)], [joint.at(e.j, e.i), joint.at(e.j, e.j)]]
+        )
+        np.testing.assert_allclose(c, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
+
+
+def test_the_residual_budget_is_the_per_edge_sum_with_gtsams_marginals() -> None:
+    """The budget, vectorised over the edges, against the sum edge by edge with gtsam's own
+    Pose2 algebra and joint marginals, on a loop whose closures are bent (robust weights) and
+    a corridor edge."""
+    truth = _square(6, 6.0)
+    graph = _drifting_graph(truth)
+    graph.edges[3] = dataclasses.replace(graph.edges[3], weak_sigma_m=0.4, weak_axis=(0.6, 0.8))
+    bent = dataclasses.replace(_closure(5, 17, truth), dx_m=_closure(5, 17, truth).dx_m + 0.3)
+    graph.edges += [_closure(0, 24, truth), bent, _closure(20, 2, truth)]
+    poses = graph.optimise()
+    values = gtsam.Values()
+    for k, (x, y, th) in enumerate(poses):
+        values.insert(k, gtsam.Pose2(float(x), float(y), float(th)))
+    marginals = gtsam.Marginals(graph._factors(), values)
+    want = np.zeros((2, 2))
+    for e in graph.edges:
+        est = values.atPose2(e.i).between(values.atPose2(e.j))
+        r = gtsam.Pose2.Logmap(gtsam.Pose2(e.dx_m, e.dy_m, e.dtheta_rad).between(est))
+        info = np.linalg.inv(e.covariance())
+        w = 1.0 / (1.0 + float(r @ info @ r) / graph.cauchy_k**2) if e.closure else 1.0
+        joint = marginals.jointMarginalCovariance(gtsam.KeyVector([e.i, e.j]))
+        c = np.block(
+            [[joint.at(e.i, e.i), joint.at(e.i, e.j)], [joint.at(e.j, e.i), joint.at(e.j, e.j)]]
+        )
+        jac = np.hstack([-est.inverse().AdjointMap(), np.eye(3)])
+        p = jac @ c @ jac.T
+        want[0] += w * r[:2] @ info[:2, :2] @ r[:2], 2.0 - w * np.trace(info[:2, :2] @ p[:2, :2])
+        want[1] += w * info[2, 2] * r[2] ** 2, 1.0 - w * info[2, 2] * p[2, 2]
+    assert want[0, 0] > 1.0  # the bent closure shows
+    np.testing.assert_allclose(graph.residual_budget(poses), want, rtol=1e-9)
+
+
+def test_the_pose_logarithm_is_gtsams() -> None:
+    rng = np.random.default_rng(3)
+    poses = rng.normal(0.0, 2.0, (50, 3))
+    poses[:, 2] = np.concatenate([rng.uniform(-3.1, 3.1, 45), [0.0, 1e-12, -1e-11, 1e-9, 3.14]])
+    ours = np.column_stack(logmap(poses[:, 0], poses[:, 1], poses[:, 2]))
+    for p, mine in zip(poses, ours, strict=True):
+        np.testing.assert_allclose(mine, gtsam.Pose2.Logmap(gtsam.Pose2(*p)), atol=1e-12)

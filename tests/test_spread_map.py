@@ -80,6 +80,28 @@ def test_the_position_spread_is_the_long_axis_of_a_tilted_ellipse() -> None:
     assert heading[0] == pytest.approx(math.sqrt(0.045))
 
 
+def test_readings_sharing_a_stamp_share_the_spread_taken_one_by_one() -> None:
+    """Runs of equal stamps (a scan's beams), a stamp coming back after another, and a lone
+    reading: each reading's spreads as that reading alone gets them."""
+    laser = RangeSensor(name="laser", x_m=0.0, y_m=0.0, yaw_rad=0.0, beam_width_rad=0.0,
+                        min_range_m=0.0, max_range_m=5.0)  # fmt: skip
+    stamps = np.array([5, 5, 5, 7, 7, 5, 9, 2, 2], dtype=np.int64)
+    m = stamps.shape[0]
+    readings = SensorReadings(
+        stamp_ns=stamps, sensor=np.zeros(m, dtype=np.int32), range_m=np.ones(m),
+        x_m=np.zeros(m), y_m=np.zeros(m), theta_rad=np.zeros(m), sensors=(laser,),
+    )  # fmt: skip
+    cov = np.zeros((3, 3, 3))
+    cov[1] = [[0.04, 0.01, 0.0], [0.01, 0.02, 0.0], [0.0, 0.0, 0.01]]
+    cov[2] = [[0.09, -0.03, 0.0], [-0.03, 0.16, 0.0], [0.0, 0.0, 0.04]]
+    track = PoseUncertainty(np.array([0, 6, 10], dtype=np.int64), np.zeros(3), np.zeros(3), cov)
+    position, heading = reading_spreads(readings, track)
+    for k in range(m):
+        alone = reading_spreads(select_readings(readings, slice(k, k + 1)), track)
+        assert position[k] == alone[0][0] and heading[k] == alone[1][0]
+    assert len(set(position.tolist())) == 4  # the four stamps give four spreads
+
+
 @pytest.mark.skipif(not SAMPLE.exists(), reason="no samples")
 def test_cells_seen_late_in_a_drifting_run_have_more_spread() -> None:
     log = read_log(SAMPLE)

@@ -104,10 +104,16 @@ def reading_spreads(
     if len(readings) == 0 or uncertainty.stamp_ns.shape[0] == 0:
         zero = np.zeros(len(readings))
         return zero, zero.copy()
-    cov = uncertainty.at(readings.stamp_ns)
+    # a scan's readings share one stamp: the covariance once per run of equal stamps
+    stamps = readings.stamp_ns
+    starts = np.flatnonzero(np.concatenate([[True], stamps[1:] != stamps[:-1]]))
+    runs = np.diff(np.append(starts, stamps.shape[0]))
+    cov = uncertainty.at(stamps[starts])
     a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
     largest = 0.5 * (a + c) + np.sqrt((0.25 * (a - c) ** 2) + b * b)
-    return np.sqrt(np.maximum(largest, 0.0)), np.sqrt(np.maximum(cov[:, 2, 2], 0.0))
+    position = np.sqrt(np.maximum(largest, 0.0))
+    heading = np.sqrt(np.maximum(cov[:, 2, 2], 0.0))
+    return np.repeat(position, runs), np.repeat(heading, runs)
 
 
 def pose_spread_map(

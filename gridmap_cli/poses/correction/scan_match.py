@@ -258,7 +258,8 @@ class _LocalMap:
         self.cloud, self.tree = small_gicp.preprocess_points(
             planar_sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
         )
-        self.tree2d = cKDTree(flat)
+        # unbalanced: quicker to build, as quick to query, and the same nearest points
+        self.tree2d = cKDTree(flat, balanced_tree=False)
         self.grid = None
 
 
@@ -316,6 +317,8 @@ def _match_pass(
     weak = np.full((n, 2), np.nan)
     scale = DistanceScale(params.scale_min_m, params.scale_max_error, prior_scale)
     local = _LocalMap(params)
+    # the odometry's increment from each scan to the next, all at once
+    steps = compose(*inverse(ox[:-1], oy[:-1], oth[:-1]), ox[1:], oy[1:], oth[1:])
     for k in range(n):
         pts = scans.points[k]
         if k == 0:
@@ -323,8 +326,7 @@ def _match_pass(
             status[0] = FIRST
         else:
             # the odometry's increment since the last scan, applied to the last corrected pose
-            ix, iy, ith = inverse(ox[k - 1], oy[k - 1], oth[k - 1])
-            dx, dy, dth = compose(ix, iy, ith, ox[k], oy[k], oth[k])
+            dx, dy, dth = steps[0][k - 1], steps[1][k - 1], steps[2][k - 1]
             gx, gy, gth = compose(poses[k - 1, 0], poses[k - 1, 1], poses[k - 1, 2], dx, dy, dth)
             guess = (float(gx), float(gy), float(gth))
             # where the match keeps the odometry (along a corridor, or all of it on a fallback)
@@ -412,7 +414,7 @@ def _match_one(
         dist, _ = local.tree2d.query(
             placed_points(planar, pose), distance_upper_bound=params.inlier_m
         )
-        fraction = float(np.mean(np.isfinite(dist)))
+        fraction = int(np.count_nonzero(np.isfinite(dist))) / len(dist)
         if best is None or fraction > best[0]:
             best = (fraction, pose, np.asarray(result.H))
         if fraction >= params.min_inlier_fraction:
