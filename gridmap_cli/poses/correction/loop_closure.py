@@ -138,9 +138,10 @@ def _sheet(points: FloatArray, voxel_m: float) -> FloatArray:
 @dataclass(frozen=True)
 class Submap:
     """A keyframe's submap in its frame: the registration cloud and its tree, the planar points
-    (K, 2) as registered, and the same points as distinct rows with how often each occurs (the
-    sheet's layers mostly repeat a point: the inlier share is counted once per distinct row).
-    ``index``: the 2D tree of a target's points (a source is only queried, never searched)."""
+    (K, 2) as registered, and for a source the same points as distinct rows with how often each
+    occurs (the sheet's layers mostly repeat a point: the inlier share is counted once per
+    distinct row; a target's rows are its points, once each). ``index``: the 2D tree of a
+    target's points (a source is only queried, never searched)."""
 
     cloud: small_gicp.PointCloud
     tree: small_gicp.KdTree
@@ -224,9 +225,13 @@ class Submaps:
         cloud, tree = small_gicp.preprocess_points(
             _sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
         )
-        planar = np.asarray(cloud.points())[:, :2]
-        distinct, weight = np.unique(planar, axis=0, return_counts=True)
-        entry = Submap(cloud, tree, planar, cKDTree(planar) if wide else None, distinct, weight)
+        planar = np.ascontiguousarray(np.asarray(cloud.points())[:, :2])
+        if wide:
+            entry = Submap(cloud, tree, planar, cKDTree(planar), planar, np.ones(len(planar), int))
+        else:
+            # a row as one complex number: numpy's 1D unique is several times its row unique
+            rows, weight = np.unique(planar.view(np.complex128).ravel(), return_counts=True)
+            entry = Submap(cloud, tree, planar, None, rows.view(np.float64).reshape(-1, 2), weight)
         self._cache[key] = entry
         if len(self._cache) > CACHED_SUBMAPS:
             self._cache.popitem(last=False)
