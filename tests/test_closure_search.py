@@ -75,3 +75,37 @@ def test_a_submap_half_seen_by_the_target_finds_its_start() -> None:
     assert abs(found.theta_rad - truth[2]) < math.radians(1.5)
     # the half overlap scores under one half: a gate at 0.5 would have refused the true pose
     assert found.score < 0.5
+
+
+def test_the_inlier_share_counts_every_registered_point() -> None:
+    # a submap is registered as a sheet whose layers mostly repeat a point: the share is counted
+    # once per distinct point, weighted by how often it occurs, and must equal the share over
+    # every registered point
+    from scipy.spatial import cKDTree
+
+    from gridmap_cli.poses.correction.loop_closure import Submaps, _align
+
+    room = _room(0.02)
+    n = 12
+    local = np.column_stack([np.linspace(1.0, 3.0, n), np.full(n, 1.5), np.zeros(n)])
+    rng = np.random.default_rng(3)
+    scans = []
+    for x, y, _ in local:  # each scan: the room's walls in the robot's frame, a little noisy
+        seen = room[rng.random(len(room)) < 0.5] - (x, y)
+        scans.append(seen + rng.normal(0.0, 0.01, seen.shape))
+    p = ClosureParams()
+    submaps = Submaps(scans, local, np.arange(n), p)
+    target, source = submaps.get(0), submaps.get(n - 1, wide=False)
+    assert source.index is None and target.index is not None
+    # the distinct rows with their counts are the registered points, no more, no fewer
+    again = np.repeat(source.distinct, source.weight, axis=0)
+    assert np.array_equal(again[np.lexsort(again.T)], source.points[np.lexsort(source.points.T)])
+    assert source.weight.max() > 1 and len(source.distinct) < len(source.points)
+    for start in [(2.0, 0.0, 0.0), (2.3, 0.4, 0.2), (1.0, -1.0, 0.6)]:
+        result = _align(target, source, start, p)
+        assert result is not None
+        share, (x, y, th), _ = result
+        c, s = math.cos(th), math.sin(th)
+        moved = source.points @ np.array([[c, s], [-s, c]]) + (x, y)
+        dist, _ = cKDTree(target.points).query(moved, distance_upper_bound=p.inlier_m)
+        assert share == float(np.mean(np.isfinite(dist)))

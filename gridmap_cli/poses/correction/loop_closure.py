@@ -135,6 +135,22 @@ def _sheet(points: FloatArray, voxel_m: float) -> FloatArray:
     return sheet
 
 
+@dataclass(frozen=True)
+class Submap:
+    """A keyframe's submap in its frame: the registration cloud and its tree, the planar points
+    (K, 2) as registered, and for a source the same points as distinct rows with how often each
+    occurs (the sheet's layers mostly repeat a point: the inlier share is counted once per
+    distinct row; a target's rows are its points, once each). ``index``: the 2D tree of a
+    target's points (a source is only queried, never searched)."""
+
+    cloud: small_gicp.PointCloud
+    tree: small_gicp.KdTree
+    points: FloatArray
+    index: cKDTree | None
+    distinct: FloatArray
+    weight: npt.NDArray[np.intp]
+
+
 class Submaps:
     """Each keyframe's local submap in its own frame, built on demand and kept.
 
@@ -150,9 +166,7 @@ class Submaps:
         params: ClosureParams,
     ) -> None:
         self.points, self.local, self.nodes, self.params = points, local, nodes, params
-        self._cache: OrderedDict[
-            tuple[int, bool], tuple[small_gicp.PointCloud, small_gicp.KdTree, cKDTree, FloatArray]
-        ] = OrderedDict()
+        self._cache: OrderedDict[tuple[int, bool], Submap] = OrderedDict()
         # travel along the scan-matched path, turning counted at TURN_M metres per radian
         steps = np.hypot(np.diff(local[:, 0]), np.diff(local[:, 1]))
         turns = np.abs(wrap_angle(np.diff(local[:, 2])))
@@ -167,7 +181,7 @@ class Submaps:
             self._grids.move_to_end(node)
             return self._grids[node]
         p = self.params
-        planar = self.get(node)[3]
+        planar = self.get(node).points
         near = planar[np.hypot(planar[:, 0], planar[:, 1]) <= p.coarse_range_m]
         grid = LikelihoodGrid(
             near if len(near) else planar, p.coarse_resolution_m, p.coarse_sigma_m, 5,
@@ -186,14 +200,12 @@ class Submaps:
 
     def sample(self, node: int) -> FloatArray:
         """At most ``coarse_points`` of node ``node``'s submap points, spread over it."""
-        planar = self.get(node, wide=False)[3]
+        planar = self.get(node, wide=False).points
         stride = max(1, len(planar) // self.params.coarse_points)
         return planar[::stride]
 
-    def get(
-        self, node: int, wide: bool = True
-    ) -> tuple[small_gicp.PointCloud, small_gicp.KdTree, cKDTree, FloatArray]:
-        """Node ``node``'s submap: GICP cloud and tree, 2D tree and points (node frame).
+    def get(self, node: int, wide: bool = True) -> Submap:
+        """Node ``node``'s submap (node frame).
 
         ``wide``: the target's extent (``submap_m`` of travel either side), else the source's
         (``source_m``); scans closer than ``thin_m`` of travel to the last one taken are left
@@ -213,8 +225,13 @@ class Submaps:
         cloud, tree = small_gicp.preprocess_points(
             _sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
         )
-        planar = np.asarray(cloud.points())[:, :2]
-        entry = (cloud, tree, cKDTree(planar), planar)
+        planar = np.ascontiguousarray(np.asarray(cloud.points())[:, :2])
+        if wide:
+            entry = Submap(cloud, tree, planar, cKDTree(planar), planar, np.ones(len(planar), int))
+        else:
+            # a row as one complex number: numpy's 1D unique is several times its row unique
+            rows, weight = np.unique(planar.view(np.complex128).ravel(), return_counts=True)
+            entry = Submap(cloud, tree, planar, None, rows.view(np.float64).reshape(-1, 2), weight)
         self._cache[key] = entry
         if len(self._cache) > CACHED_SUBMAPS:
             self._cache.popitem(last=False)
@@ -261,11 +278,10 @@ def verify(
     accepted closure (j's pose in i's frame) or None. ``coarse``: whether the correlative
     search may find a start where GICP from ``guess`` fails."""
     p = submaps.params
-    target, target_tree, target_2d, _ = submaps.get(j)
-    source, _, _, source_2d = submaps.get(i, wide=False)
-    if len(source_2d) < 50 or target.size() < 50:
+    target, source = submaps.get(j), submaps.get(i, wide=False)
+    if len(source.points) < 50 or target.cloud.size() < 50:
         return None
-    best = _align(target, target_tree, target_2d, source, source_2d, guess, p)
+    best = _align(target, source, guess, p)
     poor = best is None or best[0] < p.min_inlier_fraction
     if poor and coarse and radius_m > p.coarse_from_m:
         submaps.coarse_runs += 1
@@ -275,7 +291,7 @@ def verify(
         )  # fmt: skip
         if found is not None:
             start = (found.x_m, found.y_m, found.theta_rad)
-            best = _align(target, target_tree, target_2d, source, source_2d, start, p)
+            best = _align(target, source, start, p)
     if best is None or best[0] < p.min_inlier_fraction:
         return None
     fraction, pose, hessian = best
@@ -290,18 +306,12 @@ def verify(
 
 
 def _align(
-    target: small_gicp.PointCloud,
-    target_tree: small_gicp.KdTree,
-    target_2d: cKDTree,
-    source: small_gicp.PointCloud,
-    source_2d: FloatArray,
-    start: tuple[float, float, float],
-    p: ClosureParams,
+    target: Submap, source: Submap, start: tuple[float, float, float], p: ClosureParams
 ) -> tuple[float, tuple[float, float, float], FloatArray] | None:
     result = small_gicp.align(
-        target,
-        source,
-        target_tree,
+        target.cloud,
+        source.cloud,
+        target.tree,
         init_T_target_source=pose_matrix(*start),
         registration_type="GICP",
         max_correspondence_distance=p.correspondence_m,
@@ -311,14 +321,13 @@ def _align(
     m = np.asarray(result.T_target_source)
     pose = (float(m[0, 3]), float(m[1, 3]), math.atan2(float(m[1, 0]), float(m[0, 0])))
     c, s = math.cos(pose[2]), math.sin(pose[2])
+    xy = source.distinct
     moved = np.column_stack(
-        [
-            pose[0] + c * source_2d[:, 0] - s * source_2d[:, 1],
-            pose[1] + s * source_2d[:, 0] + c * source_2d[:, 1],
-        ]
+        [pose[0] + c * xy[:, 0] - s * xy[:, 1], pose[1] + s * xy[:, 0] + c * xy[:, 1]]
     )
-    dist, _ = target_2d.query(moved, distance_upper_bound=p.inlier_m)
-    fraction = float(np.mean(np.isfinite(dist)))
+    assert target.index is not None
+    dist, _ = target.index.query(moved, distance_upper_bound=p.inlier_m)
+    fraction = float(source.weight[np.isfinite(dist)].sum() / len(source.points))
     return fraction, pose, np.asarray(result.H)
 
 
