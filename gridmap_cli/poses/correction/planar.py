@@ -1,4 +1,4 @@
-"""Planar poses as small_gicp takes and gives them, and scan points placed by a pose."""
+"""Planar poses and scans as small_gicp takes and gives them, and scan points placed by a pose."""
 
 from __future__ import annotations
 
@@ -31,3 +31,15 @@ def placed_points(points: FloatArray, pose: tuple[float, float, float]) -> Float
     return np.column_stack(
         [x + c * points[:, 0] - s * points[:, 1], y + s * points[:, 0] + c * points[:, 1]]
     )
+
+
+def planar_sheet(points: FloatArray, voxel_m: float) -> FloatArray:
+    """Planar points (K, 2) as three layers one voxel apart in z, shape (3K, 3)."""
+    k = len(points)
+    sheet = np.empty((3 * k, 3))
+    for layer, z in enumerate((-voxel_m, 0.0, voxel_m)):
+        # the layers filled in place (this runs for every scan and local map); + 0.0 as a sum
+        # with the lift vector has it: a -0.0 coordinate becomes +0.0
+        np.add(points, 0.0, out=sheet[layer * k : (layer + 1) * k, :2])
+        sheet[layer * k : (layer + 1) * k, 2] = z + 0.5 * voxel_m
+    return sheet

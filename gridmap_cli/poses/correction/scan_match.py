@@ -38,7 +38,12 @@ from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.poses.correction.carry import carry
 from gridmap_cli.poses.correction.degeneracy import DistanceScale, keep_across, weak_axis
-from gridmap_cli.poses.correction.planar import placed_points, planar_pose, pose_matrix
+from gridmap_cli.poses.correction.planar import (
+    placed_points,
+    planar_pose,
+    planar_sheet,
+    pose_matrix,
+)
 from gridmap_cli.poses.correction.relocate import (
     MOVED_M,
     odometry_gaps,
@@ -217,18 +222,6 @@ def laser_scans(log: RangeLog, sensors: tuple[RangeSensor, ...], params: ScanMat
     ends = np.searchsorted(stamps, laser_stamps, side="right")
     points = [np.column_stack([px[a:b], py[a:b]]) for a, b in zip(cuts, ends, strict=True)]
     return Scans(stamp_ns=laser_stamps.astype(np.int64), points=points)
-
-
-def planar_sheet(points: FloatArray, voxel_m: float) -> FloatArray:
-    """Planar points (K, 2) as three layers one voxel apart in z, shape (3K, 3)."""
-    k = len(points)
-    sheet = np.empty((3 * k, 3))
-    for layer, z in enumerate((-voxel_m, 0.0, voxel_m)):
-        # the layers filled in place (this runs for every scan and local map); + 0.0 as a sum
-        # with the lift vector has it: a -0.0 coordinate becomes +0.0
-        np.add(points, 0.0, out=sheet[layer * k : (layer + 1) * k, :2])
-        sheet[layer * k : (layer + 1) * k, 2] = z + 0.5 * voxel_m
-    return sheet
 
 
 class _LocalMap:
