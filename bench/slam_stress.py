@@ -12,6 +12,9 @@ stream the reader built (no bag is written):
   revisits;
 - ``beams-1/2``: every second beam of the laser only (another laser: half the angular
   resolution, half the points to match);
+- ``range-5.6``: the laser's range cut to 5.6 m, every longer beam "no echo" up to there (a
+  short-range laser as small robots carry, a Hokuyo URG's 5.6 m: long corridors and large
+  rooms lose their far walls);
 - ``full``: the log as it is (the proving ground's row, for reference).
 
 Each variant's odometry, scan-matched and slam tracks are scored on the benchmark's relations by
@@ -112,6 +115,20 @@ def thinned_beams(log: RangeLog) -> RangeLog:
     return _keep_readings(log, log.readings.sensor % 2 == 0)
 
 
+#: the short-range laser's reach (``range-5.6``), metres
+SHORT_RANGE_M = 5.6
+
+
+def short_range(log: RangeLog) -> RangeLog:
+    r = log.readings
+    cut = np.where(r.range_m > SHORT_RANGE_M, np.inf, r.range_m)
+    sensors = log.sensors and tuple(
+        dataclasses.replace(s, max_range_m=min(s.max_range_m, SHORT_RANGE_M)) for s in log.sensors
+    )
+    readings = RangeReadings(r.stamp_ns, r.sensor, cut)
+    return dataclasses.replace(log, readings=readings, sensors=sensors)
+
+
 def full(log: RangeLog) -> RangeLog:
     return log
 
@@ -124,6 +141,7 @@ VARIANTS: dict[str, Callable[[RangeLog], RangeLog]] = {
     "from-1/3": from_share(1 / 3),
     "from-2/3": from_share(2 / 3),
     "beams-1/2": thinned_beams,
+    "range-5.6": short_range,
 }
 SOURCES = ("odometry", "scan-matched", "slam")
 
