@@ -92,23 +92,6 @@ class SegmentCovariance:
         return pp[:, 0] + myy, pp[:, 1] - mxy, pp[:, 2] + mxx
 
 
-def position_nees(
-    grown: SegmentCovariance,
-    start: npt.NDArray[np.int64],
-    end: npt.NDArray[np.int64],
-    error: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]],
-    length: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]],
-    jitter_m: float,
-    jitter_rad: float,
-) -> npt.NDArray[np.float64]:
-    """The position ``error`` of each segment ``start`` -> ``end`` (vector ``length``) whitened
-    by the covariance the walks grow along it plus the jitter of what it is compared with (its
-    heading turns the far end about the near one; its position is off at both ends); segments
-    whose covariance is singular are left out."""
-    nees, _ = nees_and_determinant(grown, start, end, error, length, jitter_m, jitter_rad)
-    return nees
-
-
 def nees_and_determinant(
     grown: SegmentCovariance,
     start: npt.NDArray[np.int64],
@@ -118,8 +101,11 @@ def nees_and_determinant(
     jitter_m: float,
     jitter_rad: float,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """:func:`position_nees` and the determinant of each segment's covariance (the same
-    segments): what a likelihood of the errors needs beside their normalised squares."""
+    """The position ``error`` of each segment ``start`` -> ``end`` (vector ``length``) whitened
+    by the covariance the walks grow along it plus the jitter of what it is compared with (its
+    heading turns the far end about the near one; its position is off at both ends), and that
+    covariance's determinant, which a likelihood of the errors needs beside their normalised
+    squares; segments whose covariance is singular are left out of both."""
     ex, ey = error
     lx, ly = length
     sxx, sxy, syy = grown.between(start, end)
@@ -169,7 +155,7 @@ def consistency(
         ey = (py[e] - py[start]) - (sr * rx + cr * ry)
         # the reference's jitter: its heading at the start turns the whole segment about it,
         # its position is off at both ends
-        nees = position_nees(
+        nees, _ = nees_and_determinant(
             grown, start, e, (ex, ey), (px[e] - px[start], py[e] - py[start]), jitter_m, jitter_rad
         )
         if nees.shape[0] < MIN_STARTS:
