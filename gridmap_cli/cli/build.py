@@ -29,6 +29,7 @@ from gridmap_cli.cli.common import (
     force_option,
     handle_errors,
     json_option,
+    logs_argument,
     progress_bar,
     quiet_option,
     read_input,
@@ -77,13 +78,7 @@ if TYPE_CHECKING:
 
 
 @click.command()
-@click.argument(
-    "logs",
-    metavar="LOG...",
-    nargs=-1,
-    required=True,
-    type=click.Path(path_type=Path, readable=False),
-)
+@logs_argument
 @click.option(
     "-o",
     "--output",

@@ -279,6 +279,17 @@ def json_option(help_text: str) -> Callable[[F], F]:
     return click.option("--json", "as_json", is_flag=True, help=help_text)
 
 
+def logs_argument(func: F) -> F:
+    """``LOG...``: one or more recordings, read as one run (checked by the readers, not click)."""
+    return click.argument(
+        "logs",
+        metavar="LOG...",
+        nargs=-1,
+        required=True,
+        type=click.Path(path_type=Path, readable=False),
+    )(func)
+
+
 def format_option(func: F) -> F:
     """``--format`` (the parameter ``log_format``): the reader to use, by name."""
     return click.option(

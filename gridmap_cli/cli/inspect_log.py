@@ -16,6 +16,7 @@ from gridmap_cli.cli.common import (
     handle_errors,
     json_option,
     json_text,
+    logs_argument,
     one_line,
     plain_numbers,
     selection_options,
@@ -31,13 +32,7 @@ from gridmap_cli.robot import load_robot
 
 
 @click.command()
-@click.argument(
-    "logs",
-    metavar="LOG...",
-    nargs=-1,
-    required=True,
-    type=click.Path(path_type=Path, readable=False),
-)
+@logs_argument
 @click.option("--robot", help="Robot preset, robot YAML file or ARIA .p file.")
 @format_option
 @topic_options

@@ -20,6 +20,7 @@ from gridmap_cli.cli.common import (
     format_option,
     handle_errors,
     json_option,
+    logs_argument,
     quiet_option,
     topic_options,
 )
@@ -52,13 +53,7 @@ from gridmap_cli.writers.trajectory import covariance_path, trajectory_format, w
 
 
 @click.command()
-@click.argument(
-    "logs",
-    metavar="LOG...",
-    nargs=-1,
-    required=True,
-    type=click.Path(path_type=Path, readable=False),
-)
+@logs_argument
 @click.option(
     "-o",
     "--output",
