@@ -230,9 +230,10 @@ def test_revisits_drop_a_bias_they_contradict_and_keep_one_that_agrees(
     def on_revisits(m: OdometryError) -> RevisitFactor:
         return revisit_factor(correct_track(odometry, m), nodes, closures, noise, 0.01, 0.002)
 
-    kept, contradicted = biases_on_revisits(model, on_revisits)
+    kept, contradicted, unconfirmed = biases_on_revisits(model, on_revisits)
     assert (kept.turn_scale_bias == file_turn) is applied
     assert (kept.bearing_rad_per_rad == abs(file_turn)) is applied
+    assert unconfirmed == ()
     if applied:
         assert contradicted == ()
     else:
@@ -244,6 +245,73 @@ def test_revisits_drop_a_bias_they_contradict_and_keep_one_that_agrees(
         assert check.as_dict()["biases_contradicted_by_revisits"] == {
             key: {"revisits": n, "likelihood_ratio_statistic": statistic}
         }
+
+
+def test_a_bias_nothing_in_the_log_confirms_is_not_corrected() -> None:
+    # the odometry does turn 3 % more per radian, and the file says so; but a log that comes
+    # back to no place, and whose laser does not show the bias, cannot back the claim
+    odometry, _, nodes, closures = revisited_loop(0.03)
+    model = OdometryError(
+        range_m_per_sqrt_m=0.01,
+        bearing_rad_per_sqrt_rad=0.02,
+        bearing_rad_per_rad=0.03,
+        turn_scale_bias=0.03,
+        heading_drift_rad_per_m=0.002,
+        heading_drift_bias_rad_per_m=0.002,
+    )
+    noise = StepNoise.of(model.random_part())
+
+    def without_revisits(m: OdometryError) -> RevisitFactor:
+        return revisit_factor(correct_track(odometry, m), nodes, [], noise, 0.01, 0.002)
+
+    kept, contradicted, unconfirmed = biases_on_revisits(model, without_revisits)
+    assert contradicted == ()
+    assert [(key, n) for key, n, _ in unconfirmed] == [("turn_scale_bias", 0), (DRIFT, 0)]
+    assert not kept.has_bias and kept.bearing_rad_per_rad == 0.0
+    assert kept.bearing_rad_per_sqrt_rad == model.bearing_rad_per_sqrt_rad  # walks untouched
+    check = FileCheck(kept, True, unconfirmed=unconfirmed)
+    assert "turn_scale_bias not corrected (neither this log's laser nor its 0 revisits" in (
+        check.summary()
+    )
+    assert set(check.as_dict()["biases_not_confirmed"]) == {"turn_scale_bias", DRIFT}
+    # the laser's confirmation of one is enough for it: the other still goes
+    kept, _, unconfirmed = biases_on_revisits(model, without_revisits, {"turn_scale_bias"})
+    assert kept.turn_scale_bias == 0.03 and kept.heading_drift_bias_rad_per_m == 0.0
+    assert [key for key, *_ in unconfirmed] == [DRIFT]
+
+    # the revisits alone confirm the turn scale the odometry has, not the drift it has not
+    def on_revisits(m: OdometryError) -> RevisitFactor:
+        return revisit_factor(correct_track(odometry, m), nodes, closures, noise, 0.01, 0.002)
+
+    kept, contradicted, unconfirmed = biases_on_revisits(model, on_revisits)
+    assert kept.turn_scale_bias == 0.03
+    assert [key for key, *_ in contradicted + unconfirmed] == [DRIFT]
+
+
+def test_a_laser_log_confirms_a_bias_its_odometry_has(laser_log: RangeLog) -> None:
+    # the same two laps with odometry that drifts 0.02 rad/m: its laser shows the drift, so
+    # the file's is corrected; a turn scale the odometry does not have is not
+    errors = OdometryErrorModel(
+        turn_scale_error=0.0,
+        scale_error=0.0,
+        heading_drift_rad_per_m=0.02,
+        sigma_dist_per_sqrt_m=0.0,
+        sigma_turn_per_sqrt_rad=0.0,
+    )
+    truth = laser_log.truth
+    assert truth is not None
+    odometry = odometry_from_truth(truth, errors, np.random.default_rng(3))
+    log = dataclasses.replace(laser_log, poses=odometry)
+    model = OdometryError(
+        heading_drift_rad_per_m=0.02,
+        heading_drift_bias_rad_per_m=0.02,
+        bearing_rad_per_rad=0.03,
+        turn_scale_bias=0.03,
+    )
+    check = check_file(log, load_robot("p3at-lms200"), model)
+    assert check.checked
+    assert check.model.heading_drift_bias_rad_per_m == 0.02
+    assert check.model.turn_scale_bias == 0.0
 
 
 def test_the_likelihood_ratio_of_the_revisits() -> None:
