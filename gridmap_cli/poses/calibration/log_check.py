@@ -20,12 +20,15 @@ the file:
   the whole track; the corrected odometry between the two visits, with the bias corrected and
   without it, is weighed by its likelihood, and a bias the revisits reject at
   :data:`~.bias_check.SIGMA` is not corrected;
-* **a bias is corrected only when this log confirms it**: its laser's windows (correcting by
-  the file takes out more of the log's own bias than :data:`~.bias_check.SIGMA` standard
-  errors: ``|b| - |b - b_file| > SIGMA * se``) or its revisits (the track with the correction
-  the likelier by :data:`~.bias_check.SIGMA` standard errors). A file may be of another robot,
-  or of another floor: a bias that this log can measure and does not show is a claim it cannot
-  back, and the drift-blind track is the safe side of a claim left unbacked;
+* **a bias the revisits lean against is not corrected unless the laser confirms it**: when the
+  revisits find the track without it the likelier at all (the statistic above 0), the bias
+  stands only if the laser's windows confirm it (correcting by the file takes out more of the
+  log's own bias than :data:`~.bias_check.SIGMA` standard errors: ``|b| - |b - b_file| > SIGMA
+  * se``). A file may be of another robot, or of another floor; where the log can weigh the
+  claim and nothing in it backs it, the drift-blind track is the safe side. Without revisits
+  the file's bias stands as the other checks leave it: a stretch too short to come back
+  anywhere has nothing to weigh it with, and a calibration of the same robot is the likelier
+  file;
 * **the random walks** are checked on the positions, as calibrate checks its own
   (:func:`~.consistency.consistency`): from every key pose the corrected odometry is compared
   with the scan-matched track after 20 to 500 key steps, against the covariance the walks
@@ -104,8 +107,8 @@ class FileCheck:
     #: The biases the log's revisits contradict (:func:`biases_on_revisits`), each with the
     #: revisits and the likelihood-ratio statistic that did.
     contradicted: tuple[tuple[str, int, float], ...] = ()
-    #: The biases neither the log's laser nor its revisits confirm, each with the revisits and
-    #: their statistic (:func:`biases_on_revisits`): not corrected.
+    #: The biases the log's revisits lean against and its laser does not confirm, each with the
+    #: revisits and their statistic (:func:`biases_on_revisits`): not corrected.
     unconfirmed: tuple[tuple[str, int, float], ...] = ()
 
     def as_dict(self) -> dict[str, object]:
@@ -149,8 +152,9 @@ class FileCheck:
             )
         for key, n, statistic in self.unconfirmed:
             parts.append(
-                f"{key.removesuffix('_rad_per_m')} not corrected (neither this log's laser nor "
-                f"its {n} revisits confirm it: likelihood ratio {statistic:.1f})"
+                f"{key.removesuffix('_rad_per_m')} not corrected (this log's {n} revisits lean "
+                f"against it, likelihood ratio {statistic:.1f} > 0, and its laser does not "
+                f"confirm it)"
             )
         if self.narrowed:
             parts.append(f"{', '.join(self.narrowed)} narrowed to this log's own")
@@ -246,19 +250,19 @@ def biases_on_revisits(
     on_revisits: Callable[[OdometryError], RevisitFactor],
     confirmed: Collection[str] = (),
 ) -> tuple[OdometryError, tuple[tuple[str, int, float], ...], tuple[tuple[str, int, float], ...]]:
-    """``model`` with only the biases this log backs, the biases its revisits contradict and
-    those nothing confirms (each with the revisits and their statistic). ``on_revisits`` gives
-    the check on the revisits of a model's corrected odometry; ``confirmed``: the biases the
-    log's laser already confirms. Each bias of the file is a claim about this log; leaving it
-    out is the drift-blind alternative, and the revisits (no drift between the two visits)
-    weigh the two at a map's lengths by their likelihood ratio
-    (:func:`~.revisit_check.likelihood_ratio`, a chi-square with one degree of freedom when
-    the two are worth the same). A bias is not corrected when the track without it is the
-    likelier by more than :data:`~.bias_check.SIGMA` standard errors would say (the statistic
-    over ``SIGMA**2``), nor when neither the laser nor the revisits confirm it (the track with
-    it the likelier by as much): a wrong correction turns the whole track; a right one left out
-    leaves the track the drift-blind map has. Each bias is judged with those before it
-    decided."""
+    """``model`` without the biases this log's revisits weigh against, and which: those they
+    contradict, and those they lean against that the laser does not confirm (each with the
+    revisits and their statistic). ``on_revisits`` gives the check on the revisits of a
+    model's corrected odometry; ``confirmed``: the biases the log's laser confirms. Each bias
+    of the file is a claim about this log; leaving it out is the drift-blind alternative, and
+    the revisits (no drift between the two visits) weigh the two at a map's lengths by their
+    likelihood ratio (:func:`~.revisit_check.likelihood_ratio`, a chi-square with one degree
+    of freedom when the two are worth the same). A bias is not corrected when the track
+    without it is the likelier by more than :data:`~.bias_check.SIGMA` standard errors would
+    say (the statistic over ``SIGMA**2``), nor when it is the likelier at all and the laser
+    does not confirm the bias: a wrong correction turns the whole track; a right one left out
+    leaves the track the drift-blind map has. Without revisits (the statistic 0) the bias
+    stands. Each bias is judged with those before it decided."""
     contradicted = []
     unconfirmed = []
     base = on_revisits(model)
@@ -270,7 +274,7 @@ def biases_on_revisits(
         statistic = likelihood_ratio(base, other)
         if statistic > bias_check.SIGMA**2:
             contradicted.append((key, other.revisits, statistic))
-        elif key not in confirmed and statistic >= -(bias_check.SIGMA**2):
+        elif key not in confirmed and statistic > 0.0:
             unconfirmed.append((key, other.revisits, statistic))
         else:
             continue
