@@ -230,9 +230,10 @@ def test_revisits_drop_a_bias_they_contradict_and_keep_one_that_agrees(
     def on_revisits(m: OdometryError) -> RevisitFactor:
         return revisit_factor(correct_track(odometry, m), nodes, closures, noise, 0.01, 0.002)
 
-    kept, contradicted = biases_on_revisits(model, on_revisits)
+    kept, contradicted, unconfirmed = biases_on_revisits(model, on_revisits)
     assert (kept.turn_scale_bias == file_turn) is applied
     assert (kept.bearing_rad_per_rad == abs(file_turn)) is applied
+    assert unconfirmed == ()
     if applied:
         assert contradicted == ()
     else:
@@ -244,6 +245,78 @@ def test_revisits_drop_a_bias_they_contradict_and_keep_one_that_agrees(
         assert check.as_dict()["biases_contradicted_by_revisits"] == {
             key: {"revisits": n, "likelihood_ratio_statistic": statistic}
         }
+
+
+def test_a_bias_the_revisits_lean_against_stands_only_if_the_laser_confirms_it() -> None:
+    model = OdometryError(
+        range_m_per_sqrt_m=0.01,
+        bearing_rad_per_sqrt_rad=0.02,
+        bearing_rad_per_rad=0.03,
+        turn_scale_bias=0.03,
+        heading_drift_rad_per_m=0.002,
+        heading_drift_bias_rad_per_m=0.002,
+    )
+
+    def leaning(m: OdometryError) -> RevisitFactor:
+        # 3 revisits that the track corrected by the turn scale fits a little worse: the
+        # statistic 12 ln 1.2 = 2.2, short of contradicting it (4); the drift changes nothing
+        return RevisitFactor(1.2 if m.turn_scale_bias else 1.0, 3)
+
+    kept, contradicted, unconfirmed = biases_on_revisits(model, leaning)
+    assert contradicted == ()
+    ((key, n, statistic),) = unconfirmed
+    assert (key, n) == ("turn_scale_bias", 3)
+    assert statistic == pytest.approx(12.0 * math.log(1.2))
+    assert kept.turn_scale_bias == 0.0 and kept.bearing_rad_per_rad == 0.0
+    assert kept.heading_drift_bias_rad_per_m == 0.002  # statistic 0: nothing to weigh it with
+    assert kept.bearing_rad_per_sqrt_rad == model.bearing_rad_per_sqrt_rad  # walks untouched
+    check = FileCheck(kept, True, unconfirmed=unconfirmed)
+    assert "turn_scale_bias not corrected (this log's 3 revisits lean against it" in (
+        check.summary()
+    )
+    assert set(check.as_dict()["biases_not_confirmed"]) == {"turn_scale_bias"}
+    # the laser's confirmation keeps it
+    kept, contradicted, unconfirmed = biases_on_revisits(model, leaning, {"turn_scale_bias"})
+    assert kept == model and contradicted == () and unconfirmed == ()
+
+
+def test_without_revisits_the_file_s_biases_stand() -> None:
+    odometry, _, nodes, _ = revisited_loop(0.03)
+    model = OdometryError(
+        bearing_rad_per_sqrt_rad=0.02, bearing_rad_per_rad=0.03, turn_scale_bias=0.03
+    )
+    noise = StepNoise.of(model.random_part())
+
+    def without_revisits(m: OdometryError) -> RevisitFactor:
+        return revisit_factor(correct_track(odometry, m), nodes, [], noise, 0.01, 0.002)
+
+    assert biases_on_revisits(model, without_revisits) == (model, (), ())
+
+
+def test_a_laser_log_keeps_a_bias_its_odometry_has_not_one_it_has_not(laser_log: RangeLog) -> None:
+    # the same two laps with odometry that drifts 0.02 rad/m: its laser shows the drift, so
+    # the file's is corrected; a turn scale the odometry does not have is not
+    errors = OdometryErrorModel(
+        turn_scale_error=0.0,
+        scale_error=0.0,
+        heading_drift_rad_per_m=0.02,
+        sigma_dist_per_sqrt_m=0.0,
+        sigma_turn_per_sqrt_rad=0.0,
+    )
+    truth = laser_log.truth
+    assert truth is not None
+    odometry = odometry_from_truth(truth, errors, np.random.default_rng(3))
+    log = dataclasses.replace(laser_log, poses=odometry)
+    model = OdometryError(
+        heading_drift_rad_per_m=0.02,
+        heading_drift_bias_rad_per_m=0.02,
+        bearing_rad_per_rad=0.03,
+        turn_scale_bias=0.03,
+    )
+    check = check_file(log, load_robot("p3at-lms200"), model)
+    assert check.checked
+    assert check.model.heading_drift_bias_rad_per_m == 0.02
+    assert check.model.turn_scale_bias == 0.0
 
 
 def test_the_likelihood_ratio_of_the_revisits() -> None:

@@ -20,6 +20,15 @@ the file:
   the whole track; the corrected odometry between the two visits, with the bias corrected and
   without it, is weighed by its likelihood, and a bias the revisits reject at
   :data:`~.bias_check.SIGMA` is not corrected;
+* **a bias the revisits lean against is not corrected unless the laser confirms it**: when the
+  revisits find the track without it the likelier at all (the statistic above 0), the bias
+  stands only if the laser's windows confirm it (correcting by the file takes out more of the
+  log's own bias than :data:`~.bias_check.SIGMA` standard errors: ``|b| - |b - b_file| > SIGMA
+  * se``). A file may be of another robot, or of another floor; where the log can weigh the
+  claim and nothing in it backs it, the drift-blind track is the safe side. Without revisits
+  the file's bias stands as the other checks leave it: a stretch too short to come back
+  anywhere has nothing to weigh it with, and a calibration of the same robot is the likelier
+  file;
 * **the random walks** are checked on the positions, as calibrate checks its own
   (:func:`~.consistency.consistency`): from every key pose the corrected odometry is compared
   with the scan-matched track after 20 to 500 key steps, against the covariance the walks
@@ -41,7 +50,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 
 from gridmap_cli.poses.calibration import bias_check
@@ -98,6 +107,9 @@ class FileCheck:
     #: The biases the log's revisits contradict (:func:`biases_on_revisits`), each with the
     #: revisits and the likelihood-ratio statistic that did.
     contradicted: tuple[tuple[str, int, float], ...] = ()
+    #: The biases the log's revisits lean against and its laser does not confirm, each with the
+    #: revisits and their statistic (:func:`biases_on_revisits`): not corrected.
+    unconfirmed: tuple[tuple[str, int, float], ...] = ()
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -110,6 +122,10 @@ class FileCheck:
             "biases_contradicted_by_revisits": {
                 key: {"revisits": n, "likelihood_ratio_statistic": x}
                 for key, n, x in self.contradicted
+            },
+            "biases_not_confirmed": {
+                key: {"revisits": n, "likelihood_ratio_statistic": x}
+                for key, n, x in self.unconfirmed
             },
             "walks_narrowed_to_this_log": list(self.narrowed),
             "position_check": self.consistency if math.isfinite(self.consistency) else None,
@@ -133,6 +149,12 @@ class FileCheck:
             parts.append(
                 f"{key.removesuffix('_rad_per_m')} not corrected (this log's {n} revisits fit "
                 f"better without it: likelihood ratio {statistic:.1f} > {bias_check.SIGMA**2:g})"
+            )
+        for key, n, statistic in self.unconfirmed:
+            parts.append(
+                f"{key.removesuffix('_rad_per_m')} not corrected (this log's {n} revisits lean "
+                f"against it, likelihood ratio {statistic:.1f} > 0, and its laser does not "
+                f"confirm it)"
             )
         if self.narrowed:
             parts.append(f"{', '.join(self.narrowed)} narrowed to this log's own")
@@ -167,6 +189,7 @@ def check_file(log: RangeLog, robot: RobotDescription | None, model: OdometryErr
     if own is None:
         return FileCheck(model, False, "too little travel")
     dropped = []
+    confirmed = set()
     kept = model
     for k, key in enumerate(BIAS_KEYS):
         bias = getattr(model, key)
@@ -175,9 +198,12 @@ def check_file(log: RangeLog, robot: RobotDescription | None, model: OdometryErr
         if bias == 0.0 or not shown or not math.isfinite(se):
             continue
         # corrected by the file, this log keeps |value - bias| of bias; uncorrected, |value|
-        if abs(value - bias) - abs(value) > bias_check.SIGMA * se:
+        gain = abs(value) - abs(value - bias)
+        if -gain > bias_check.SIGMA * se:
             dropped.append((key, bias, value, se))
             kept = dataclasses.replace(kept, **{key: 0.0, MAGNITUDE_KEYS[k]: 0.0})
+        elif gain > bias_check.SIGMA * se:
+            confirmed.add(key)
     # each walk no wider than this log's own (its windows against the laser, the scan
     # matcher's jitter taken out), then the walks judged on the positions
     walks = {w: min(getattr(kept, w), getattr(own.model, w)) for w in WALK_KEYS}
@@ -191,7 +217,7 @@ def check_file(log: RangeLog, robot: RobotDescription | None, model: OdometryErr
         track = correct_track(odometry, m)
         return revisit_factor(track, nodes, closures, noise, own.jitter_m, own.jitter_rad)
 
-    kept, contradicted = biases_on_revisits(kept, on_revisits_of)
+    kept, contradicted, unconfirmed = biases_on_revisits(kept, on_revisits_of, confirmed)
     factor, _ = consistency(
         correct_track(odometry, kept), reference, noise, own.jitter_m, own.jitter_rad,
         own.window_m, own.window_rad,
@@ -215,25 +241,30 @@ def check_file(log: RangeLog, robot: RobotDescription | None, model: OdometryErr
         kept = dataclasses.replace(kept, **{w: getattr(kept, w) * r for w in cut})
     return FileCheck(
         kept, True, "", tuple(dropped), scale, factor, narrowed,
-        on_revisits.revisits, r, cut, contradicted,
+        on_revisits.revisits, r, cut, contradicted, unconfirmed,
     )  # fmt: skip
 
 
 def biases_on_revisits(
-    model: OdometryError, on_revisits: Callable[[OdometryError], RevisitFactor]
-) -> tuple[OdometryError, tuple[tuple[str, int, float], ...]]:
-    """``model`` without the biases the log's own revisits contradict, and which (each with
-    the revisits and the statistic that did). ``on_revisits`` gives the check on the revisits
-    of a model's corrected odometry. Each bias of the file is a claim about this log; leaving
-    it out is the drift-blind alternative, and the revisits (no drift between the two visits)
-    weigh the two at a map's lengths by their likelihood ratio
-    (:func:`~.revisit_check.likelihood_ratio`): the bias is not corrected when the track
+    model: OdometryError,
+    on_revisits: Callable[[OdometryError], RevisitFactor],
+    confirmed: Collection[str] = (),
+) -> tuple[OdometryError, tuple[tuple[str, int, float], ...], tuple[tuple[str, int, float], ...]]:
+    """``model`` without the biases this log's revisits weigh against, and which: those they
+    contradict, and those they lean against that the laser does not confirm (each with the
+    revisits and their statistic). ``on_revisits`` gives the check on the revisits of a
+    model's corrected odometry; ``confirmed``: the biases the log's laser confirms. Each bias
+    of the file is a claim about this log; leaving it out is the drift-blind alternative, and
+    the revisits (no drift between the two visits) weigh the two at a map's lengths by their
+    likelihood ratio (:func:`~.revisit_check.likelihood_ratio`, a chi-square with one degree
+    of freedom when the two are worth the same). A bias is not corrected when the track
     without it is the likelier by more than :data:`~.bias_check.SIGMA` standard errors would
-    say (the statistic over ``SIGMA**2``, a chi-square with one degree of freedom, as the
-    biases' own checks ask 2 standard errors). A wrong correction turns the whole track; a
-    right one left out leaves the track the drift-blind map has. Each bias is judged with
-    those before it decided."""
+    say (the statistic over ``SIGMA**2``), nor when it is the likelier at all and the laser
+    does not confirm the bias: a wrong correction turns the whole track; a right one left out
+    leaves the track the drift-blind map has. Without revisits (the statistic 0) the bias
+    stands. Each bias is judged with those before it decided."""
     contradicted = []
+    unconfirmed = []
     base = on_revisits(model)
     for k, key in enumerate(BIAS_KEYS):
         if getattr(model, key) == 0.0:
@@ -243,5 +274,9 @@ def biases_on_revisits(
         statistic = likelihood_ratio(base, other)
         if statistic > bias_check.SIGMA**2:
             contradicted.append((key, other.revisits, statistic))
-            model, base = without, other
-    return model, tuple(contradicted)
+        elif key not in confirmed and statistic > 0.0:
+            unconfirmed.append((key, other.revisits, statistic))
+        else:
+            continue
+        model, base = without, other
+    return model, tuple(contradicted), tuple(unconfirmed)
