@@ -87,3 +87,20 @@ def test_a_place_the_first_pass_never_saw_is_not_closed() -> None:
     guess = relative(poses[nodes], i, wrong)
     submaps = Submaps(scans, poses, nodes, ClosureParams())
     assert verify(i, wrong, (guess[0] - 4.0, guess[1], guess[2]), submaps, 3.0) is None
+
+
+def test_the_new_target_is_one_that_built_the_grid_and_lies_far_back() -> None:
+    from gridmap_cli.poses.correction.correlative import SearchResult
+    from gridmap_cli.poses.correction.loop_closure import _retarget
+
+    # a straight run, a keyframe every 0.5 m: node 40 at 20 m offered node 20 at 10 m
+    n = 41
+    poses = np.column_stack([np.linspace(0.0, 20.0, n), np.zeros(n), np.zeros(n)])
+    submaps = Submaps([np.zeros((0, 2))] * n, poses, np.arange(n), ClosureParams())
+    # placed 4 m past node 20: node 28 is there, but only 6 m of path before node 40
+    k, (x, y, th) = _retarget(submaps, 40, 20, SearchResult(4.0, 0.0, 0.0, 0.5))
+    assert k == 24  # the nearest at least 8 m of path back
+    assert (round(x, 9), round(y, 9), round(th, 9)) == (2.0, 0.0, 0.0)
+    # placed 7 m before node 20: node 6 is there, but outside the 5 m its grid was built from
+    k, (x, _, _) = _retarget(submaps, 40, 20, SearchResult(-7.0, 0.0, 0.0, 0.5))
+    assert k == 10 and round(x, 9) == -2.0
