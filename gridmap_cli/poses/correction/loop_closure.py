@@ -7,9 +7,11 @@ between them (the scan matcher's drift, ``drift_per_m``), capped at ``max_search
 A candidate is *verified* by GICP (small_gicp) of keyframe ``i``'s local submap (its scan and
 its neighbours', placed by the scan-matched track, which is locally consistent) against ``j``'s,
 starting from the estimate; where that start is poor, a coarse search over offsets in x, y and
-heading finds a start. It is *accepted* when enough of the source's points land within
-``inlier_m`` of the target (``min_inlier_fraction``), the match constrains both directions (not
-a featureless corridor), and the correction from the estimate lies within the search radius.
+heading (up to ``max_search_m``) places the source, and the earlier keyframe nearest that place
+becomes the target (:func:`_coarse`). It is *accepted* when enough of the source's points land
+within ``inlier_m`` of the target (``min_inlier_fraction``), the match constrains both
+directions (not a featureless corridor), and the correction from the estimate lies within the
+search radius (the coarse search's, where it found the start).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from scipy.spatial import cKDTree
 
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.heap import release_free_memory
-from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
+from gridmap_cli.poses.correction.correlative import LikelihoodGrid, SearchResult, search
 from gridmap_cli.poses.correction.planar import pose_matrix
 
 FloatArray = npt.NDArray[np.float64]
@@ -45,8 +47,8 @@ class ClosureParams:
     #: of a hundred metres puts the second pass metres to the side
     drift_per_m: float = 0.05
     min_search_m: float = 1.0
-    #: the window's cap (it bounds the correlative search's cost): 5 % of a 200 m revisit, what
-    #: a raw full-rate log with thousands of degrees turned drifts before its loop is caught
+    #: the window's cap, and the coarse search's window: 5 % of a 200 m revisit, what a raw
+    #: full-rate log with thousands of degrees turned drifts before its loop is caught
     max_search_m: float = 10.0
     submap_m: float = 5.0
     source_m: float = 5.0
@@ -171,6 +173,8 @@ class Submaps:
         steps = np.hypot(np.diff(local[:, 0]), np.diff(local[:, 1]))
         turns = np.abs(wrap_angle(np.diff(local[:, 2])))
         self.travel = np.concatenate([[0.0], np.cumsum(steps + TURN_M * turns)])
+        self.node_path = np.concatenate([[0.0], np.cumsum(steps)])[nodes]
+        self.node_travel = self.travel[nodes]
         self._grids: OrderedDict[int, LikelihoodGrid] = OrderedDict()
         self.coarse_runs = 0
 
@@ -275,27 +279,30 @@ def verify(
     coarse: bool = True,
 ) -> Closure | None:
     """Register node ``i``'s submap onto node ``j``'s from ``guess`` (i in j's frame); the
-    accepted closure (j's pose in i's frame) or None. ``coarse``: whether the correlative
-    search may find a start where GICP from ``guess`` fails."""
+    accepted closure (j's pose in i's frame; its ``j`` the keyframe the coarse search moved the
+    target to, if it did) or None. ``coarse``: whether the correlative search may find a start
+    where GICP from ``guess`` fails."""
     p = submaps.params
     target, source = submaps.get(j), submaps.get(i, wide=False)
     if len(source.points) < 50 or target.cloud.size() < 50:
         return None
     best = _align(target, source, guess, p)
     poor = best is None or best[0] < p.min_inlier_fraction
+    reach = radius_m
     if poor and coarse and radius_m > p.coarse_from_m:
         submaps.coarse_runs += 1
-        found = search(
-            submaps.grid(j), submaps.sample(i), guess, radius_m, p.coarse_window_rad,
-            p.coarse_step_rad, p.coarse_min_score,
-        )  # fmt: skip
+        found = _coarse(submaps, i, j, guess)
         if found is not None:
-            start = (found.x_m, found.y_m, found.theta_rad)
+            k, start = found
+            if k != j:
+                guess = _moved_guess(submaps, j, k, guess)
+                j, target = k, submaps.get(k)
+            reach = p.max_search_m
             best = _align(target, source, start, p)
     if best is None or best[0] < p.min_inlier_fraction:
         return None
     fraction, pose, hessian = best
-    if math.hypot(pose[0] - guess[0], pose[1] - guess[1]) > radius_m + p.correspondence_m:
+    if math.hypot(pose[0] - guess[0], pose[1] - guess[1]) > reach + p.correspondence_m:
         return None
     values = np.linalg.eigvalsh(hessian[3:5, 3:5])
     if values[1] <= 0 or values[0] / values[1] < p.degenerate_ratio:
@@ -303,6 +310,71 @@ def verify(
     px, py, pth = (np.asarray(v) for v in pose)
     rx, ry, rth = inverse(px, py, pth)
     return Closure(i, j, float(rx), float(ry), float(rth), fraction)
+
+
+def _coarse(
+    submaps: Submaps, i: int, j: int, guess: tuple[float, float, float]
+) -> tuple[int, tuple[float, float, float]] | None:
+    """A start for GICP from the correlative search, and the keyframe to register against.
+
+    The keyframe offered is the one nearest node ``i`` *in the estimate*; where the estimate
+    has drifted, the keyframe of the first pass whose submap the source overlaps may lie metres
+    along that pass, and the offered one saw only part of what the source saw. Its grid still
+    places the source (scored over the whole window cap, the drift rule's radius being a guess
+    at the drift, not a bound), but on it a true pose scores only the overlap. So the place
+    found picks the target, the keyframe of the offered submap nearest it (:func:`_retarget`),
+    and the gate is judged on that keyframe's own grid, a few cells and heading steps around
+    the pose (the two grids round it differently): the same test a keyframe offered at the
+    right place passes. None when that scores under ``coarse_min_score``.
+    """
+    p = submaps.params
+    found = search(
+        submaps.grid(j), submaps.sample(i), guess, p.max_search_m, p.coarse_window_rad,
+        p.coarse_step_rad, 0.0,
+    )  # fmt: skip
+    if found is None:
+        return None
+    k, start = _retarget(submaps, i, j, found)
+    again = search(
+        submaps.grid(k), submaps.sample(i), start, 2 * p.coarse_resolution_m,
+        2 * p.coarse_step_rad, p.coarse_step_rad, p.coarse_min_score,
+    )  # fmt: skip
+    if again is None:
+        return None
+    return k, (again.x_m, again.y_m, again.theta_rad)
+
+
+def _retarget(
+    submaps: Submaps, i: int, j: int, found: SearchResult
+) -> tuple[int, tuple[float, float, float]]:
+    """The keyframe nearest the pose found for node ``i`` on node ``j``'s grid, among those
+    whose scans built that grid (within ``submap_m`` of travel of ``j``) and far enough back
+    along the path from ``i``; and that pose in its frame."""
+    p = submaps.params
+    local = submaps.local[submaps.nodes]
+    x, y, th = compose(local[j, 0], local[j, 1], local[j, 2], found.x_m, found.y_m, found.theta_rad)
+    span = np.abs(submaps.node_travel - submaps.node_travel[j]) <= p.submap_m
+    span &= submaps.node_path[i] - submaps.node_path >= p.min_path_m
+    span[i:] = False
+    ks = np.flatnonzero(span)
+    if len(ks) == 0:
+        return j, (found.x_m, found.y_m, found.theta_rad)
+    k = int(ks[np.argmin(np.hypot(local[ks, 0] - float(x), local[ks, 1] - float(y)))])
+    ix, iy, ith = inverse(local[k, 0], local[k, 1], local[k, 2])
+    rx, ry, rth = compose(ix, iy, ith, x, y, th)
+    return k, (float(rx), float(ry), float(wrap_angle(rth)))
+
+
+def _moved_guess(
+    submaps: Submaps, j: int, k: int, guess: tuple[float, float, float]
+) -> tuple[float, float, float]:
+    """``guess`` (a pose in node ``j``'s frame) in node ``k``'s frame, through the
+    scan-matched track."""
+    local = submaps.local[submaps.nodes]
+    x, y, th = compose(local[j, 0], local[j, 1], local[j, 2], *guess)
+    ix, iy, ith = inverse(local[k, 0], local[k, 1], local[k, 2])
+    rx, ry, rth = compose(ix, iy, ith, x, y, th)
+    return float(rx), float(ry), float(wrap_angle(rth))
 
 
 def _align(

@@ -256,6 +256,8 @@ def optimise_with_closures(
                 if coarse:
                     searched.append((path[i], path[j]))
                 continue
+            # the closure's target may be another keyframe than the one offered
+            i, j = closure.i, closure.j
             accepted[(i, j)] = closure
             ends = np.vstack([ends, [(path[i], path[j])]])
             fresh.append((path[i], path[j]))
