@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from gridmap_cli.poses.correction.degeneracy import (
     DistanceScale,
+    OdometryPrior,
     _clearly_constrained,
     keep_across,
     weak_axis,
@@ -97,3 +98,117 @@ def test_the_closed_form_shortcut_never_overrules_eigh() -> None:
             shortcut += 1
             assert values[1] > 0 and values[0] / values[1] >= 0.002
     assert 5000 < shortcut < 20000  # both paths were taken
+
+
+def learned_prior(sigma: tuple[float, float, float], n: int = 39) -> OdometryPrior:
+    """A prior that has seen ``n`` matches correct the odometry's steps by -``sigma``, 0 and
+    ``sigma`` in turn: no steady error, one ``sigma`` of random error."""
+    prior = OdometryPrior(min_matches=10)
+    for k in range(n):
+        prior.add(np.array(sigma) * (k % 3 - 1))
+    prior.held.extend([1e9] * n)  # matches that usually pin the heading hard
+    return prior
+
+
+def test_the_prior_knows_the_odometry_only_after_enough_matches() -> None:
+    prior = OdometryPrior(min_matches=10)
+    for _ in range(9):
+        prior.add(np.array([0.01, 0.02, -0.03]))
+    assert prior.error() is None and prior.usual_turn() == 0.0
+    pose = (1.0, 2.0, 0.3)
+    # not learned yet: the match as it is (the step error is recorded all the same)
+    assert prior.lean(pose, (1.1, 2.0, 0.2), np.eye(6)) == pose
+    known = prior.error()
+    assert known is not None
+    assert known[0] == pytest.approx([0.01, 0.02, -0.03])  # the median: one outlier moves nothing
+
+
+def test_a_steady_odometry_error_is_taken_out_before_leaning_on_it() -> None:
+    """Unequal wheels: every step turns 0.2 degrees too far. A match that cannot see its
+    heading takes the odometry's turn less that steady error, not the drifting one."""
+    prior = OdometryPrior(min_matches=10)
+    for k in range(39):
+        prior.add(np.array([math.radians(0.2 + 0.1 * (k % 3 - 1)), 0.0, 0.0]))
+    steady, sigma = prior.error() or (np.zeros(3), np.zeros(3))
+    assert math.degrees(steady[0]) == pytest.approx(0.2)
+    assert math.degrees(sigma[0]) == pytest.approx(0.1)
+    prior.done[1][:] = prior.done[2][:] = [-0.01, 0.0, 0.01] * 13  # some spread in x and y
+    prior.held.extend([1e9] * 39)
+    guess = (0.0, 0.0, math.radians(30.0))
+    _, _, th = prior.lean((0.0, 0.0, math.radians(35.0)), guess, round_hall_hessian(1e9, 1.0))
+    assert math.degrees(th) == pytest.approx(29.8, abs=0.01)
+
+
+def round_hall_hessian(position: float, heading: float) -> np.ndarray:
+    """small_gicp's Hessian of a match that pins x and y (robot frame) by ``position`` and the
+    heading by ``heading`` (information, 1/m^2 and 1/rad^2)."""
+    h = np.eye(6)
+    h[2, 2] = heading
+    h[3, 3] = h[4, 4] = position
+    return h
+
+
+def test_a_match_that_cannot_see_its_heading_keeps_the_odometry_s_turn() -> None:
+    """Round walls: the position is held, the heading is not. The odometry turned right (the
+    guess), GICP turned 10 degrees more; the heading goes back to the odometry's, the position
+    stays the match's."""
+    prior = learned_prior((math.radians(0.5), 0.01, 0.01))
+    guess = (0.0, 0.0, math.radians(30.0))
+    pose = (0.05, 0.0, math.radians(40.0))
+    x, y, th = prior.lean(pose, guess, round_hall_hessian(1e9, 1.0))
+    assert math.degrees(th) == pytest.approx(30.0, abs=0.01)
+    assert (x, y) == pytest.approx((0.05, 0.0), abs=1e-4)
+
+
+def test_a_match_that_holds_every_direction_is_left_as_it_is() -> None:
+    prior = learned_prior((math.radians(0.5), 0.01, 0.01))
+    pose = (0.05, -0.02, math.radians(40.0))
+    x, y, th = prior.lean(pose, (0.0, 0.0, math.radians(30.0)), round_hall_hessian(1e9, 1e9))
+    assert (x, y) == pytest.approx(pose[:2], abs=1e-3)
+    assert math.degrees(th) == pytest.approx(40.0, abs=0.01)
+
+
+@given(st.floats(-math.pi, math.pi))
+def test_leaning_moves_the_position_in_the_robot_frame(heading: float) -> None:
+    """A match that holds nothing (x, y in the robot frame, heading) takes the guess whole,
+    whatever way the robot faces."""
+    prior = learned_prior((math.radians(0.5), 0.01, 0.01))
+    guess = (1.0, 2.0, heading)
+    pose = (1.3, 1.8, heading + 0.01)
+    x, y, th = prior.lean(pose, guess, round_hall_hessian(1e-6, 1e-6))
+    assert (x, y, th) == pytest.approx(guess, abs=1e-6)
+
+
+def test_a_match_that_holds_its_heading_as_well_as_usual_is_left_as_it_is() -> None:
+    """Weaker than the odometry's learned error, but as strong as the log's matches usually
+    are: the odometry may be wider than learned there (a sharp turn), the match is kept."""
+    prior = learned_prior((math.radians(0.5), 0.01, 0.01))
+    prior.held[:] = [1.0] * len(prior.held)
+    pose = (0.05, 0.0, math.radians(40.0))
+    assert prior.lean(pose, (0.0, 0.0, math.radians(30.0)), round_hall_hessian(1e9, 1.0)) == pose
+
+
+def test_a_match_that_holds_its_heading_is_left_to_the_corridor_test() -> None:
+    """Heading pinned, position open: not the prior's to decide (that is :func:`weak_axis`'s);
+    combined, every step would keep a share of the odometry's steady drift."""
+    prior = learned_prior((math.radians(0.5), 0.01, 0.01))
+    pose = (1.3, 1.8, 0.31)
+    assert prior.lean(pose, (1.0, 2.0, 0.3), round_hall_hessian(1e-6, 1e10)) == pose
+
+
+def test_on_a_sharp_turn_the_odometry_is_trusted_less() -> None:
+    """The matches saw the odometry err by 0.5 degrees a step while it turned 1 degree a step:
+    on a 20-degree turn its step may be off by ten times that, and a match that holds the
+    heading to a degree is kept; on a straight step the same match leans on the odometry."""
+    prior = learned_prior((math.radians(0.5), 0.01, 0.01), n=0)
+    for k in range(39):
+        prior.expect(math.radians(1.0))
+        e = k % 3 - 1
+        prior.lean((0.01 * e, 0.01 * e, math.radians(0.5 * e)), (0.0, 0.0, 0.0), np.eye(6) * 1e9)
+    prior.held[:] = [1e9] * 39
+    hessian = round_hall_hessian(1e9, 1.0 / math.radians(1.0) ** 2)
+    pose, guess = (0.0, 0.0, math.radians(22.0)), (0.0, 0.0, math.radians(20.0))
+    prior.expect(math.radians(20.0))
+    assert prior.lean(pose, guess, hessian) == pose
+    prior.expect(0.0)
+    assert math.degrees(prior.lean(pose, guess, hessian)[2]) < 21.0

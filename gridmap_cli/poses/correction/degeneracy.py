@@ -22,6 +22,7 @@ axis is turned into the map frame by the matched heading.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -137,3 +138,104 @@ def weak_stretch(
     mean /= float(np.hypot(*mean)) or 1.0
     c, s = math.cos(poses[end, 2]), math.sin(poses[end, 2])
     return distance, (float(c * mean[0] + s * mean[1]), float(-s * mean[0] + c * mean[1]))
+
+
+class OdometryPrior:
+    """The odometry's step error, learned from the matches, and a match leaned on it where the
+    scans say less than the odometry does.
+
+    A registration is weak in a direction the scans leave open; the translation along a
+    corridor is the one :func:`weak_axis` finds, but the heading is another: round walls, or a
+    short laser in a wide hall that sees one curved stretch of wall, pin the position better
+    than the heading, and GICP then turns the scan a little at every step where the odometry
+    turned it right. The inverse of the match's Hessian is its covariance; the odometry's step
+    error is learned from the corrections the matches made to its steps (the matches' own
+    error is in them too, which errs towards trusting the scans): their median is its steady
+    part (unequal wheels curve every step the same way), their spread about it the random
+    part, widened on a turn by the error per radian the odometry turned. Where the match holds
+    the heading less tightly than that, and less tightly than most matches of the log do, the
+    match and the odometry's step (its steady part taken out) are combined by their
+    information, as a pose graph would combine them: along a direction the scans leave open,
+    the odometry's step is kept. Where the match holds the heading better, it is left as it is.
+    """
+
+    #: The quantiles one standard deviation either side of a normal spread's median.
+    LOW, HIGH = 0.1587, 0.8413
+
+    def __init__(self, min_matches: int) -> None:
+        self.min_matches = min_matches
+        self.done: tuple[list[float], list[float], list[float]] = ([], [], [])
+        self.held: list[float] = []  # the heading information of every match, sorted
+        self.turn_rad = 0.0  # the odometry's turn over the step being matched
+        self._heading_error = 0.0  # sums over the matches: heading error, odometry's turn
+        self._turned = 0.0
+
+    def add(self, step_error: FloatArray) -> None:
+        """One match's view of the odometry's step error: the odometry's guess relative to the
+        match, heading, x, y (robot frame)."""
+        for values, c in zip(self.done, step_error, strict=True):
+            bisect.insort(values, float(c))
+
+    def error(self) -> tuple[FloatArray, FloatArray] | None:
+        """The odometry's steady step error and the standard deviation of its random part
+        (heading rad, x m, y m; robot frame), None until ``min_matches`` matches are in."""
+        n = len(self.done[0])
+        if n < self.min_matches:
+            return None
+        low, mid, high = (int(q * (n - 1)) for q in (self.LOW, 0.5, self.HIGH))
+        steady = np.array([v[mid] for v in self.done])
+        return steady, np.array([0.5 * (v[high] - v[low]) for v in self.done])
+
+    def expect(self, turn_rad: float) -> None:
+        """The odometry's turn over the next step to be matched."""
+        self.turn_rad = abs(turn_rad)
+
+    def usual_turn(self) -> float:
+        """The heading correction the matches usually make, steady part and one standard
+        deviation (0 until known)."""
+        known = self.error()
+        return 0.0 if known is None else abs(float(known[0][0])) + float(known[1][0])
+
+    def lean(
+        self,
+        pose: tuple[float, float, float],
+        guess: tuple[float, float, float],
+        hessian: FloatArray,
+    ) -> tuple[float, float, float]:
+        """``pose`` (GICP's, from the odometry's ``guess``) combined with ``guess`` by their
+        information: ``hessian`` (6, 6, small_gicp's, right perturbation (rotation,
+        translation)) and the learned step error. Records the step error first."""
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        gx, gy = guess[0] - pose[0], guess[1] - pose[1]
+        toward = np.array([math.remainder(guess[2] - pose[2], math.tau),
+                           c * gx + s * gy, -s * gx + c * gy])  # fmt: skip
+        known = self.error()
+        information = hessian[np.ix_((2, 3, 4), (2, 3, 4))]
+        usual = self.held[int(self.LOW * (len(self.held) - 1))] if self.held else 0.0
+        self.add(toward)
+        bisect.insort(self.held, float(information[0, 0]))
+        if known is None or not (known[1] > 0).all():
+            return pose
+        steady, sigma = known
+        # the odometry's heading error grows with its turn (a turn scale off): the error per
+        # radian turned, all the error put down to turning (a ratio of sums, as
+        # :class:`DistanceScale`), widens the step's
+        self._heading_error += abs(float(toward[0] - steady[0]))
+        self._turned += self.turn_rad
+        if self._turned > 0:
+            sigma = sigma.copy()
+            sigma[0] += self._heading_error / self._turned * self.turn_rad
+        # the scans pin the heading (their position held) better than the odometry does, or
+        # as well as they usually do: the match as it is. The heading's own information, not
+        # its marginal: along a corridor the heading's marginal is wide by its coupling with
+        # the open axis, which :func:`weak_axis` handles, while the walls pin the heading. And
+        # the odometry's error is learned mostly on steps that turn little: on a sharp turn
+        # it can be wider than learned, and a match that holds as well as usual is kept.
+        if information[0, 0] * sigma[0] ** 2 >= 1.0 or information[0, 0] >= usual:
+            return pose
+        prior = np.diag(1.0 / sigma**2)
+        try:
+            d = np.linalg.solve(information + prior, prior @ (toward - steady))
+        except np.linalg.LinAlgError:
+            return pose
+        return pose[0] + c * d[1] - s * d[2], pose[1] + s * d[1] + c * d[2], pose[2] + d[0]
