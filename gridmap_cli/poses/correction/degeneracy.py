@@ -141,8 +141,8 @@ def weak_stretch(
 
 
 class OdometryPrior:
-    """The odometry's step error, learned from the matches, and a match leaned on it where the
-    scans say less than the odometry does.
+    """The odometry's step error, learned from the matches, and each match combined with the
+    odometry's step by their information.
 
     A registration is weak in a direction the scans leave open; the translation along a
     corridor is the one :func:`weak_axis` finds, but the heading is another: round walls, or a
@@ -151,21 +151,23 @@ class OdometryPrior:
     turned it right. The inverse of the match's Hessian is its covariance; the odometry's step
     error is learned from the corrections the matches made to its steps (the matches' own
     error is in them too, which errs towards trusting the scans): their median is its steady
-    part (unequal wheels curve every step the same way), their spread about it the random
-    part, widened on a turn by the error per radian the odometry turned. Where the match holds
-    the heading less tightly than that, and less tightly than most matches of the log do, the
-    match and the odometry's step (its steady part taken out) are combined by their
-    information, as a pose graph would combine them: along a direction the scans leave open,
-    the odometry's step is kept. Where the match holds the heading better, it is left as it is.
+    part (unequal wheels curve every step the same way: taken out of the step, or every step
+    would keep a share of it), their spread about it the random part, widened on a turn by the
+    error beyond it per radian the odometry turned (a turn scale off errs most on the sharpest
+    turns). The match and the odometry's step are combined as a pose graph would combine them:
+    where GICP holds the pose far tighter than the odometry, the match is barely moved; along a
+    direction it leaves open, the odometry's step is kept. Where the two disagree by more than
+    both their errors allow (a chi-square gate), one of them is wrong, and the match is kept.
     """
 
     #: The quantiles one standard deviation either side of a normal spread's median.
     LOW, HIGH = 0.1587, 0.8413
+    #: The squared Mahalanobis distance three normal errors exceed one time in a hundred.
+    GATE = 11.34
 
     def __init__(self, min_matches: int) -> None:
         self.min_matches = min_matches
         self.done: tuple[list[float], list[float], list[float]] = ([], [], [])
-        self.held: list[float] = []  # the heading information of every match, sorted
         self.turn_rad = 0.0  # the odometry's turn over the step being matched
         self._heading_error = 0.0  # sums over the matches: heading error, odometry's turn
         self._turned = 0.0
@@ -210,32 +212,29 @@ class OdometryPrior:
         toward = np.array([math.remainder(guess[2] - pose[2], math.tau),
                            c * gx + s * gy, -s * gx + c * gy])  # fmt: skip
         known = self.error()
-        information = hessian[np.ix_((2, 3, 4), (2, 3, 4))]
-        usual = self.held[int(self.LOW * (len(self.held) - 1))] if self.held else 0.0
         self.add(toward)
-        bisect.insort(self.held, float(information[0, 0]))
         if known is None or not (known[1] > 0).all():
             return pose
         steady, sigma = known
-        # the odometry's heading error grows with its turn (a turn scale off): the error per
-        # radian turned, all the error put down to turning (a ratio of sums, as
+        # the odometry's heading error grows with its turn (a turn scale off): the error in
+        # excess of the random part, per radian turned (a ratio of sums, as
         # :class:`DistanceScale`), widens the step's
-        self._heading_error += abs(float(toward[0] - steady[0]))
+        self._heading_error += max(abs(float(toward[0] - steady[0])) - float(sigma[0]), 0.0)
         self._turned += self.turn_rad
         if self._turned > 0:
             sigma = sigma.copy()
             sigma[0] += self._heading_error / self._turned * self.turn_rad
-        # the scans pin the heading (their position held) better than the odometry does, or
-        # as well as they usually do: the match as it is. The heading's own information, not
-        # its marginal: along a corridor the heading's marginal is wide by its coupling with
-        # the open axis, which :func:`weak_axis` handles, while the walls pin the heading. And
-        # the odometry's error is learned mostly on steps that turn little: on a sharp turn
-        # it can be wider than learned, and a match that holds as well as usual is kept.
-        if information[0, 0] * sigma[0] ** 2 >= 1.0 or information[0, 0] >= usual:
-            return pose
         prior = np.diag(1.0 / sigma**2)
+        information = hessian[np.ix_((2, 3, 4), (2, 3, 4))]
+        miss = toward - steady
         try:
-            d = np.linalg.solve(information + prior, prior @ (toward - steady))
+            # the two disagree beyond both their errors (the odometry slipped, or its clock
+            # bunched its messages): one of them is wrong, and the scans are kept, as without
+            # the odometry's step
+            spread = np.diag(sigma**2) + np.linalg.inv(information)
+            if float(miss @ np.linalg.solve(spread, miss)) > self.GATE:
+                return pose
+            d = np.linalg.solve(information + prior, prior @ miss)
         except np.linalg.LinAlgError:
             return pose
         return pose[0] + c * d[1] - s * d[2], pose[1] + s * d[1] + c * d[2], pose[2] + d[0]
