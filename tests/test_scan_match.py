@@ -15,10 +15,10 @@ from gridmap_cli.mapping.grid import GridSpec
 from gridmap_cli.poses.correction.scan_match import (
     FALLBACK,
     FIRST,
-    LocalMap,
     NoLaserError,
     ScanMatchParams,
     Scans,
+    _LocalMap,
     corrected_track,
     laser_scans,
     match_log,
@@ -173,7 +173,7 @@ def test_a_scan_the_matcher_could_not_place_joins_the_local_map_only_once_the_ro
     """A fallback scan's pose is the odometry's guess: turned in place, the local map still
     holds the place and the scan at a wrong heading would only add a rotated copy of it."""
     params = ScanMatchParams()
-    local = LocalMap(params)
+    local = _LocalMap(params)
     local.add(np.array([[1.0, 0.0], [0.0, 1.0]]), (0.0, 0.0, 0.0))
     turned = (0.0, 0.0, 2.0 * params.keyframe_rad)
     moved = (2.0 * params.keyframe_m, 0.0, 0.0)

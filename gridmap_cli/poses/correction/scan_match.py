@@ -13,13 +13,6 @@ A match is judged before it is trusted (``docs/scan-matching.md``):
 - *degenerate*: the translation is constrained in one direction only (a featureless corridor):
   the correction is kept across the corridor and the odometry is kept along it, its distance
   scale corrected by what the fully constrained steps measured (:mod:`.degeneracy`).
-- *doubtful*: a match that fits worse than the log's scans usually do (:func:`.relocate.
-  typical_fit`) and turned the odometry's step more than its matches usually need is where GICP
-  falls into a turned minimum (a turn where the local map holds little of what the scan sees):
-  the other starting headings are tried too and the best fit kept, not the first that holds;
-- *weak in heading*: every match is combined with the odometry's step by their information
-  (:class:`.degeneracy.OdometryPrior`): where the scan pins the heading poorly (round walls, a
-  short laser in a wide hall), the odometry's turn is kept instead of a slow spin.
 
 Frames: the corrected track is in the odometry frame, from the odometry's pose at the first
 scan; poses between scans carry the odometry with the correction interpolated between scans.
@@ -28,8 +21,10 @@ scan; poses between scans carry the odometry with the correction interpolated be
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -37,17 +32,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 import small_gicp
+from scipy.spatial import cKDTree
 
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.poses.correction.carry import carry
-from gridmap_cli.poses.correction.degeneracy import (
-    DistanceScale,
-    OdometryPrior,
-    keep_across,
-    weak_axis,
-)
-from gridmap_cli.poses.correction.local_map import LocalMap
+from gridmap_cli.poses.correction.degeneracy import DistanceScale, keep_across, weak_axis
 from gridmap_cli.poses.correction.planar import (
     placed_points,
     planar_pose,
@@ -55,18 +45,17 @@ from gridmap_cli.poses.correction.planar import (
     pose_matrix,
 )
 from gridmap_cli.poses.correction.relocate import (
-    MIN_MATCHES,
     MOVED_M,
-    TypicalFit,
     odometry_gaps,
     relocate,
+    typical_fit,
 )
 from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription
 
 if TYPE_CHECKING:
-    pass
+    from gridmap_cli.poses.correction.correlative import LikelihoodGrid
 
 FloatArray = npt.NDArray[np.float64]
 #: A caller's progress callback: (stage, done, total), e.g. ("scan matching", 120, 4000).
@@ -235,6 +224,38 @@ def laser_scans(log: RangeLog, sensors: tuple[RangeSensor, ...], params: ScanMat
     return Scans(stamp_ns=laser_stamps.astype(np.int64), points=points)
 
 
+class _LocalMap:
+    """The last keyframe scans in the odometry frame, for GICP (3D sheet) and scoring (2D)."""
+
+    def __init__(self, params: ScanMatchParams) -> None:
+        self.params = params
+        self.frames: deque[FloatArray] = deque(maxlen=params.local_map_scans)
+        self.last_pose: tuple[float, float, float] | None = None
+        self.cloud: small_gicp.PointCloud | None = None
+        self.tree: small_gicp.KdTree | None = None
+        self.tree2d: cKDTree | None = None
+        self.grid: LikelihoodGrid | None = None  # built when a poor match first needs it
+
+    def wants(self, pose: tuple[float, float, float], fallback: bool = False) -> bool:
+        if self.last_pose is None:
+            return True
+        dx, dy = pose[0] - self.last_pose[0], pose[1] - self.last_pose[1]
+        turn = 0.0 if fallback else abs(float(wrap_angle(pose[2] - self.last_pose[2])))
+        return math.hypot(dx, dy) >= self.params.keyframe_m or turn >= self.params.keyframe_rad
+
+    def add(self, world_points: FloatArray, pose: tuple[float, float, float]) -> None:
+        self.frames.append(world_points)
+        self.last_pose = pose
+        flat = np.vstack(list(self.frames))
+        voxel = self.params.downsample_m
+        self.cloud, self.tree = small_gicp.preprocess_points(
+            planar_sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
+        )
+        # unbalanced: quicker to build, as quick to query, and the same nearest points
+        self.tree2d = cKDTree(flat, balanced_tree=False)
+        self.grid = None
+
+
 def match_scans(
     scans: Scans,
     odometry: PoseTrack,
@@ -288,9 +309,7 @@ def _match_pass(
     score = np.full(n, np.nan)
     weak = np.full((n, 2), np.nan)
     scale = DistanceScale(params.scale_min_m, params.scale_max_error, prior_scale)
-    local = LocalMap(params)
-    fits = TypicalFit(params.min_inlier_fraction)
-    prior = OdometryPrior(MIN_MATCHES)
+    local = _LocalMap(params)
     # the odometry's increment from each scan to the next, all at once
     steps = compose(*inverse(ox[:-1], oy[:-1], oth[:-1]), ox[1:], oy[1:], oth[1:])
     for k in range(n):
@@ -312,11 +331,9 @@ def _match_pass(
             )
             scaled = (float(sx), float(sy), float(gth))
             step_m = float(math.hypot(dx, dy))
-            prior.expect(float(dth))
             poses[k], status[k], score[k], axis = _match_one(
                 pts, guess, step_m, local, params, scaled,
-                fits.value,
-                prior,
+                functools.partial(typical_fit, score[:k], params.min_inlier_fraction),
                 params.search_rad if gap[k] else (
                     2.0 * params.max_correction_rad if step_m >= MOVED_M
                     else params.max_correction_rad
@@ -334,7 +351,6 @@ def _match_pass(
                 # rotation error moves the step sideways
                 mx, my, _ = compose(*inverse(*poses[k - 1]), *poses[k])
                 scale.add((float(mx), float(my)), (float(dx), float(dy)))
-            fits.add(float(score[k]))
         if len(pts) and local.wants(tuple(poses[k]), status[k] == FALLBACK):
             local.add(placed_points(pts, tuple(poses[k])), tuple(poses[k]))
         if progress is not None:
@@ -346,11 +362,10 @@ def _match_one(
     pts: FloatArray,
     guess: tuple[float, float, float],
     step_m: float,
-    local: LocalMap,
+    local: _LocalMap,
     params: ScanMatchParams,
     kept: tuple[float, float, float] | None = None,
     typical: Callable[[], float] | None = None,
-    prior: OdometryPrior | None = None,
     window_rad: float = 0.0,
 ) -> tuple[tuple[float, float, float], int, float, FloatArray | None]:
     """One scan's pose, status, inlier fraction and weak axis (map frame; None unless
@@ -358,9 +373,7 @@ def _match_one(
     fallback takes and a degenerate match keeps along its weak axis. ``window_rad``: the
     heading window of the search for a lost scan (:mod:`.relocate`; at most ``search_rad``);
     ``typical``: the fit a relocation turned beyond the heading bound must reach
-    (:func:`.relocate.typical_fit`; None: it never is), and a doubtful match (module) must
-    reach to be taken without trying the other starts; ``prior``: the odometry's step error
-    the match is combined with (None: the match as GICP found it)."""
+    (:func:`.relocate.typical_fit`; None: it never is)."""
     kept = kept or guess
     if local.cloud is None or local.tree is None or local.tree2d is None:
         return kept, FALLBACK, 0.0, None
@@ -374,7 +387,6 @@ def _match_one(
         return kept, FALLBACK, 0.0, None
     limit_m = params.max_correction_m + params.correction_per_m * step_m
     best: tuple[float, tuple[float, float, float], FloatArray] | None = None
-    usual = typical() if typical is not None else 0.0
     for offset in (0.0, *params.heading_starts_rad):
         start = (guess[0], guess[1], guess[2] + offset)
         result = small_gicp.align(
@@ -396,17 +408,9 @@ def _match_one(
             placed_points(planar, pose), distance_upper_bound=params.inlier_m
         )
         fraction = int(np.count_nonzero(np.isfinite(dist))) / len(dist)
-        # a match that holds is replaced only by one that fits as the log's scans usually do
-        if best is None or (
-            fraction > best[0] and (best[0] < params.min_inlier_fraction or fraction >= usual)
-        ):
+        if best is None or fraction > best[0]:
             best = (fraction, pose, np.asarray(result.H))
-        doubtful = (
-            prior is not None
-            and best[0] < usual
-            and (abs(float(wrap_angle(best[1][2] - guess[2]))) > prior.usual_turn())
-        )
-        if best[0] >= params.min_inlier_fraction and not doubtful:
+        if fraction >= params.min_inlier_fraction:
             break
     if (best is None or best[0] < params.min_inlier_fraction) and params.search_rad > 0:
         # no start held: the odometry may be off by more than the retries and the heading
@@ -424,14 +428,11 @@ def _match_one(
             and (not wide or (typical is not None and found[0] >= typical()))
         ):
             best = found
-            prior = None  # a lost scan: the odometry's step is what it lost
     if best is None:
         return kept, FALLBACK, 0.0, None
     fraction, pose, hessian = best
     if fraction < params.min_inlier_fraction:
         return kept, FALLBACK, fraction, None
-    if prior is not None:
-        pose = prior.lean(pose, guess, hessian)
     axis = weak_axis(hessian, params.degenerate_ratio, pose[2])
     if axis is not None:
         return keep_across(kept, pose, axis), DEGENERATE, fraction, axis
