@@ -104,3 +104,24 @@ def test_the_new_target_is_one_that_built_the_grid_and_lies_far_back() -> None:
     # placed 7 m before node 20: node 6 is there, but outside the 5 m its grid was built from
     k, (x, _, _) = _retarget(submaps, 40, 20, SearchResult(-7.0, 0.0, 0.0, 0.5))
     assert k == 10 and round(x, 9) == -2.0
+
+
+def test_a_look_alike_place_beyond_the_radius_does_not_win_over_the_right_one() -> None:
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "bench" / "look_alike.py"
+    spec = importlib.util.spec_from_file_location("look_alike", script)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    sys.modules["look_alike"] = bench
+    try:
+        spec.loader.exec_module(bench)
+        # boxes repeating every 6 m, the estimate 2.5 m off with a 2.5 m radius: the right
+        # place lies within the radius, its copy beyond it but within the whole window
+        right, false, _ = bench.count(6.0, 2.5, offsets_m=(2.5,))
+    finally:
+        sys.modules.pop("look_alike", None)
+    assert false == 0
+    assert right > 0

@@ -7,8 +7,9 @@ between them (the scan matcher's drift, ``drift_per_m``), capped at ``max_search
 A candidate is *verified* by GICP (small_gicp) of keyframe ``i``'s local submap (its scan and
 its neighbours', placed by the scan-matched track, which is locally consistent) against ``j``'s,
 starting from the estimate; where that start is poor, a coarse search over offsets in x, y and
-heading (up to ``max_search_m``) places the source, and the earlier keyframe nearest that place
-becomes the target (:func:`_coarse`). It is *accepted* when enough of the source's points land
+heading finds a start within the search radius, and where none registers from there, one over
+the whole window (``max_search_m``) places the source and the earlier keyframe nearest that
+place becomes the target (:func:`_coarse`). It is *accepted* when enough of the source's points land
 within ``inlier_m`` of the target (``min_inlier_fraction``), the match constrains both
 directions (not a featureless corridor), and the correction from the estimate lies within the
 search radius (the coarse search's, where it found the start).
@@ -291,7 +292,19 @@ def verify(
     reach = radius_m
     if poor and coarse and radius_m > p.coarse_from_m:
         submaps.coarse_runs += 1
-        found = _coarse(submaps, i, j, guess)
+        # within the drift rule's radius first: a place that looks like this one (the same
+        # doors further along) may lie within the whole window, and the drift rule says which
+        # of them the robot is likelier at; only where nothing within it registers is the
+        # estimate taken to have drifted further
+        near = search(
+            submaps.grid(j), submaps.sample(i), guess, radius_m, p.coarse_window_rad,
+            p.coarse_step_rad, p.coarse_min_score,
+        )  # fmt: skip
+        if near is not None:
+            best = _align(target, source, (near.x_m, near.y_m, near.theta_rad), p)
+        found = None
+        if best is None or best[0] < p.min_inlier_fraction:
+            found = _coarse(submaps, i, j, guess)
         if found is not None:
             k, start = found
             if k != j:
