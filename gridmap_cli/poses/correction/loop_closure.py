@@ -12,7 +12,7 @@ the whole window (``max_search_m``) places the source and the earlier keyframe n
 place becomes the target (:func:`_coarse`). It is *accepted* when enough of the source's points land
 within ``inlier_m`` of the target (``min_inlier_fraction``), the match constrains both
 directions (not a featureless corridor), and the correction from the estimate lies within the
-search radius (the coarse search's, where it found the start).
+search radius (the whole window where the search over it found the start).
 """
 
 from __future__ import annotations
@@ -308,7 +308,7 @@ def verify(
         if found is not None:
             k, start = found
             if k != j:
-                guess = _moved_guess(submaps, j, k, guess)
+                guess = _reframe(submaps, j, k, guess)
                 j, target = k, submaps.get(k)
             reach = p.max_search_m
             best = _align(target, source, start, p)
@@ -365,7 +365,7 @@ def _retarget(
     along the path from ``i``; and that pose in its frame."""
     p = submaps.params
     local = submaps.local[submaps.nodes]
-    x, y, th = compose(local[j, 0], local[j, 1], local[j, 2], found.x_m, found.y_m, found.theta_rad)
+    x, y, _ = compose(local[j, 0], local[j, 1], local[j, 2], found.x_m, found.y_m, found.theta_rad)
     span = np.abs(submaps.node_travel - submaps.node_travel[j]) <= p.submap_m
     span &= submaps.node_path[i] - submaps.node_path >= p.min_path_m
     span[i:] = False
@@ -373,18 +373,15 @@ def _retarget(
     if len(ks) == 0:
         return j, (found.x_m, found.y_m, found.theta_rad)
     k = int(ks[np.argmin(np.hypot(local[ks, 0] - float(x), local[ks, 1] - float(y)))])
-    ix, iy, ith = inverse(local[k, 0], local[k, 1], local[k, 2])
-    rx, ry, rth = compose(ix, iy, ith, x, y, th)
-    return k, (float(rx), float(ry), float(wrap_angle(rth)))
+    return k, _reframe(submaps, j, k, (found.x_m, found.y_m, found.theta_rad))
 
 
-def _moved_guess(
-    submaps: Submaps, j: int, k: int, guess: tuple[float, float, float]
+def _reframe(
+    submaps: Submaps, j: int, k: int, pose: tuple[float, float, float]
 ) -> tuple[float, float, float]:
-    """``guess`` (a pose in node ``j``'s frame) in node ``k``'s frame, through the
-    scan-matched track."""
+    """``pose`` (in node ``j``'s frame) in node ``k``'s frame, through the scan-matched track."""
     local = submaps.local[submaps.nodes]
-    x, y, th = compose(local[j, 0], local[j, 1], local[j, 2], *guess)
+    x, y, th = compose(local[j, 0], local[j, 1], local[j, 2], *pose)
     ix, iy, ith = inverse(local[k, 0], local[k, 1], local[k, 2])
     rx, ry, rth = compose(ix, iy, ith, x, y, th)
     return float(rx), float(ry), float(wrap_angle(rth))
