@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
-from gridmap_cli.poses.correction.loop_closure import ClosureParams, candidates
+from gridmap_cli.poses.correction.loop_closure import ClosureParams, anchors, candidates
 
 
 def _line(x0: float, y0: float, x1: float, y1: float, step_m: float = 0.5) -> np.ndarray:
@@ -50,6 +50,21 @@ def _room(step_m: float = 0.05) -> np.ndarray:
         n = max(2, int(math.hypot(x1 - x0, y1 - y0) / step_m))
         walls.append(np.column_stack([np.linspace(x0, x1, n), np.linspace(y0, y1, n)]))
     return np.vstack(walls)
+
+
+def test_closures_are_offered_between_anchors_only() -> None:
+    every = anchors(np.arange(10.0) * 0.5, 1.0)
+    assert every.tolist() == [0, 2, 4, 6, 8]
+    # a turn in place (keyframes with no path between them) gives one anchor at most
+    assert anchors(np.array([0.0, 1.0, 1.0, 1.0, 1.0, 2.5]), 1.0).tolist() == [0, 1, 5]
+    poses, last = _a_pass_then_back()
+    path = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poses[:, :2], axis=0).T))])
+    spots = anchors(path, 1.0)
+    assert len(spots) < len(poses)
+    pairs = candidates(poses, np.array([last]), ClosureParams(), targets=spots)
+    assert pairs and all(j in spots.tolist() for _, j in pairs)
+    assert len(pairs) == 3  # as many as without anchors, all on the earlier pass
+    assert all(j <= 40 for _, j in pairs)
 
 
 def test_a_submap_half_seen_by_the_target_finds_its_start() -> None:

@@ -100,15 +100,32 @@ def path_length(poses: FloatArray) -> FloatArray:
     return np.concatenate([[0.0], np.cumsum(steps)])
 
 
+def anchors(path: FloatArray, spacing_m: float) -> npt.NDArray[np.intp]:
+    """Indices into ``path`` (distance travelled at each node): the first node, then each
+    ``spacing_m`` of path on from the last taken (one node per spot where the robot turned in
+    place)."""
+    keep = [0]
+    for k in range(1, len(path)):
+        if path[k] - path[keep[-1]] >= spacing_m:
+            keep.append(k)
+    return np.array(keep, dtype=np.intp)
+
+
 def candidates(
-    poses: FloatArray, queries: npt.NDArray[np.intp], params: ClosureParams
+    poses: FloatArray,
+    queries: npt.NDArray[np.intp],
+    params: ClosureParams,
+    targets: npt.NDArray[np.intp] | None = None,
 ) -> list[tuple[int, int]]:
-    """Pairs (i, j), j < i, of nodes near in ``poses`` (N, 3) but far along the path."""
+    """Pairs (i, j), j < i, of nodes near in ``poses`` (N, 3) but far along the path; ``j``
+    among ``targets`` only, when given."""
     path = path_length(poses)
-    tree = cKDTree(poses[:, :2])
+    tree = cKDTree(poses[:, :2] if targets is None else poses[targets, :2])
     pairs: list[tuple[int, int]] = []
     for i in queries:
         near = np.asarray(tree.query_ball_point(poses[i, :2], params.max_search_m), dtype=np.intp)
+        if targets is not None:
+            near = targets[near]
         gap = path[i] - path[near]
         earlier = (near < i) & (gap >= params.min_path_m)
         near, gap = near[earlier], gap[earlier]

@@ -34,6 +34,7 @@ from gridmap_cli.poses.correction.loop_closure import (
     Closure,
     ClosureParams,
     Submaps,
+    anchors,
     candidates,
     path_length,
     relative,
@@ -230,6 +231,9 @@ def optimise_with_closures(
     rejected = dropped = 0
     path = path_length(estimate)
     c = params.closure
+    # closures are tested between keyframes decimate_m of path apart: a keyframe's submap
+    # spans submap_m of path, so the ones between add tests of nearly the same scans
+    spots = anchors(path, c.decimate_m)
     for done in range(params.rounds):
         if progress is not None:
             progress("loop closures", done, params.rounds)
@@ -240,7 +244,7 @@ def optimise_with_closures(
         ends = np.array([(path[k[0]], path[k[1]]) for k in accepted]).reshape(-1, 2)
         fresh: list[tuple[float, float]] = []
         searched: list[tuple[float, float]] = []  # coarse searches that found nothing
-        for i, j in candidates(estimate, np.arange(len(nodes)), c):
+        for i, j in candidates(estimate, spots, c, targets=spots):
             if (i, j) in tried or _near(ends, path[i], path[j], c.decimate_m):
                 continue
             tried.add((i, j))
