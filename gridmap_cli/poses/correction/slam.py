@@ -72,7 +72,8 @@ FloatArray = npt.NDArray[np.float64]
 SLAM_MATCH = ScanMatchParams(correspondence_m=0.5)
 
 #: A sequential edge bent by more than this many of its standard deviations on the optimised
-#: track warns: true closures bend the shared logs' tracks by under 2.
+#: track warns: a false closure folding the map bends one this far, and so can true closures
+#: taking out a scan-matching slip, so it asks for a look rather than rejecting the track.
 BEND_WARN_SIGMA = 5.0
 
 
