@@ -12,6 +12,7 @@ import pytest
 
 from gridmap_cli.poses.correction.scan_match import (
     DEGENERATE,
+    FALLBACK,
     ScanMatchParams,
     laser_scans,
     match_log,
@@ -127,3 +128,25 @@ def test_edges_along_a_corridor_are_loose_along_it_only() -> None:
     across = local[nodes].copy()
     across[2, 1] += 0.2  # ...and across it: as stiff as ever
     assert _bend_sigma(across, edges) == pytest.approx(_bend_sigma(across, iso))
+
+
+def test_a_fallback_in_a_turn_loosens_its_edge_by_the_odometry_turn() -> None:
+    """A scan that fell back took the odometry's step: its edge's heading sigma widens with the
+    turn that scan made (the odometry's error grows with it), not only with the path."""
+    n = 6
+    turning = np.column_stack([np.zeros(n), np.zeros(n), np.linspace(0.0, 0.5, n)])
+    status = np.zeros(n, dtype=np.int8)
+    params = SlamParams()
+    nodes = np.array([0, 5])
+    matched = sequential_edges(turning, status, nodes, params)[0]
+    status[3] = FALLBACK  # one step of 0.1 rad taken from the odometry
+    fell = sequential_edges(turning, status, nodes, params)[0]
+    base = params.fallback_scale * matched.sigma_theta_rad
+    assert fell.sigma_theta_rad == pytest.approx(base + params.fallback_sigma_theta_per_rad * 0.1)
+    # on a straight drive the fallback adds no turn term
+    straight = np.column_stack([np.linspace(0.0, 1.0, n), np.zeros(n), np.zeros(n)])
+    plain = sequential_edges(straight, np.zeros(n, dtype=np.int8), nodes, params)[0]
+    fell_straight = sequential_edges(straight, status, nodes, params)[0]
+    assert fell_straight.sigma_theta_rad == pytest.approx(
+        params.fallback_scale * plain.sigma_theta_rad
+    )

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.poses.correction.carry import carry
 from gridmap_cli.poses.correction.degeneracy import weak_stretch
 from gridmap_cli.poses.correction.loop_closure import (
@@ -88,6 +89,9 @@ class SlamParams:
     sigma_theta_rad: float = math.radians(0.5)
     sigma_theta_per_m: float = math.radians(0.5)
     fallback_scale: float = 5.0
+    #: the heading error of the odometry per radian it turned, where a scan took the odometry's
+    #: step: ROS amcl's default for its motion model's rotation-from-rotation noise
+    fallback_sigma_theta_per_rad: float = 0.2
     #: along a featureless corridor an edge holds only the odometry (the match said nothing
     #: there): this much more sigma per metre along it, loose enough that a closure stretches
     #: the corridor rather than bending the track
@@ -201,13 +205,17 @@ def sequential_edges(
         s, t = int(nodes[a]), int(nodes[a + 1])
         dx, dy, dth = relative(local, t, s)
         dist = math.hypot(dx, dy)
-        scale = p.fallback_scale if (status[s + 1 : t + 1] == FALLBACK).any() else 1.0
+        fell = np.flatnonzero(status[s + 1 : t + 1] == FALLBACK) + s + 1
+        scale = p.fallback_scale if len(fell) else 1.0
+        # a scan that fell back took the odometry's turn, whose error grows with the turn
+        turned = float(np.abs(wrap_angle(local[fell, 2] - local[fell - 1, 2])).sum())
         weak_m, axis = weak_stretch(local, weak, s, t) if weak is not None else (0.0, (1.0, 0.0))
         edges.append(
             Edge(
                 a, a + 1, dx, dy, dth,
                 scale * (p.sigma_xy_m + p.sigma_xy_per_m * dist),
-                scale * (p.sigma_theta_rad + p.sigma_theta_per_m * dist),
+                scale * (p.sigma_theta_rad + p.sigma_theta_per_m * dist)
+                + p.fallback_sigma_theta_per_rad * turned,
                 weak_sigma_m=p.degenerate_sigma_per_m * weak_m, weak_axis=axis,
             )
         )  # fmt: skip
