@@ -151,12 +151,13 @@ def _cell(tracks: dict[str, Cell | PoseTrack], source: str, score: tuple[float, 
 def jittered(log: RangeLog, seed: int | None) -> RangeLog:
     """``log`` with its odometry moved by a tiny random walk (``seed`` None: as read): each
     step's translation by 0.5 mm and turn by 0.005 degree (1 sigma), far under any real
-    odometry's noise, so a track that changes its score under it is measuring chance."""
+    odometry's noise per step (summed over a long log, a walk of some decimetres), so a track
+    that changes its score under it is measuring chance."""
     if seed is None:
         return log
     from dataclasses import replace
 
-    from gridmap_cli.geometry import compose, inverse
+    from gridmap_cli.geometry import compose, inverse, wrap_angle
 
     rng = np.random.default_rng(seed)
     p = log.poses
@@ -172,8 +173,7 @@ def jittered(log: RangeLog, seed: int | None) -> RangeLog:
     c, s = np.cos(th[:-1]), np.sin(th[:-1])
     x = p.x_m[0] + np.concatenate(([0.0], np.cumsum(c * dx - s * dy)))
     y = p.y_m[0] + np.concatenate(([0.0], np.cumsum(s * dx + c * dy)))
-    th = (th + np.pi) % (2.0 * np.pi) - np.pi
-    poses = PoseTrack(p.stamp_ns, x, y, th)
+    poses = PoseTrack(p.stamp_ns, x, y, wrap_angle(th))
     return replace(log, poses=poses)
 
 

@@ -89,8 +89,9 @@ class SlamParams:
     sigma_theta_rad: float = math.radians(0.5)
     sigma_theta_per_m: float = math.radians(0.5)
     fallback_scale: float = 5.0
-    #: the heading error of the odometry per radian it turned, where a scan took the odometry's
-    #: step: ROS amcl's default for its motion model's rotation-from-rotation noise
+    #: the heading error (1 sigma) of the odometry per radian it turned, where a scan took the
+    #: odometry's step: a fifth of the turn, tighter than ROS amcl's default motion noise (its
+    #: alpha1 of 0.2 is a variance coefficient, a sigma of 0.45 per radian)
     fallback_sigma_theta_per_rad: float = 0.2
     #: along a featureless corridor an edge holds only the odometry (the match said nothing
     #: there): this much more sigma per metre along it, loose enough that a closure stretches
