@@ -1,5 +1,5 @@
 """How far the proving ground's slam rows move by chance: each log's slam track again with its
-odometry jittered far under any real odometry's noise (``real_logs.jittered``: 0.5 mm and
+odometry jittered far under any real odometry's noise per step (``real_logs.jittered``: 0.5 mm and
 0.005 degree per step, one seed per run), so a change to the method can be judged against the
 spread of its own rows instead of against one draw.
 

@@ -119,14 +119,8 @@ class FileCheck:
                 key: {"file": f, "this_log": own, "standard_error": se}
                 for key, f, own, se in self.dropped
             },
-            "biases_contradicted_by_revisits": {
-                key: {"revisits": n, "likelihood_ratio_statistic": x}
-                for key, n, x in self.contradicted
-            },
-            "biases_not_confirmed": {
-                key: {"revisits": n, "likelihood_ratio_statistic": x}
-                for key, n, x in self.unconfirmed
-            },
+            "biases_contradicted_by_revisits": _by_key(self.contradicted),
+            "biases_not_confirmed": _by_key(self.unconfirmed),
             "walks_narrowed_to_this_log": list(self.narrowed),
             "position_check": self.consistency if math.isfinite(self.consistency) else None,
             "random_walk_scale": self.walk_factor,
@@ -169,6 +163,11 @@ class FileCheck:
         if not parts:
             parts.append("the file holds")
         return "odometry error checked against the laser: " + "; ".join(parts)
+
+
+def _by_key(verdicts: tuple[tuple[str, int, float], ...]) -> dict[str, dict[str, float]]:
+    """The revisits' verdicts on biases (key, revisits, statistic) as ``--json`` gives them."""
+    return {key: {"revisits": n, "likelihood_ratio_statistic": x} for key, n, x in verdicts}
 
 
 def check_file(log: RangeLog, robot: RobotDescription | None, model: OdometryError) -> FileCheck:
