@@ -24,7 +24,9 @@ within 64 ns, so there the slam pose is the optimised pose of that very scan, no
 interpolated). For ``every-K`` the slam track is also scored on all relations in its span
 ("all" column): a relation stamp on a dropped scan then takes the track between kept scans,
 carried by the odometry, as ``trajectory`` would. A variant fails when its slam error on the
-kept relations exceeds twice GMapping's figure on the full log.
+kept relations exceeds twice GMapping's figure on the full log. Below the table, what each slam
+run warned of, as ``build --pose slam`` would: the graph's own checks and the free-space check
+of its track (a failing run that warns is not a silent one).
 
     nice .venv/bin/python bench/slam_stress.py --jobs 2                 # every log and variant
     nice .venv/bin/python bench/slam_stress.py --logs aces --variants every-3 --maps /tmp/m
@@ -160,6 +162,8 @@ class Result:
     slam_all: tuple[float, float] | None = None
     closures: str = ""
     warning: str | None = None
+    #: the free-space check's verdict on the slam track, as ``build`` warns of it (None: passes)
+    free_space: str | None = None
     seconds: float = 0.0
     error: str | None = None
 
@@ -185,6 +189,7 @@ def run(job: tuple[str, str, str | None]) -> Result:
 
 
 def _run(name: str, variant: str, maps: str | None) -> Result:
+    from gridmap_cli.poses.correction.free_space import check_poses
     from gridmap_cli.poses.correction.scan_match import corrected_track, match_log
     from gridmap_cli.poses.correction.slam import slam_log
     from gridmap_cli.readers import read_logs
@@ -215,12 +220,16 @@ def _run(name: str, variant: str, maps: str | None) -> Result:
         slam_all = (s.trans_mean_m, s.rot_mean_deg)
     summary = slam.summary()
     closures = f"{summary['closures_accepted']:,}/{summary['candidates']:,}"
+    free_space = None
+    if slam.scans is not None:
+        check = check_poses(slam.track, slam.scans.points)
+        free_space = check.reason() if check.fails else None
     if maps is not None:
         _save(Path(maps) / f"{name}-{variant.replace('/', '_')}", log, robot, slam)
     return Result(
         name, variant, len(stamps), len(kept),
         score_track(tracks["slam"], relations, log.poses).count,
-        scores, slam_all, closures, slam.warning, time.process_time() - started,
+        scores, slam_all, closures, slam.warning, free_space, time.process_time() - started,
     )  # fmt: skip
 
 
@@ -289,7 +298,10 @@ def table(results: list[Result]) -> list[str]:
 
 
 def warnings(results: list[Result]) -> list[str]:
-    return [f"- {r.log} {r.variant}: {r.warning}" for r in results if r.warning]
+    """What each run warned of, as ``build --pose slam`` would: the graph's own checks, then the
+    free-space check of its track."""
+    said = [(r, w) for r in results for w in (r.warning, r.free_space) if w]
+    return [f"- {r.log} {r.variant}: {w}" for r, w in said]
 
 
 def main(argv: list[str] | None = None) -> None:
