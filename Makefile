@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 DEMO_OUT := out/demo
 # the compiled mapping kernels: pip builds them, so a change to them reinstalls
 KERNELS := setup.py gridmap_cli/mapping/models/_ckernels.c gridmap_cli/readers/ros/_cwalk.c \
-	gridmap_cli/poses/correction/_cbranch.c
+	gridmap_cli/poses/correction/_cbranch.c gridmap_cli/poses/correction/_csheet.c
 
 .PHONY: install dev demo test lint format bench samples goldens doc-outputs experiment stress quality corpus overview-image clean
 

@@ -4,7 +4,8 @@ A *candidate* pairs keyframe ``i`` with an earlier keyframe ``j`` that lies far 
 path (``min_path_m``) but near in the current estimate: within a radius that grows with the path
 between them (the scan matcher's drift, ``drift_per_m``), capped at ``max_search_m``.
 
-A candidate is *verified* by GICP (small_gicp) of keyframe ``i``'s local submap (its scan and
+A candidate is *verified* by GICP (small_gicp's, in the plane: :mod:`.sheet_gicp`) of keyframe
+``i``'s local submap (its scan and
 its neighbours', placed by the scan-matched track, which is locally consistent) against ``j``'s,
 starting from the estimate; where that start is poor, a coarse search over offsets in x, y and
 heading finds a start within the search radius, and where none registers from there, one over
@@ -23,13 +24,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-import small_gicp
 from scipy.spatial import cKDTree
 
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.heap import release_free_memory
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, SearchResult, search
-from gridmap_cli.poses.correction.planar import pose_matrix
+from gridmap_cli.poses.correction.sheet_gicp import Sheet, align, nearest_m, sheet_of
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -145,30 +145,13 @@ def candidates(
     return pairs
 
 
-def _sheet(points: FloatArray, voxel_m: float) -> FloatArray:
-    """Planar points (K, 2) as three layers at z -``voxel_m``, 0 and ``voxel_m``, (3K, 3)."""
-    k = len(points)
-    sheet = np.empty((3 * k, 3))
-    for layer, z in enumerate((-voxel_m, 0.0, voxel_m)):
-        sheet[layer * k : (layer + 1) * k, :2] = points
-        sheet[layer * k : (layer + 1) * k, 2] = z
-    return sheet
-
-
 @dataclass(frozen=True)
 class Submap:
-    """A keyframe's submap in its frame: the registration cloud and its tree, the planar points
-    (K, 2) as registered, and for a source the same points as distinct rows with how often each
-    occurs (the sheet's layers mostly repeat a point: the inlier share is counted once per
-    distinct row; a target's rows are its points, once each). ``index``: the 2D tree of a
-    target's points (a source is only queried, never searched)."""
+    """A keyframe's submap in its frame: the registration's sheet, and its points (K, 2), the
+    voxels' means, each once."""
 
-    cloud: small_gicp.PointCloud
-    tree: small_gicp.KdTree
+    sheet: Sheet
     points: FloatArray
-    index: cKDTree | None
-    distinct: FloatArray
-    weight: npt.NDArray[np.intp]
 
 
 class Submaps:
@@ -243,17 +226,8 @@ class Submaps:
         lo = int(np.searchsorted(self.travel, self.travel[s] - reach, side="left"))
         hi = int(np.searchsorted(self.travel, self.travel[s] + reach, side="right"))
         flat = self._gather(s, lo, hi)
-        voxel = p.voxel_m if wide else p.source_voxel_m
-        cloud, tree = small_gicp.preprocess_points(
-            _sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
-        )
-        planar = np.ascontiguousarray(np.asarray(cloud.points())[:, :2])
-        if wide:
-            entry = Submap(cloud, tree, planar, cKDTree(planar), planar, np.ones(len(planar), int))
-        else:
-            # a row as one complex number: numpy's 1D unique is several times its row unique
-            rows, weight = np.unique(planar.view(np.complex128).ravel(), return_counts=True)
-            entry = Submap(cloud, tree, planar, None, rows.view(np.float64).reshape(-1, 2), weight)
+        sheet = sheet_of(flat, p.voxel_m if wide else p.source_voxel_m)
+        entry = Submap(sheet, sheet.points)
         self._cache[key] = entry
         if len(self._cache) > CACHED_SUBMAPS:
             self._cache.popitem(last=False)
@@ -302,7 +276,7 @@ def verify(
     where GICP from ``guess`` fails."""
     p = submaps.params
     target, source = submaps.get(j), submaps.get(i, wide=False)
-    if len(source.points) < 50 or target.cloud.size() < 50:
+    if len(source.points) < 50 or len(target.points) < 50:
         return None
     best = _align(target, source, guess, p)
     poor = best is None or best[0] < p.min_inlier_fraction
@@ -334,7 +308,7 @@ def verify(
     fraction, pose, hessian = best
     if math.hypot(pose[0] - guess[0], pose[1] - guess[1]) > reach + p.correspondence_m:
         return None
-    values = np.linalg.eigvalsh(hessian[3:5, 3:5])
+    values = np.linalg.eigvalsh(hessian)
     if values[1] <= 0 or values[0] / values[1] < p.degenerate_ratio:
         return None
     px, py, pth = (np.asarray(v) for v in pose)
@@ -407,27 +381,15 @@ def _reframe(
 def _align(
     target: Submap, source: Submap, start: tuple[float, float, float], p: ClosureParams
 ) -> tuple[float, tuple[float, float, float], FloatArray] | None:
-    result = small_gicp.align(
-        target.cloud,
-        source.cloud,
-        target.tree,
-        init_T_target_source=pose_matrix(*start),
-        registration_type="GICP",
-        max_correspondence_distance=p.correspondence_m,
-        max_iterations=30,
-        num_threads=1,
-    )
-    m = np.asarray(result.T_target_source)
-    pose = (float(m[0, 3]), float(m[1, 3]), math.atan2(float(m[1, 0]), float(m[0, 0])))
+    result = align(target.sheet, source.sheet, start, p.correspondence_m, 30)
+    pose = result.pose
     c, s = math.cos(pose[2]), math.sin(pose[2])
-    xy = source.distinct
+    xy = source.points
     moved = np.column_stack(
         [pose[0] + c * xy[:, 0] - s * xy[:, 1], pose[1] + s * xy[:, 0] + c * xy[:, 1]]
     )
-    assert target.index is not None
-    dist, _ = target.index.query(moved, distance_upper_bound=p.inlier_m)
-    fraction = float(source.weight[np.isfinite(dist)].sum() / len(source.points))
-    return fraction, pose, np.asarray(result.H)
+    fraction = int(np.count_nonzero(np.isfinite(nearest_m(target.sheet, moved, p.inlier_m))))
+    return fraction / len(xy), pose, result.hessian_xy
 
 
 def relative(poses: FloatArray, i: int, j: int) -> tuple[float, float, float]:
