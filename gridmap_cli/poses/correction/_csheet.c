@@ -21,7 +21,6 @@
 #include <stdlib.h>
 
 /* most neighbours a covariance may take */
-/* most neighbours a covariance may take */
 #define MAX_K 64
 /* the normal's share of a regularised covariance: a plane in GICP's sense */
 #define FLAT 1e-3

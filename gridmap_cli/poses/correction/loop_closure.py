@@ -5,15 +5,15 @@ path (``min_path_m``) but near in the current estimate: within a radius that gro
 between them (the scan matcher's drift, ``drift_per_m``), capped at ``max_search_m``.
 
 A candidate is *verified* by GICP (small_gicp's, in the plane: :mod:`.sheet_gicp`) of keyframe
-``i``'s local submap (its scan and
-its neighbours', placed by the scan-matched track, which is locally consistent) against ``j``'s,
-starting from the estimate; where that start is poor, a coarse search over offsets in x, y and
-heading finds a start within the search radius, and where none registers from there, one over
-the whole window (``max_search_m``) places the source and the earlier keyframe nearest that
-place becomes the target (:func:`_coarse`). It is *accepted* when enough of the source's points land
-within ``inlier_m`` of the target (``min_inlier_fraction``), the match constrains both
-directions (not a featureless corridor), and the correction from the estimate lies within the
-search radius (the whole window where the search over it found the start).
+``i``'s local submap (its scan and its neighbours', placed by the scan-matched track, which is
+locally consistent) against ``j``'s, starting from the estimate; where that start is poor, a
+coarse search over offsets in x, y and heading finds a start within the search radius, and where
+none registers from there, one over the whole window (``max_search_m``) places the source and
+the earlier keyframe nearest that place becomes the target (:func:`_coarse`). It is *accepted*
+when enough of the source's points land within ``inlier_m`` of the target
+(``min_inlier_fraction``), the match constrains both directions (not a featureless corridor),
+and the correction from the estimate lies within the search radius (the whole window where the
+search over it found the start).
 """
 
 from __future__ import annotations
