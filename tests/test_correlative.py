@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from gridmap_cli import extensions
 from gridmap_cli.extensions import optional
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
 
@@ -98,9 +99,9 @@ def test_compiled_search_equals_the_numpy_one(monkeypatch: pytest.MonkeyPatch) -
         args = (guess, rng.uniform(0.5, 6), math.radians(15), math.radians(1))
         min_score = rng.uniform(0.3, 0.95)
         compiled = search(grid, source, *args, min_score)
-        monkeypatch.setenv("GRIDMAP_KERNELS", "numpy")
+        monkeypatch.setattr(extensions, "KERNELS", "numpy")
         reference = search(grid, source, *args, min_score)
-        monkeypatch.delenv("GRIDMAP_KERNELS")
+        monkeypatch.setattr(extensions, "KERNELS", "auto")
         assert compiled == reference
         outcomes.add(reference is None)
     assert outcomes == {True, False}  # both a pose found and none above the floor were checked
