@@ -125,14 +125,18 @@ def test_a_corridor_holds_across_it_and_not_along_it(compiled: None) -> None:
     assert abs(result.pose[1]) < 1e-3
 
 
-def test_the_nearest_distances_are_a_trees(compiled: None) -> None:
+@pytest.mark.parametrize("kernels", ["compiled", "numpy"])
+def test_the_nearest_distances_are_a_trees(monkeypatch: pytest.MonkeyPatch, kernels: str) -> None:
+    monkeypatch.setattr(extensions, "KERNELS", kernels)
     rng = np.random.default_rng(4)
     points = _scene(4)
     sheet = sheet_of(points, 0.1)
+    assert (sheet.dims is None) == (kernels == "numpy")
     queries = rng.uniform(-3.0, 9.0, (500, 2))
     ours = nearest_m(sheet, queries, 0.3)
     dist, _ = cKDTree(sheet.points).query(queries, distance_upper_bound=0.3)
     assert np.array_equal(np.isfinite(ours), np.isfinite(dist))
+    assert np.isfinite(ours).any() and not np.isfinite(ours).all()
     assert np.allclose(ours[np.isfinite(ours)], dist[np.isfinite(dist)])
 
 
