@@ -7,6 +7,7 @@ import itertools
 import math
 
 import numpy as np
+import pytest
 
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
 from gridmap_cli.poses.correction.loop_closure import ClosureParams, anchors, candidates
@@ -121,3 +122,27 @@ def test_the_inlier_share_counts_every_registered_point() -> None:
         moved = source.points @ np.array([[c, s], [-s, c]]) + (x, y)
         dist, _ = cKDTree(target.points).query(moved, distance_upper_bound=p.inlier_m)
         assert share == float(np.mean(np.isfinite(dist)))
+
+
+def test_a_target_at_either_end_of_the_log_keeps_its_length() -> None:
+    # a straight run, each scan two wall points abeam of the robot: a submap's points span the
+    # travel its scans cover; at the log's first and last scans the target (not the source)
+    # takes the whole of its length on the one side it has
+    from gridmap_cli.poses.correction.loop_closure import Submaps
+
+    n = 121
+    local = np.column_stack([np.linspace(0.0, 30.0, n), np.zeros(n), np.zeros(n)])
+    scans = [np.array([[0.0, 1.0], [0.0, -1.0]]) for _ in range(n)]
+    p = ClosureParams()
+    submaps = Submaps(scans, local, np.arange(n), p)
+
+    def extent(node: int, wide: bool) -> tuple[float, float]:
+        x = submaps.get(node, wide).points[:, 0] + local[node, 0]
+        return float(x.min()), float(x.max())
+
+    assert extent(0, True) == pytest.approx((0.0, 2 * p.submap_m), abs=0.3)
+    assert extent(n - 1, True) == pytest.approx((30.0 - 2 * p.submap_m, 30.0), abs=0.3)
+    assert extent(60, True) == pytest.approx((15.0 - p.submap_m, 15.0 + p.submap_m), abs=0.3)
+    # the source is what the robot saw about the node, at the ends too
+    assert extent(0, False) == pytest.approx((0.0, p.source_m), abs=0.3)
+    assert extent(n - 1, False) == pytest.approx((30.0 - p.source_m, 30.0), abs=0.3)

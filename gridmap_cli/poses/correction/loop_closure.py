@@ -223,8 +223,19 @@ class Submaps:
         p = self.params
         s = int(self.nodes[node])
         reach = p.submap_m if wide else p.source_m
-        lo = int(np.searchsorted(self.travel, self.travel[s] - reach, side="left"))
-        hi = int(np.searchsorted(self.travel, self.travel[s] + reach, side="right"))
+        a, b = float(self.travel[s]) - reach, float(self.travel[s]) + reach
+        if wide:
+            # near the log's first or last scan a target keeps its length on the one side it
+            # has: a robot brought back to where it started sees the start's surroundings, not
+            # only what the first metres of the log saw of them (the source stays as it is: it
+            # is what the robot saw on its way back)
+            first, last = float(self.travel[0]), float(self.travel[-1])
+            if a < first:
+                a, b = first, min(last, b + (first - a))
+            if b > last:
+                a, b = max(first, a - (b - last)), last
+        lo = int(np.searchsorted(self.travel, a, side="left"))
+        hi = int(np.searchsorted(self.travel, b, side="right"))
         flat = self._gather(s, lo, hi)
         sheet = sheet_of(flat, p.voxel_m if wide else p.source_voxel_m)
         entry = Submap(sheet, sheet.points)
