@@ -111,9 +111,13 @@ def test_the_inlier_share_counts_every_registered_point() -> None:
     p = ClosureParams()
     submaps = Submaps(scans, local, np.arange(n), p)
     target, source = submaps.get(0), submaps.get(n - 1, wide=False)
-    # the registered points are the submap's points, each once
-    assert np.array_equal(source.sheet.points, source.points)
+    # the registered points are the submap's points, each once, each with its sheet's
+    # covariances (the kernel's three layers, or small_gicp's cloud where it is not built)
     assert len(np.unique(source.points, axis=0)) == len(source.points)
+    if source.covs is not None:
+        assert source.covs.shape == (len(source.points), 3, 6)
+    else:
+        assert source.cloud is not None and source.cloud.size() >= len(source.points)
     for start in [(2.0, 0.0, 0.0), (2.3, 0.4, 0.2), (1.0, -1.0, 0.6)]:
         result = _align(target, source, start, p)
         assert result is not None

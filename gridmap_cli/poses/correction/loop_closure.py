@@ -145,15 +145,6 @@ def candidates(
     return pairs
 
 
-@dataclass(frozen=True)
-class Submap:
-    """A keyframe's submap in its frame: the registration's sheet, and its points (K, 2), the
-    voxels' means, each once."""
-
-    sheet: Sheet
-    points: FloatArray
-
-
 class Submaps:
     """Each keyframe's local submap in its own frame, built on demand and kept.
 
@@ -169,7 +160,7 @@ class Submaps:
         params: ClosureParams,
     ) -> None:
         self.points, self.local, self.nodes, self.params = points, local, nodes, params
-        self._cache: OrderedDict[tuple[int, bool], Submap] = OrderedDict()
+        self._cache: OrderedDict[tuple[int, bool], Sheet] = OrderedDict()
         # travel along the scan-matched path, turning counted at TURN_M metres per radian
         steps = np.hypot(np.diff(local[:, 0]), np.diff(local[:, 1]))
         turns = np.abs(wrap_angle(np.diff(local[:, 2])))
@@ -209,11 +200,13 @@ class Submaps:
         stride = max(1, len(planar) // self.params.coarse_points)
         return planar[::stride]
 
-    def get(self, node: int, wide: bool = True) -> Submap:
-        """Node ``node``'s submap (node frame).
+    def get(self, node: int, wide: bool = True) -> Sheet:
+        """Node ``node``'s submap (node frame), ready to register; its ``points`` are the voxels'
+        means, each once.
 
-        ``wide``: the target's extent (``submap_m`` of travel either side), else the source's
-        (``source_m``); scans closer than ``thin_m`` of travel to the last one taken are left
+        ``wide``: the target's extent (``submap_m`` of travel either side; at the log's first or
+        last scans all of its length on the one side there is), else the source's (``source_m``
+        either side); scans closer than ``thin_m`` of travel to the last one taken are left
         out, so a slow or dense log costs what a sparse one does.
         """
         key = (node, wide)
@@ -230,15 +223,12 @@ class Submaps:
             # only what the first metres of the log saw of them (the source stays as it is: it
             # is what the robot saw on its way back)
             first, last = float(self.travel[0]), float(self.travel[-1])
-            if a < first:
-                a, b = first, min(last, b + (first - a))
-            if b > last:
-                a, b = max(first, a - (b - last)), last
+            a = max(first, min(a, last - 2 * reach))
+            b = min(last, a + 2 * reach)
         lo = int(np.searchsorted(self.travel, a, side="left"))
         hi = int(np.searchsorted(self.travel, b, side="right"))
         flat = self._gather(s, lo, hi)
-        sheet = sheet_of(flat, p.voxel_m if wide else p.source_voxel_m)
-        entry = Submap(sheet, sheet.points)
+        entry = sheet_of(flat, p.voxel_m if wide else p.source_voxel_m)
         self._cache[key] = entry
         if len(self._cache) > CACHED_SUBMAPS:
             self._cache.popitem(last=False)
@@ -390,16 +380,16 @@ def _reframe(
 
 
 def _align(
-    target: Submap, source: Submap, start: tuple[float, float, float], p: ClosureParams
+    target: Sheet, source: Sheet, start: tuple[float, float, float], p: ClosureParams
 ) -> tuple[float, tuple[float, float, float], FloatArray] | None:
-    result = align(target.sheet, source.sheet, start, p.correspondence_m, 30)
+    result = align(target, source, start, p.correspondence_m, 30)
     pose = result.pose
     c, s = math.cos(pose[2]), math.sin(pose[2])
     xy = source.points
     moved = np.column_stack(
         [pose[0] + c * xy[:, 0] - s * xy[:, 1], pose[1] + s * xy[:, 0] + c * xy[:, 1]]
     )
-    fraction = int(np.count_nonzero(np.isfinite(nearest_m(target.sheet, moved, p.inlier_m))))
+    fraction = int(np.count_nonzero(np.isfinite(nearest_m(target, moved, p.inlier_m))))
     return fraction / len(xy), pose, result.hessian_xy
 
 
