@@ -390,6 +390,37 @@ def check_track(xyz: F64, points: list[F64]) -> FreeSpaceCheck:
     return FreeSpaceCheck(far[:, 0], far[:, 1], near, near)
 
 
+def near_noise(xyz: F64, points: list[F64]) -> F64:
+    """The near pairs of the track ``xyz`` (S, 3) of the scans ``points`` (:func:`check_track`'s
+    ``near``, without its revisits): what the log's own noise leaves, (P, 2) share and echoes."""
+    if len(xyz) == 0:
+        return np.zeros((0, 2))
+    at = nodes(xyz)
+    table = polar([points[k] for k in at.tolist()])
+    echoes = [_thinned(points[k]) for k in at.tolist()]
+    return pair_shares(_spread(near_pairs(len(at)), MAX_PAIRS), xyz[at], echoes, table)
+
+
+def level_at(noise: F64, count: int) -> float:
+    """The share of ``count`` echoes beyond which they contradict a scan's free space, as a
+    revisit compared on that many does (:attr:`FreeSpaceCheck.levels`), against the near pairs
+    ``noise``; inf without them."""
+    if len(noise) == 0 or count <= 0:
+        return math.inf
+    return max(TAIL_FACTOR * float(tail_at(noise, np.array([float(count)]))[0]), LEVEL_MIN)
+
+
+def eroded_scan(points: F64) -> tuple[F64, F64, F64]:
+    """One scan's echoes (K, 2) by bearing: the bearings sorted, the echoes' ranges and the free
+    range at each (:func:`_eroded`)."""
+    bearing = np.arctan2(points[:, 1], points[:, 0])
+    order = np.argsort(bearing)
+    b = bearing[order]
+    r = np.hypot(points[order, 0], points[order, 1])
+    spacing = float(np.median(np.diff(b))) if len(b) > 1 else ANGLE_RAD
+    return b, r, _eroded(b, r, spacing)
+
+
 def check_poses(track: PoseTrack, points: list[F64]) -> FreeSpaceCheck:
     """:func:`check_track` of ``track``, one pose per scan of ``points``."""
     if len(track.x_m) != len(points):

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from collections import OrderedDict
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import numpy.typing as npt
@@ -29,6 +30,9 @@ from scipy.spatial import cKDTree
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.heap import release_free_memory
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, SearchResult, search
+from gridmap_cli.poses.correction.free_space import near_noise
+from gridmap_cli.poses.correction.overlap import holds_in_part
+from gridmap_cli.poses.correction.planar import placed_points
 from gridmap_cli.poses.correction.sheet_gicp import Sheet, align, nearest_m, sheet_of
 
 FloatArray = npt.NDArray[np.float64]
@@ -170,6 +174,11 @@ class Submaps:
         self._grids: OrderedDict[int, LikelihoodGrid] = OrderedDict()
         self.coarse_runs = 0
 
+    @cached_property
+    def noise(self) -> FloatArray:
+        """The log's near pairs on the scan-matched track (:func:`.free_space.near_noise`)."""
+        return near_noise(self.local, self.points)
+
     def grid(self, node: int) -> LikelihoodGrid:
         """Node ``node``'s submap within ``coarse_range_m`` as a likelihood grid for the
         correlative search (the last few are kept: each holds a few megabytes)."""
@@ -215,6 +224,27 @@ class Submaps:
             return self._cache[key]
         p = self.params
         s = int(self.nodes[node])
+        flat = self._gather(s, *self._span(node, wide))
+        entry = sheet_of(flat, p.voxel_m if wide else p.source_voxel_m)
+        self._cache[key] = entry
+        if len(self._cache) > CACHED_SUBMAPS:
+            self._cache.popitem(last=False)
+        return entry
+
+    def scans(self, node: int, wide: bool = True) -> tuple[FloatArray, list[FloatArray]]:
+        """The scans node ``node``'s submap is made of (:meth:`get`): their poses (K, 3) in the
+        node's frame and their points (robot frame)."""
+        s = int(self.nodes[node])
+        taken = self._taken(s, *self._span(node, wide))
+        ix, iy, ith = inverse(self.local[s, 0], self.local[s, 1], self.local[s, 2])
+        ks = np.array(taken, dtype=np.intp)
+        rx, ry, rth = compose(ix, iy, ith, self.local[ks, 0], self.local[ks, 1], self.local[ks, 2])
+        return np.column_stack([rx, ry, rth]).reshape(-1, 3), [self.points[k] for k in taken]
+
+    def _span(self, node: int, wide: bool) -> tuple[int, int]:
+        """The scans (first, past the last) within a submap's extent of node ``node``."""
+        p = self.params
+        s = int(self.nodes[node])
         reach = p.submap_m if wide else p.source_m
         a, b = float(self.travel[s]) - reach, float(self.travel[s]) + reach
         if wide:
@@ -227,17 +257,12 @@ class Submaps:
             b = min(last, a + 2 * reach)
         lo = int(np.searchsorted(self.travel, a, side="left"))
         hi = int(np.searchsorted(self.travel, b, side="right"))
-        flat = self._gather(s, lo, hi)
-        entry = sheet_of(flat, p.voxel_m if wide else p.source_voxel_m)
-        self._cache[key] = entry
-        if len(self._cache) > CACHED_SUBMAPS:
-            self._cache.popitem(last=False)
-        return entry
+        return lo, hi
 
-    def _gather(self, s: int, lo: int, hi: int) -> FloatArray:
-        """The points (K, 2) of scan ``s`` and of the scans ``lo`` to ``hi`` around it, in scan
-        ``s``'s frame; a scan closer than ``thin_m`` of travel to the last one taken is left
-        out, so a slow or dense log costs what a sparse one does."""
+    def _taken(self, s: int, lo: int, hi: int) -> list[int]:
+        """Scan ``s`` and the scans ``lo`` to ``hi`` around it that a submap takes: a scan closer
+        than ``thin_m`` of travel to the last one taken is left out, so a slow or dense log
+        costs what a sparse one does; so are scans without a point."""
         taken = [s]
         last = -math.inf
         travel = self.travel
@@ -248,6 +273,11 @@ class Submaps:
             taken.append(k)
         if len(self.points[s]) == 0:
             taken.pop(0)
+        return taken
+
+    def _gather(self, s: int, lo: int, hi: int) -> FloatArray:
+        """The points (K, 2) of the scans :meth:`_taken` takes, in scan ``s``'s frame."""
+        taken = self._taken(s, lo, hi)
         if not taken:
             return np.zeros((0, 2))
         ix, iy, ith = inverse(self.local[s, 0], self.local[s, 1], self.local[s, 2])
@@ -270,11 +300,13 @@ def verify(
     submaps: Submaps,
     radius_m: float,
     coarse: bool = True,
+    partial: list[Closure] | None = None,
 ) -> Closure | None:
     """Register node ``i``'s submap onto node ``j``'s from ``guess`` (i in j's frame); the
     accepted closure (j's pose in i's frame; its ``j`` the keyframe the coarse search moved the
     target to, if it did) or None. ``coarse``: whether the correlative search may find a start
-    where GICP from ``guess`` fails."""
+    where GICP from ``guess`` fails. ``partial``: where given, a candidate that passes every
+    test but the gate is appended there (:func:`holds_where_seen` judges it later)."""
     p = submaps.params
     target, source = submaps.get(j), submaps.get(i, wide=False)
     if len(source.points) < 50 or len(target.points) < 50:
@@ -304,7 +336,10 @@ def verify(
                 j, target = k, submaps.get(k)
             reach = p.max_search_m
             best = _align(target, source, start, p)
-    if best is None or best[0] < p.min_inlier_fraction:
+    if best is None:
+        return None
+    in_part = best[0] < p.min_inlier_fraction
+    if in_part and partial is None:
         return None
     fraction, pose, hessian = best
     if math.hypot(pose[0] - guess[0], pose[1] - guess[1]) > reach + p.correspondence_m:
@@ -314,7 +349,46 @@ def verify(
         return None
     px, py, pth = (np.asarray(v) for v in pose)
     rx, ry, rth = inverse(px, py, pth)
-    return Closure(i, j, float(rx), float(ry), float(rth), fraction)
+    closure = Closure(i, j, float(rx), float(ry), float(rth), fraction)
+    if in_part:
+        assert partial is not None
+        partial.append(closure)
+        return None
+    return closure
+
+
+def by_loop(
+    closures: list[Closure], accepted: list[tuple[int, int]], path: FloatArray, within_m: float
+) -> list[list[Closure]]:
+    """``closures`` grouped by the loop they close: one joins a group when both its ends lie
+    within ``within_m`` along the path (``path`` at each node) of some member's; those with both
+    ends that near an ``accepted`` pair's are left out (their loop is closed)."""
+    groups: list[list[Closure]] = []
+    for k in sorted(closures, key=lambda k: (path[k.i], path[k.j])):
+        a, b = path[k.i], path[k.j]
+        if any(abs(path[i] - a) < within_m and abs(path[j] - b) < within_m for i, j in accepted):
+            continue
+        for group in groups:
+            if any(abs(path[g.i] - a) < within_m and abs(path[g.j] - b) < within_m for g in group):
+                group.append(k)
+                break
+        else:
+            groups.append([k])
+    return groups
+
+
+def holds_where_seen(submaps: Submaps, closure: Closure) -> bool:
+    """Whether a closure under the gate holds on its target's view (:mod:`.overlap`)."""
+    p = submaps.params
+    i, j = closure.i, closure.j
+    x, y, th = inverse(
+        np.asarray(closure.dx_m), np.asarray(closure.dy_m), np.asarray(closure.dtheta_rad)
+    )
+    moved = placed_points(submaps.get(i, wide=False).points, (float(x), float(y), float(th)))
+    inlier = np.isfinite(nearest_m(submaps.get(j), moved, p.inlier_m))
+    return holds_in_part(
+        moved, inlier, submaps.scans(j), submaps.noise, p.min_inlier_fraction, p.inlier_m
+    )
 
 
 def _coarse(

@@ -1,0 +1,98 @@
+"""A closure whose two submaps overlap only in part: judged on what the target saw.
+
+The closure gate asks that ``min_inlier_fraction`` of the source submap's points land on the
+target's (:mod:`.loop_closure`). A robot that comes back along a way the first pass saw only
+part of (from the other direction, or out of a side corridor) brings a source whose other part
+the target never saw: a true closure of such a pair ends under the gate, and its loop stays
+open. Points the target could not have seen are evidence neither way; points in the space its
+beams crossed are evidence against. So a candidate under the gate is judged again on the
+target's view, each source point looked up in the target's scans by bearing, and holds when
+both of these do:
+
+- *the gate over what the target saw*: the inliers are ``min_inlier_fraction`` of the source's
+  points that a target beam reaches (its bearing covered, the echo no nearer than the point less
+  the inlier band), inliers included;
+- *no contradiction*: of those points, the share deep inside a target scan's free space
+  (:data:`.free_space.DEPTH_M` nearer than the echoes about its bearing) is within the level at
+  which the free-space check finds a revisit contradicting, taken from the log's own near pairs
+  (scans near in time on the scan-matched track) at that count.
+
+Both levels are the closure gate's and the free-space check's own; nothing here is new. Less
+overlap is still less evidence: the part of the source the target never saw is what would have
+told two look-alike places apart, and judged this way in the ordinary search, closures 2.6 m
+off along a corridor got through. So the graph asks this only of the candidates on a track
+that fails its free-space check (:mod:`.slam`), and keeps what it closes only where the check
+then finds fewer contradictions.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from gridmap_cli.poses.correction.free_space import (
+    DEPTH_M,
+    GAP_SPACINGS,
+    MIN_RANGE_M,
+    eroded_scan,
+    level_at,
+)
+
+FloatArray = npt.NDArray[np.float64]
+Mask = npt.NDArray[np.bool_]
+
+
+def views(
+    points: FloatArray, xyz: FloatArray, scans: list[FloatArray], band_m: float
+) -> tuple[Mask, Mask]:
+    """Which of ``points`` (Q, 2) the scans (poses ``xyz`` (S, 3) in the points' frame, ``scans``
+    their echoes, robot frame) saw, and which lie in their free space: a point is *seen* by a
+    scan whose beams on both sides of its bearing lie within :data:`.free_space.GAP_SPACINGS`
+    of their spacing and whose farther echo of the two is no nearer than the point less
+    ``band_m``; it is in the scan's *free space* when, no nearer than
+    :data:`.free_space.MIN_RANGE_M`, it lies :data:`.free_space.DEPTH_M` nearer than the free
+    range of both beams."""
+    seen = np.zeros(len(points), dtype=bool)
+    free = np.zeros(len(points), dtype=bool)
+    for (x, y, th), echoes in zip(xyz.tolist(), scans, strict=True):
+        if len(echoes) < 2:
+            continue
+        b, r, open_m = eroded_scan(echoes)
+        gap = GAP_SPACINGS * float(np.median(np.diff(b)))
+        c, s = math.cos(th), math.sin(th)
+        dx, dy = points[:, 0] - x, points[:, 1] - y
+        qx, qy = c * dx + s * dy, -s * dx + c * dy
+        qb, qr = np.arctan2(qy, qx), np.hypot(qx, qy)
+        hi = np.searchsorted(b, qb)
+        hi_c = np.clip(hi, 1, len(b) - 1)
+        lo_c = hi_c - 1
+        covered = (hi > 0) & (hi < len(b)) & (b[hi_c] - qb <= gap) & (qb - b[lo_c] <= gap)
+        seen |= covered & (qr <= np.maximum(r[hi_c], r[lo_c]) + band_m)
+        free |= (
+            covered & (qr >= MIN_RANGE_M) & (qr < np.minimum(open_m[hi_c], open_m[lo_c]) - DEPTH_M)
+        )
+    return seen, free
+
+
+def holds_in_part(
+    moved: FloatArray,
+    inlier: Mask,
+    target: tuple[FloatArray, list[FloatArray]],
+    noise: FloatArray,
+    gate: float,
+    band_m: float,
+) -> bool:
+    """Whether a candidate under the closure gate holds on the target's view (see the module).
+
+    ``moved`` (Q, 2): the source submap's points placed in the target's frame, ``inlier`` (Q,)
+    those within ``band_m`` of the target's; ``target``: the target submap's scans, poses (K, 3)
+    in its node's frame and echoes; ``noise``: the log's near pairs
+    (:func:`.free_space.near_noise`); ``gate``: the closure gate's inlier share."""
+    seen, free = views(moved, target[0], target[1], band_m)
+    seen |= inlier
+    count = int(seen.sum())
+    if count == 0 or int(inlier.sum()) < gate * count:
+        return False
+    return int((free & ~inlier).sum()) <= level_at(noise, count) * count
