@@ -10,7 +10,11 @@
    graph is optimised (:mod:`.pose_graph`, gtsam), closures whose residual stays large are
    dropped (the consistency check) and the search is repeated from the better estimate, for up
    to ``rounds`` rounds.
-4. Every scan's pose is the scan-matched one carried by the correction of the keyframes around it
+4. A track that fails its free-space check (:mod:`.free_space`: a loop closed wrongly or
+   missed) tries the loops that only candidates under the inlier gate would close, judged on
+   what their targets saw (:mod:`.overlap`), a loop at a time, keeping each that leaves fewer
+   of the track's revisits contradicting.
+5. Every scan's pose is the scan-matched one carried by the correction of the keyframes around it
    (interpolated in time); every other pose of the log likewise (:func:`.corrected_track`).
 
 The honesty check: the accepted closures are scored on the odometry and on the optimised track;
@@ -31,12 +35,15 @@ import numpy.typing as npt
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.poses.correction.carry import carry
 from gridmap_cli.poses.correction.degeneracy import weak_stretch
+from gridmap_cli.poses.correction.free_space import check_poses
 from gridmap_cli.poses.correction.loop_closure import (
     Closure,
     ClosureParams,
     Submaps,
     anchors,
+    by_loop,
     candidates,
+    holds_where_seen,
     path_length,
     relative,
     verify,
@@ -135,6 +142,9 @@ class SlamResult:
     bend_sigma: float = 0.0
     #: the scans matched, one per pose of :attr:`track` (for checks of the track against them)
     scans: Scans | None = None
+    #: accepted closures under the inlier gate, kept where the track failed its free-space
+    #: check without them (:func:`_partial_loops`)
+    partial: int = 0
 
     @property
     def track(self) -> PoseTrack:
@@ -166,6 +176,7 @@ class SlamResult:
             "closures_accepted": len(self.closures),
             "closures_rejected": self.rejected + self.dropped,
             "closures_dropped_by_consistency": self.dropped,
+            "closures_of_partial_overlap": self.partial,
             "closure_residual_m": round(self.residual_m, 4),
             "closure_residual_odometry_m": round(self.odometry_residual_m, 4),
             "sequential_bend_sigma": round(self.bend_sigma, 2),
@@ -238,6 +249,7 @@ def optimise_with_closures(
     estimate = graph.initial.copy()
     tried: set[tuple[int, int]] = set()
     accepted: dict[tuple[int, int], Closure] = {}
+    partial: list[Closure] = []
     rejected = dropped = 0
     path = path_length(estimate)
     c = params.closure
@@ -264,7 +276,7 @@ def optimise_with_closures(
                 _near(np.array(fresh).reshape(-1, 2), path[i], path[j], c.coarse_link_m)
                 or _near(np.array(searched).reshape(-1, 2), path[i], path[j], c.decimate_m)
             )
-            closure = verify(i, j, relative(estimate, i, j), submaps, radius, coarse)
+            closure = verify(i, j, relative(estimate, i, j), submaps, radius, coarse, partial)
             if closure is None:
                 rejected += 1
                 if coarse:
@@ -298,9 +310,61 @@ def optimise_with_closures(
             e = closure_edges[worst]
             del accepted[(e.i, e.j)]
             dropped += 1
+    if partial:
+        estimate = _partial_loops(
+            scans, match, nodes, graph, estimate, accepted, partial, submaps, params
+        )
     if progress is not None:
         progress("loop closures", params.rounds, params.rounds)
     return nodes, estimate, graph, list(accepted.values()), len(tried), rejected, dropped
+
+
+def _partial_loops(
+    scans: Scans,
+    match: ScanMatch,
+    nodes: npt.NDArray[np.intp],
+    graph: PoseGraph,
+    estimate: FloatArray,
+    accepted: dict[tuple[int, int], Closure],
+    partial: list[Closure],
+    submaps: Submaps,
+    params: SlamParams,
+) -> FloatArray:
+    """On a track that fails its free-space check only (:mod:`.overlap`): the loops that the
+    ``partial`` closures (every test passed but the inlier gate) close, none where an accepted
+    closure closes one, tried a loop at a time, the largest first, while the track fails. Of
+    each loop the closures that hold on their target's view are kept when the track with them
+    has a smaller share of its revisits contradicting and they stay within the graph's residual
+    bounds. ``accepted`` is updated; the estimate is returned."""
+    now = check_poses(carried(match, nodes, estimate), scans.points)
+    if not now.fails:
+        return estimate
+    path = path_length(estimate)
+    groups = by_loop(partial, list(accepted), path, params.closure.coarse_link_m)
+    held = [[k for k in group if holds_where_seen(submaps, k)] for group in groups]
+    for group in sorted(held, key=len, reverse=True):
+        if not now.fails or not group:
+            break
+        trial = dict(accepted)
+        trial.update({(k.i, k.j): k for k in group})
+        graph.edges = [e for e in graph.edges if not e.closure] + [
+            _closure_edge(k, params) for k in trial.values()
+        ]
+        moved = graph.optimise(estimate, KERNEL_STAGES)
+        res = edge_residuals(moved, [e for e in graph.edges if e.closure])
+        check = check_poses(carried(match, nodes, moved), scans.points)
+        better = not (
+            (res[:, 0] > params.reject_m).any()
+            or (res[:, 1] > params.reject_rad).any()
+            or not check.share < now.share
+        )
+        if better:
+            accepted.update(trial)
+            estimate, now = moved, check
+    graph.edges = [e for e in graph.edges if not e.closure] + [
+        _closure_edge(k, params) for k in accepted.values()
+    ]
+    return estimate
 
 
 def _bend_sigma(poses: FloatArray, edges: list[Edge]) -> float:
@@ -391,6 +455,7 @@ def slam_scans(
         graph=graph,
         bend_sigma=bend_sigma,
         scans=scans,
+        partial=sum(c.inlier_fraction < params.closure.min_inlier_fraction for c in closures),
     )
 
 

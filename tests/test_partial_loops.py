@@ -1,0 +1,136 @@
+"""A track that fails its free-space check tries the loops only closures under the gate close."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from gridmap_cli.poses.correction import slam
+from gridmap_cli.poses.correction.loop_closure import Closure, ClosureParams, Submaps
+from gridmap_cli.poses.correction.pose_graph import Edge, PoseGraph
+from gridmap_cli.poses.correction.sheet_gicp import sheet_of
+
+
+def test_a_submaps_scans_are_what_its_points_are_made_of() -> None:
+    rng = np.random.default_rng(5)
+    n = 60
+    local = np.column_stack(
+        [np.linspace(0.0, 12.0, n), np.linspace(0.0, 3.0, n), np.linspace(0.0, 1.0, n)]
+    )
+    scans = [rng.uniform(-4.0, 4.0, (40, 2)) for _ in range(n)]
+    submaps = Submaps(scans, local, np.arange(0, n, 5), ClosureParams())
+    for node, wide in [(0, True), (6, True), (6, False), (11, True)]:
+        xyz, points = submaps.scans(node, wide)
+        assert len(xyz) == len(points) > 1
+        placed = []
+        for (x, y, th), p in zip(xyz, points, strict=True):
+            c, s = math.cos(th), math.sin(th)
+            placed.append(
+                np.column_stack([x + c * p[:, 0] - s * p[:, 1], y + s * p[:, 0] + c * p[:, 1]])
+            )
+        voxel = submaps.params.voxel_m if wide else submaps.params.source_voxel_m
+        ours = sheet_of(np.vstack(placed), voxel).points
+        theirs = submaps.get(node, wide).points
+        assert len(ours) == len(theirs)
+        assert np.allclose(np.sort(ours, axis=0), np.sort(theirs, axis=0), atol=1e-9)
+
+
+@dataclasses.dataclass
+class _Check:
+    fails: bool
+    share: float
+
+
+def _loop() -> tuple[PoseGraph, np.ndarray, dict[tuple[int, int], Closure], list[Closure]]:
+    """A square loop of 40 nodes whose odometry drifted 2 m at its end; no closure accepted,
+    and two groups of closures under the gate: one at the loop's end, one elsewhere."""
+    n = 40
+    side = n // 4
+    xy = []
+    for k in range(n):
+        leg, t = divmod(k, side)
+        corner = [(0, 0), (10, 0), (10, 10), (0, 10)][leg]
+        step = [(1, 0), (0, 1), (-1, 0), (0, -1)][leg]
+        xy.append((corner[0] + step[0] * t, corner[1] + step[1] * t))
+    truth = np.array([(x, y, 0.0) for x, y in xy])
+    drifted = truth + np.column_stack([np.linspace(0, 2.0, n), np.zeros(n), np.zeros(n)])
+    edges = [
+        Edge(k, k + 1, *(truth[k + 1, :2] - truth[k, :2]), 0.0, 0.1, 0.01) for k in range(n - 1)
+    ]
+    graph = PoseGraph(drifted.copy(), edges)
+
+    def closure(i: int, j: int) -> Closure:
+        d = truth[j, :2] - truth[i, :2]
+        return Closure(i, j, float(d[0]), float(d[1]), 0.0, 0.3)
+
+    partial = [closure(39, 0), closure(38, 1), closure(25, 3)]
+    return graph, drifted, {}, partial
+
+
+def _run(
+    monkeypatch: pytest.MonkeyPatch, checks: list[_Check]
+) -> tuple[np.ndarray, np.ndarray, dict[tuple[int, int], Closure]]:
+    graph, estimate, accepted, partial = _loop()
+    calls = iter(checks)
+    monkeypatch.setattr(slam, "check_poses", lambda track, points: next(calls))
+    monkeypatch.setattr(slam, "carried", lambda match, nodes, poses: None)
+    monkeypatch.setattr(slam, "holds_where_seen", lambda submaps, k: True)
+    params = dataclasses.replace(slam.SlamParams(), reject_m=10.0, reject_rad=1.0)
+    out = slam._partial_loops(
+        SimpleNamespace(points=[]),  # type: ignore[arg-type]
+        None,  # type: ignore[arg-type]
+        np.arange(40),
+        graph,
+        estimate,
+        accepted,
+        partial,
+        None,  # type: ignore[arg-type]
+        params,
+    )
+    return estimate, out, accepted
+
+
+def test_a_track_that_passes_is_left_as_it_is(monkeypatch: pytest.MonkeyPatch) -> None:
+    before, after, accepted = _run(monkeypatch, [_Check(False, 0.0)])
+    assert after is before and accepted == {}
+
+
+def test_a_failing_track_keeps_the_group_that_lowers_its_contradictions(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # failing; with the loop's end group fewer places contradict and the track passes
+    before, after, accepted = _run(monkeypatch, [_Check(True, 0.2), _Check(False, 0.01)])
+    assert set(accepted) == {(39, 0), (38, 1)}
+    # the loop's end came home: node 39 is truly 1 m from node 0, drifted 2 m further
+    assert np.hypot(*(before[39, :2] - before[0, :2])) > 2.0
+    assert np.hypot(*(after[39, :2] - after[0, :2])) == pytest.approx(1.0, abs=0.3)
+
+
+def test_a_group_that_does_not_lower_the_contradictions_is_not_kept(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    before, after, accepted = _run(
+        monkeypatch, [_Check(True, 0.2), _Check(True, 0.2), _Check(True, 0.25)]
+    )
+    assert accepted == {}
+    assert np.array_equal(after, before)
+
+
+def test_closures_are_grouped_by_the_loop_they_close() -> None:
+    from gridmap_cli.poses.correction.loop_closure import by_loop
+
+    path = np.arange(100, dtype=float)  # a metre of path per node
+
+    def k(i: int, j: int) -> Closure:
+        return Closure(i, j, 0.0, 0.0, 0.0, 0.3)
+
+    # two closures of one loop (ends 2 m apart at both ends), one of another, one of a loop an
+    # accepted closure already closes
+    groups = by_loop([k(90, 10), k(60, 30), k(92, 12), k(50, 5)], [(51, 4)], path, 5.0)
+    assert sorted((g.i, g.j) for g in groups[0]) == [(60, 30)]
+    assert sorted((g.i, g.j) for g in groups[1]) == [(90, 10), (92, 12)]
+    assert len(groups) == 2
