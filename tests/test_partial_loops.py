@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -80,7 +81,7 @@ def _run(
     monkeypatch.setattr(slam, "carried", lambda match, nodes, poses: None)
     monkeypatch.setattr(slam, "holds_where_seen", lambda submaps, k: True)
     params = dataclasses.replace(slam.SlamParams(), reject_m=10.0, reject_rad=1.0)
-    out = slam._partial_loops(
+    out, _ = slam._partial_loops(
         SimpleNamespace(points=[]),  # type: ignore[arg-type]
         None,  # type: ignore[arg-type]
         np.arange(40),
@@ -134,3 +135,26 @@ def test_closures_are_grouped_by_the_loop_they_close() -> None:
     assert sorted((g.i, g.j) for g in groups[0]) == [(60, 30)]
     assert sorted((g.i, g.j) for g in groups[1]) == [(90, 10), (92, 12)]
     assert len(groups) == 2
+
+
+CARMEN = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "carmen"
+
+
+@pytest.mark.skipif(not CARMEN.is_dir(), reason="../shared/data/carmen is not present")
+def test_the_graphs_own_check_is_the_tracks() -> None:
+    # where the graph took the free-space check of its track (a real log has candidates under
+    # the gate), it is the check the build would take of the same track and scans, which the
+    # build reuses
+    from gridmap_cli.poses.correction.free_space import check_poses
+    from gridmap_cli.poses.correction.slam import slam_log
+    from gridmap_cli.readers import read_logs
+    from gridmap_cli.readers.options import ReadOptions
+    from gridmap_cli.robot import robot_from_log
+
+    path = CARMEN / "seattle-corrected.log.gz"
+    log = read_logs((path,), None, ReadOptions())
+    result = slam_log(log, robot_from_log(path, log.metadata))
+    assert result.scans is not None and result.free_space is not None
+    again = check_poses(result.track, result.scans.points)
+    assert result.free_space.as_dict() == again.as_dict()
+    assert np.array_equal(result.free_space.shares, again.shares)

@@ -35,7 +35,7 @@ import numpy.typing as npt
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.poses.correction.carry import carry
 from gridmap_cli.poses.correction.degeneracy import weak_stretch
-from gridmap_cli.poses.correction.free_space import check_poses
+from gridmap_cli.poses.correction.free_space import FreeSpaceCheck, check_poses
 from gridmap_cli.poses.correction.loop_closure import (
     Closure,
     ClosureParams,
@@ -145,6 +145,8 @@ class SlamResult:
     #: accepted closures under the inlier gate, kept where the track failed its free-space
     #: check without them (:func:`_partial_loops`)
     partial: int = 0
+    #: the free-space check of :attr:`track`, where the graph took it (:func:`_partial_loops`)
+    free_space: FreeSpaceCheck | None = None
 
     @property
     def track(self) -> PoseTrack:
@@ -236,10 +238,13 @@ def sequential_edges(
 
 def optimise_with_closures(
     scans: Scans, match: ScanMatch, params: SlamParams, progress: Progress | None = None
-) -> tuple[npt.NDArray[np.intp], FloatArray, PoseGraph, list[Closure], int, int, int]:
-    """Keyframes, their optimised poses, the graph, accepted closures and the counts of
-    candidates tried, rejected by verification and dropped by the consistency check.
-    ``progress`` is called after each round with ``("loop closures", rounds done, rounds)``."""
+) -> tuple[
+    npt.NDArray[np.intp], FloatArray, PoseGraph, list[Closure], int, int, int, FreeSpaceCheck | None
+]:
+    """Keyframes, their optimised poses, the graph, accepted closures, the counts of candidates
+    tried, rejected by verification and dropped by the consistency check, and the free-space
+    check of the track where it was taken (:func:`_partial_loops`). ``progress`` is called
+    after each round with ``("loop closures", rounds done, rounds)``."""
     m = match.track
     local = np.column_stack([m.x_m, m.y_m, m.theta_rad])
     nodes = keyframes(local, params)
@@ -310,13 +315,14 @@ def optimise_with_closures(
             e = closure_edges[worst]
             del accepted[(e.i, e.j)]
             dropped += 1
+    check = None
     if partial:
-        estimate = _partial_loops(
+        estimate, check = _partial_loops(
             scans, match, nodes, graph, estimate, accepted, partial, submaps, params
         )
     if progress is not None:
         progress("loop closures", params.rounds, params.rounds)
-    return nodes, estimate, graph, list(accepted.values()), len(tried), rejected, dropped
+    return nodes, estimate, graph, list(accepted.values()), len(tried), rejected, dropped, check
 
 
 def _partial_loops(
@@ -329,16 +335,16 @@ def _partial_loops(
     partial: list[Closure],
     submaps: Submaps,
     params: SlamParams,
-) -> FloatArray:
+) -> tuple[FloatArray, FreeSpaceCheck]:
     """On a track that fails its free-space check only (:mod:`.overlap`): the loops that the
     ``partial`` closures (every test passed but the inlier gate) close, none where an accepted
     closure closes one, tried a loop at a time, the largest first, while the track fails. Of
     each loop the closures that hold on their target's view are kept when the track with them
     has a smaller share of its revisits contradicting and they stay within the graph's residual
-    bounds. ``accepted`` is updated; the estimate is returned."""
+    bounds. ``accepted`` is updated; the estimate is returned, with its track's check."""
     now = check_poses(carried(match, nodes, estimate), scans.points)
     if not now.fails:
-        return estimate
+        return estimate, now
     path = path_length(estimate)
     groups = by_loop(partial, list(accepted), path, params.closure.coarse_link_m)
     held = [[k for k in group if holds_where_seen(submaps, k)] for group in groups]
@@ -364,7 +370,7 @@ def _partial_loops(
     graph.edges = [e for e in graph.edges if not e.closure] + [
         _closure_edge(k, params) for k in accepted.values()
     ]
-    return estimate
+    return estimate, now
 
 
 def _bend_sigma(poses: FloatArray, edges: list[Edge]) -> float:
@@ -427,7 +433,7 @@ def slam_scans(
     params = params or SlamParams()
     started = time.perf_counter()
     match = match_scans(scans, odometry, match_params or SLAM_MATCH, progress)
-    nodes, poses, graph, closures, tried, rejected, dropped = optimise_with_closures(
+    nodes, poses, graph, closures, tried, rejected, dropped, check = optimise_with_closures(
         scans, match, params, progress
     )
     track = carried(match, nodes, poses)
@@ -456,6 +462,7 @@ def slam_scans(
         bend_sigma=bend_sigma,
         scans=scans,
         partial=sum(c.inlier_fraction < params.closure.min_inlier_fraction for c in closures),
+        free_space=check,
     )
 
 
