@@ -158,3 +158,30 @@ def test_the_graphs_own_check_is_the_tracks() -> None:
     again = check_poses(result.track, result.scans.points)
     assert result.free_space.as_dict() == again.as_dict()
     assert np.array_equal(result.free_space.shares, again.shares)
+
+
+def test_a_kept_closure_under_the_gate_is_counted_kept_not_rejected(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from gridmap_cli.poses.correction.scan_match import log_scans
+    from gridmap_cli.poses.correction.slam import SLAM_MATCH, slam_scans
+    from tests.test_scan_match import laser_robot, room_world
+    from tests.test_scan_match import run as simulate_run
+
+    log = simulate_run(room_world(), [[2, 1.5], [10, 1.5], [10, 6.5]], drift=1.0)
+    scans = log_scans(log, laser_robot(), SLAM_MATCH)
+    real = slam.optimise_with_closures
+
+    def with_one_kept(*args, **kwargs):  # type: ignore[no-untyped-def]
+        nodes, poses, graph, closures, tried, rejected, dropped, check = real(*args, **kwargs)
+        under = Closure(int(len(nodes) - 1), 0, 1.0, 0.0, 0.0, 0.2)  # kept by a failing track
+        return nodes, poses, graph, [*closures, under], tried, rejected + 1, dropped, check
+
+    monkeypatch.setattr(slam, "optimise_with_closures", with_one_kept)
+    result = slam_scans(scans, log.poses)
+    baseline = real(scans, result.scan_matched, slam.SlamParams())
+    assert result.partial == 1
+    assert result.rejected == baseline[5]
+    summary = result.summary()
+    assert summary["closures_of_partial_overlap"] == 1
+    assert summary["closures_accepted"] == len(baseline[3]) + 1

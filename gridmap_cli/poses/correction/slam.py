@@ -436,6 +436,7 @@ def slam_scans(
     nodes, poses, graph, closures, tried, rejected, dropped, check = optimise_with_closures(
         scans, match, params, progress
     )
+    partial = sum(c.inlier_fraction < params.closure.min_inlier_fraction for c in closures)
     track = carried(match, nodes, poses)
     odo = match.odometry
     odo_nodes = np.column_stack([odo.x_m, odo.y_m, odo.theta_rad])[nodes]
@@ -453,7 +454,8 @@ def slam_scans(
         covariance=covariance,
         closures=closures,
         candidates=tried,
-        rejected=rejected,
+        # a closure under the gate that a failing track kept was counted rejected when tried
+        rejected=rejected - partial,
         dropped=dropped,
         odometry_residual_m=float(before[:, 0].mean()) if len(before) else float("nan"),
         residual_m=float(after[:, 0].mean()) if len(after) else float("nan"),
@@ -461,7 +463,7 @@ def slam_scans(
         graph=graph,
         bend_sigma=bend_sigma,
         scans=scans,
-        partial=sum(c.inlier_fraction < params.closure.min_inlier_fraction for c in closures),
+        partial=partial,
         free_space=check,
     )
 
