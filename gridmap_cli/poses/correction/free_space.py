@@ -105,11 +105,13 @@ SIGNIFICANCE = 1e-3
 class Polar:
     """The scans of some nodes by bearing: ``key`` (E,) node slot times 8 plus the bearing
     shifted into [0, 2 pi], sorted; ``range_m`` (E,) the free range there (:func:`_eroded`);
-    ``spacing`` (N,) each scan's median beam spacing (rad)."""
+    ``spacing`` (N,) each scan's median beam spacing (rad); ``echo_m`` (E,) the echo's own
+    range."""
 
     key: F64
     range_m: F64
     spacing: F64
+    echo_m: F64
 
 
 @dataclass(frozen=True)
@@ -258,9 +260,10 @@ def polar(points: list[F64]) -> Polar:
         ranges.append(np.hypot(p[order, 0], p[order, 1]))
         spacing[slot] = float(np.median(np.diff(bearing[order])))
     if not keys:
-        return Polar(np.zeros(0), np.zeros(0), spacing)
+        return Polar(np.zeros(0), np.zeros(0), spacing, np.zeros(0))
     key = np.concatenate(keys)
-    return Polar(key, _eroded(key, np.concatenate(ranges), float(np.nanmin(spacing))), spacing)
+    echo = np.concatenate(ranges)
+    return Polar(key, _eroded(key, echo, float(np.nanmin(spacing))), spacing, echo)
 
 
 def _eroded(key: F64, range_m: F64, spacing: float) -> F64:
@@ -292,7 +295,23 @@ def one_way(look: Ints, echo: Ints, xyz: F64, points: list[F64], table: Polar) -
     qx = tx[pair] + c * p[:, 0] - s * p[:, 1]
     qy = ty[pair] + s * p[:, 0] + c * p[:, 1]
     r = np.hypot(qx, qy)
-    slot = look[pair]
+    bearing, free, _ = at_bearing(table, look[pair], qx, qy)
+    covered = bearing & (r >= MIN_RANGE_M)
+    inside = covered & (r < free - DEPTH_M)
+    return np.column_stack(
+        [
+            np.bincount(pair, weights=covered, minlength=len(look)),
+            np.bincount(pair, weights=inside, minlength=len(look)),
+        ]
+    )
+
+
+def at_bearing(
+    table: Polar, slot: Ints, qx: F64, qy: F64
+) -> tuple[npt.NDArray[np.bool_], F64, F64]:
+    """Points (qx, qy), each in the frame of its scan ``slot`` of ``table``, looked up at their
+    bearing: whether the scan's beams on both sides lie within :data:`GAP_SPACINGS` of its
+    spacing (covered), the lesser free range of the two and the farther echo of the two."""
     key = 8.0 * slot + np.arctan2(qy, qx) + math.pi
     hi = np.searchsorted(table.key, key)
     lo = hi - 1
@@ -306,16 +325,10 @@ def one_way(look: Ints, echo: Ints, xyz: F64, points: list[F64], table: Polar) -
         & (np.floor(table.key[lo_c] / 8.0) == slot)
         & (table.key[hi_c] - key <= gap)
         & (key - table.key[lo_c] <= gap)
-        & (r >= MIN_RANGE_M)
     )
     free = np.minimum(table.range_m[hi_c], table.range_m[lo_c])
-    inside = covered & (r < free - DEPTH_M)
-    return np.column_stack(
-        [
-            np.bincount(pair, weights=covered, minlength=len(look)),
-            np.bincount(pair, weights=inside, minlength=len(look)),
-        ]
-    )
+    echo = np.maximum(table.echo_m[hi_c], table.echo_m[lo_c])
+    return covered, free, echo
 
 
 def pair_shares(pairs: Ints, xyz: F64, points: list[F64], table: Polar) -> F64:
@@ -381,11 +394,8 @@ def check_track(xyz: F64, points: list[F64]) -> FreeSpaceCheck:
     robot frame, echoes only), against the track's own near pairs."""
     if len(xyz) == 0:
         return FreeSpaceCheck(np.zeros(0), np.zeros(0), np.zeros((0, 2)), np.zeros((0, 2)))
-    at = nodes(xyz)
-    node_xyz = xyz[at]
-    table = polar([points[k] for k in at.tolist()])
-    echoes = [_thinned(points[k]) for k in at.tolist()]
-    near = pair_shares(_spread(near_pairs(len(at)), MAX_PAIRS), node_xyz, echoes, table)
+    node_xyz, echoes, table = _node_scans(xyz, points)
+    near = pair_shares(_spread(near_pairs(len(node_xyz)), MAX_PAIRS), node_xyz, echoes, table)
     far = pair_shares(_spread(revisit_pairs(node_xyz), MAX_PAIRS), node_xyz, echoes, table)
     return FreeSpaceCheck(far[:, 0], far[:, 1], near, near)
 
@@ -395,10 +405,16 @@ def near_noise(xyz: F64, points: list[F64]) -> F64:
     ``near``, without its revisits): what the log's own noise leaves, (P, 2) share and echoes."""
     if len(xyz) == 0:
         return np.zeros((0, 2))
+    node_xyz, echoes, table = _node_scans(xyz, points)
+    return pair_shares(_spread(near_pairs(len(node_xyz)), MAX_PAIRS), node_xyz, echoes, table)
+
+
+def _node_scans(xyz: F64, points: list[F64]) -> tuple[F64, list[F64], Polar]:
+    """The track's nodes (:func:`nodes`): their poses, their echoes compared (thinned) and their
+    scans by bearing."""
     at = nodes(xyz)
     table = polar([points[k] for k in at.tolist()])
-    echoes = [_thinned(points[k]) for k in at.tolist()]
-    return pair_shares(_spread(near_pairs(len(at)), MAX_PAIRS), xyz[at], echoes, table)
+    return xyz[at], [_thinned(points[k]) for k in at.tolist()], table
 
 
 def level_at(noise: F64, count: int) -> float:
@@ -408,17 +424,6 @@ def level_at(noise: F64, count: int) -> float:
     if len(noise) == 0 or count <= 0:
         return math.inf
     return max(TAIL_FACTOR * float(tail_at(noise, np.array([float(count)]))[0]), LEVEL_MIN)
-
-
-def eroded_scan(points: F64) -> tuple[F64, F64, F64]:
-    """One scan's echoes (K, 2) by bearing: the bearings sorted, the echoes' ranges and the free
-    range at each (:func:`_eroded`)."""
-    bearing = np.arctan2(points[:, 1], points[:, 0])
-    order = np.argsort(bearing)
-    b = bearing[order]
-    r = np.hypot(points[order, 0], points[order, 1])
-    spacing = float(np.median(np.diff(b))) if len(b) > 1 else ANGLE_RAD
-    return b, r, _eroded(b, r, spacing)
 
 
 def check_poses(track: PoseTrack, points: list[F64]) -> FreeSpaceCheck:

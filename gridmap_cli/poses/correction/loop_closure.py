@@ -363,18 +363,27 @@ def by_loop(
     """``closures`` grouped by the loop they close: one joins a group when both its ends lie
     within ``within_m`` along the path (``path`` at each node) of some member's; those with both
     ends that near an ``accepted`` pair's are left out (their loop is closed)."""
+    closed = np.array([(path[i], path[j]) for i, j in accepted]).reshape(-1, 2)
     groups: list[list[Closure]] = []
     for k in sorted(closures, key=lambda k: (path[k.i], path[k.j])):
         a, b = path[k.i], path[k.j]
-        if any(abs(path[i] - a) < within_m and abs(path[j] - b) < within_m for i, j in accepted):
+        if near_ends(closed, a, b, within_m):
             continue
         for group in groups:
-            if any(abs(path[g.i] - a) < within_m and abs(path[g.j] - b) < within_m for g in group):
+            if near_ends(np.array([(path[g.i], path[g.j]) for g in group]), a, b, within_m):
                 group.append(k)
                 break
         else:
             groups.append([k])
     return groups
+
+
+def near_ends(ends: FloatArray, a: float, b: float, within_m: float) -> bool:
+    """Whether some pair of path positions in ``ends`` (M, 2) lies within ``within_m`` of
+    (``a``, ``b``) at both ends."""
+    if len(ends) == 0:
+        return False
+    return bool(((np.abs(ends[:, 0] - a) < within_m) & (np.abs(ends[:, 1] - b) < within_m)).any())
 
 
 def holds_where_seen(submaps: Submaps, closure: Closure) -> bool:

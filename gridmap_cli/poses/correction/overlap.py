@@ -27,17 +27,15 @@ then finds fewer contradictions.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.poses.correction.free_space import (
     DEPTH_M,
-    GAP_SPACINGS,
     MIN_RANGE_M,
-    eroded_scan,
+    at_bearing,
     level_at,
+    polar,
 )
 
 FloatArray = npt.NDArray[np.float64]
@@ -48,31 +46,24 @@ def views(
     points: FloatArray, xyz: FloatArray, scans: list[FloatArray], band_m: float
 ) -> tuple[Mask, Mask]:
     """Which of ``points`` (Q, 2) the scans (poses ``xyz`` (S, 3) in the points' frame, ``scans``
-    their echoes, robot frame) saw, and which lie in their free space: a point is *seen* by a
-    scan whose beams on both sides of its bearing lie within :data:`.free_space.GAP_SPACINGS`
-    of their spacing and whose farther echo of the two is no nearer than the point less
-    ``band_m``; it is in the scan's *free space* when, no nearer than
-    :data:`.free_space.MIN_RANGE_M`, it lies :data:`.free_space.DEPTH_M` nearer than the free
-    range of both beams."""
-    seen = np.zeros(len(points), dtype=bool)
-    free = np.zeros(len(points), dtype=bool)
-    for (x, y, th), echoes in zip(xyz.tolist(), scans, strict=True):
-        if len(echoes) < 2:
-            continue
-        b, r, open_m = eroded_scan(echoes)
-        gap = GAP_SPACINGS * float(np.median(np.diff(b)))
-        c, s = math.cos(th), math.sin(th)
-        dx, dy = points[:, 0] - x, points[:, 1] - y
-        qx, qy = c * dx + s * dy, -s * dx + c * dy
-        qb, qr = np.arctan2(qy, qx), np.hypot(qx, qy)
-        hi = np.searchsorted(b, qb)
-        hi_c = np.clip(hi, 1, len(b) - 1)
-        lo_c = hi_c - 1
-        covered = (hi > 0) & (hi < len(b)) & (b[hi_c] - qb <= gap) & (qb - b[lo_c] <= gap)
-        seen |= covered & (qr <= np.maximum(r[hi_c], r[lo_c]) + band_m)
-        free |= (
-            covered & (qr >= MIN_RANGE_M) & (qr < np.minimum(open_m[hi_c], open_m[lo_c]) - DEPTH_M)
-        )
+    their echoes, robot frame) saw, and which lie in their free space, each looked up in every
+    scan at its bearing as the free-space check looks an echo up
+    (:func:`.free_space.at_bearing`): *seen* by a scan that covers the bearing with its farther
+    echo of the two no nearer than the point less ``band_m``; in its *free space* when, no
+    nearer than :data:`.free_space.MIN_RANGE_M`, it lies :data:`.free_space.DEPTH_M` nearer
+    than the free range there."""
+    table = polar(scans)
+    # every point in every scan's frame: (S, Q)
+    c, s = np.cos(xyz[:, 2])[:, None], np.sin(xyz[:, 2])[:, None]
+    dx, dy = points[None, :, 0] - xyz[:, 0, None], points[None, :, 1] - xyz[:, 1, None]
+    qx, qy = c * dx + s * dy, -s * dx + c * dy
+    slot = np.repeat(np.arange(len(scans)), len(points))
+    covered, free_m, echo_m = at_bearing(table, slot, qx.ravel(), qy.ravel())
+    r = np.hypot(qx.ravel(), qy.ravel())
+    seen: Mask = np.any((covered & (r <= echo_m + band_m)).reshape(qx.shape), axis=0)
+    free: Mask = np.any(
+        (covered & (r >= MIN_RANGE_M) & (r < free_m - DEPTH_M)).reshape(qx.shape), axis=0
+    )
     return seen, free
 
 

@@ -44,6 +44,7 @@ from gridmap_cli.poses.correction.loop_closure import (
     by_loop,
     candidates,
     holds_where_seen,
+    near_ends,
     path_length,
     relative,
     verify,
@@ -272,14 +273,14 @@ def optimise_with_closures(
         fresh: list[tuple[float, float]] = []
         searched: list[tuple[float, float]] = []  # coarse searches that found nothing
         for i, j in candidates(estimate, spots, c, targets=spots):
-            if (i, j) in tried or _near(ends, path[i], path[j], c.decimate_m):
+            if (i, j) in tried or near_ends(ends, path[i], path[j], c.decimate_m):
                 continue
             tried.add((i, j))
             gap = path[i] - path[j]
             radius = min(c.max_search_m, c.min_search_m + c.drift_per_m * gap)
             coarse = not (
-                _near(np.array(fresh).reshape(-1, 2), path[i], path[j], c.coarse_link_m)
-                or _near(np.array(searched).reshape(-1, 2), path[i], path[j], c.decimate_m)
+                near_ends(np.array(fresh).reshape(-1, 2), path[i], path[j], c.coarse_link_m)
+                or near_ends(np.array(searched).reshape(-1, 2), path[i], path[j], c.decimate_m)
             )
             closure = verify(i, j, relative(estimate, i, j), submaps, radius, coarse, partial)
             if closure is None:
@@ -390,14 +391,6 @@ def _bend_sigma(poses: FloatArray, edges: list[Edge]) -> float:
             abs(float(dth)) / e.sigma_theta_rad,
         )
     return worst
-
-
-def _near(ends: FloatArray, a: float, b: float, within_m: float) -> bool:
-    """Whether some pair of path positions in ``ends`` (M, 2) lies within ``within_m`` of
-    (``a``, ``b``) at both ends."""
-    if len(ends) == 0:
-        return False
-    return bool(((np.abs(ends[:, 0] - a) < within_m) & (np.abs(ends[:, 1] - b) < within_m)).any())
 
 
 def _closure_edge(c: Closure, p: SlamParams) -> Edge:
