@@ -56,6 +56,23 @@ def test_cropped_grid_equals_the_whole_grid() -> None:
             assert np.array_equal(got, want)
 
 
+def test_levels_and_grids_hold_memory_of_their_own() -> None:
+    """The levels are cut from one block of fresh pages: none may overlap another, nor a
+    second grid's, and each outlives the grid object that made it."""
+    rng = np.random.default_rng(5)
+    a = LikelihoodGrid(rng.uniform(-5, 5, (300, 2)), 0.1, 0.1, 4, 2.0)
+    b = LikelihoodGrid(rng.uniform(-5, 5, (300, 2)), 0.1, 0.1, 4, 2.0)
+    arrays = a.flat + b.flat
+    for k, one in enumerate(arrays):
+        assert one.flags.writeable
+        for other in arrays[k + 1 :]:
+            assert not np.shares_memory(one, other)
+    kept = a.flat[2]
+    copy = kept.copy()
+    del a
+    assert np.array_equal(kept, copy)
+
+
 def test_search_finds_the_offset() -> None:
     rng = np.random.default_rng(4)
     walls = [np.column_stack([rng.uniform(-5, 5, 300), np.full(300, y)]) for y in (-3.0, 4.0)]

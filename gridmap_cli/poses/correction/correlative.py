@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import mmap
 from dataclasses import dataclass
 from functools import cache
 
@@ -130,12 +131,24 @@ def _pooled_levels(
         up2 = up.copy()
         up2[:, :-h] = np.maximum(up2[:, :-h], up[:, h:])
         boxes.append(up2)
-    grids = []
-    for box in boxes:
-        full = np.zeros(shape, dtype=np.float32)
+    grids = _zero_grids(len(boxes), shape)
+    for full, box in zip(grids, boxes, strict=True):
         full[lo : hi[0], lo : hi[1]] = box
-        grids.append(full)
     return grids
+
+
+def _zero_grids(count: int, shape: tuple[int, int]) -> list[npt.NDArray[np.float32]]:
+    """``count`` zeroed float32 grids of ``shape`` on anonymous pages of their own.
+
+    Most of a grid is its zero border, which a search reads only next to the target. Fresh
+    pages read as zero unwritten and are backed only once touched, so the border costs next to
+    nothing; a zeroed block from the C heap is written in full first, and the heap keeps it
+    after the grid is freed. The pages go back to the system with the last grid's reference.
+    """
+    size = shape[0] * shape[1]
+    pages = mmap.mmap(-1, max(1, count * size * 4))
+    flat = np.frombuffer(pages, dtype=np.float32, count=count * size)
+    return [flat[k * size : (k + 1) * size].reshape(shape) for k in range(count)]
 
 
 def search(

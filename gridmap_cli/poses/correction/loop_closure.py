@@ -173,6 +173,9 @@ class Submaps:
         self.node_travel = self.travel[nodes]
         self._grids: OrderedDict[int, LikelihoodGrid] = OrderedDict()
         self.coarse_runs = 0
+        # the scan matcher's scratch, freed by now, would stay resident under the search's
+        # submaps and grids (the grids live on pages of their own, :mod:`.correlative`)
+        release_free_memory()
 
     @cached_property
     def noise(self) -> FloatArray:
@@ -195,12 +198,6 @@ class Submaps:
         self._grids[node] = grid
         if len(self._grids) > 8:
             self._grids.popitem(last=False)
-            # the searches' grids (several MB each) and temporaries, freed between live blocks,
-            # stayed resident: Freiburg 079's closure search grew the process by some 340 MB.
-            # Handing the C heap's free pages back at every grid let go (farm-bench, 3 pairs,
-            # median): peak 826 -> 490 MiB for about 6 % more CPU; at every 4th, 578 MiB for
-            # 5 %. The maps are the same bytes.
-            release_free_memory()
         return grid
 
     def sample(self, node: int) -> FloatArray:
