@@ -65,7 +65,8 @@ def turned_half(track: PoseTrack, degrees: float) -> PoseTrack:
 def false_closures(result: object) -> PoseTrack | None:
     """The graph's track solved again with a fifth of its closures moved (see the module)."""
     from gridmap_cli.poses.correction.pose_graph import KERNEL_STAGES, PoseGraph
-    from gridmap_cli.poses.correction.slam import SlamResult, carried
+    from gridmap_cli.poses.correction.repair import carried
+    from gridmap_cli.poses.correction.slam import SlamResult
 
     assert isinstance(result, SlamResult)
     if result.graph is None or not result.closures:

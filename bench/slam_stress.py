@@ -166,6 +166,8 @@ class Result:
     free_space: str | None = None
     seconds: float = 0.0
     error: str | None = None
+    #: how many times wider the closure search looked, its track failing the check as asked
+    widened: float = 1.0
 
 
 def kept_relations(rel: Relations, scans_ns: np.ndarray) -> Relations:
@@ -230,6 +232,7 @@ def _run(name: str, variant: str, maps: str | None) -> Result:
         name, variant, len(stamps), len(kept),
         score_track(tracks["slam"], relations, log.poses).count,
         scores, slam_all, closures, slam.warning, free_space, time.process_time() - started,
+        widened=slam.widened,
     )  # fmt: skip
 
 
@@ -299,8 +302,20 @@ def table(results: list[Result]) -> list[str]:
 
 def warnings(results: list[Result]) -> list[str]:
     """What each run warned of, as ``build --pose slam`` would: the graph's own checks, then the
-    free-space check of its track."""
-    said = [(r, w) for r in results for w in (r.warning, r.free_space) if w]
+    free-space check of its track; first, where the graph searched again wider."""
+    wider = [
+        f"the closure search looked {r.widened:g} times as wide, its track failing the "
+        "free-space check as asked"
+        if r.widened > 1
+        else None
+        for r in results
+    ]
+    said = [
+        (r, w)
+        for r, x in zip(results, wider, strict=True)
+        for w in (x, r.warning, r.free_space)
+        if w
+    ]
     return [f"- {r.log} {r.variant}: {w}" for r, w in said]
 
 

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from gridmap_cli.poses.correction import slam
+from gridmap_cli.poses.correction import repair, slam
 from gridmap_cli.poses.correction.loop_closure import Closure, ClosureParams, Submaps
 from gridmap_cli.poses.correction.pose_graph import Edge, PoseGraph
 from gridmap_cli.poses.correction.sheet_gicp import sheet_of
@@ -77,11 +77,11 @@ def _run(
 ) -> tuple[np.ndarray, np.ndarray, dict[tuple[int, int], Closure]]:
     graph, estimate, accepted, partial = _loop()
     calls = iter(checks)
-    monkeypatch.setattr(slam, "check_poses", lambda track, points: next(calls))
-    monkeypatch.setattr(slam, "carried", lambda match, nodes, poses: None)
-    monkeypatch.setattr(slam, "holds_where_seen", lambda submaps, k: True)
+    monkeypatch.setattr(repair, "check_poses", lambda track, points: next(calls))
+    monkeypatch.setattr(repair, "carried", lambda match, nodes, poses: None)
+    monkeypatch.setattr(repair, "holds_where_seen", lambda submaps, k: True)
     params = dataclasses.replace(slam.SlamParams(), reject_m=10.0, reject_rad=1.0)
-    out, _ = slam._partial_loops(
+    out, _ = repair.partial_loops(
         SimpleNamespace(points=[]),  # type: ignore[arg-type]
         None,  # type: ignore[arg-type]
         np.arange(40),

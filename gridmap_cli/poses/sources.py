@@ -235,7 +235,7 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
     if slam.scans is not None:
         from gridmap_cli.poses.correction.free_space import check_poses
 
-        # the graph's own check of this track where it took one (the same scans and poses)
+        # the graph's own check of this track (the same scans and poses)
         check = slam.free_space or check_poses(slam.track, slam.scans.points)
         summary["free_space_check"] = check.as_dict()
         if check.fails:

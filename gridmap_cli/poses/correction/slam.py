@@ -13,7 +13,8 @@
 4. A track that fails its free-space check (:mod:`.free_space`: a loop closed wrongly or
    missed) tries the loops that only candidates under the inlier gate would close, judged on
    what their targets saw (:mod:`.overlap`), a loop at a time, keeping each that leaves fewer
-   of the track's revisits contradicting.
+   of the track's revisits contradicting; where it still fails, steps 3-4 run again with the
+   search's bounds on the drift wider (:mod:`.repair`), kept where that track does better.
 5. Every scan's pose is the scan-matched one carried by the correction of the keyframes around it
    (interpolated in time); every other pose of the log likewise (:func:`.corrected_track`).
 
@@ -33,7 +34,6 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.geometry import wrap_angle
-from gridmap_cli.poses.correction.carry import carry
 from gridmap_cli.poses.correction.degeneracy import weak_stretch
 from gridmap_cli.poses.correction.free_space import FreeSpaceCheck, check_poses
 from gridmap_cli.poses.correction.loop_closure import (
@@ -41,9 +41,7 @@ from gridmap_cli.poses.correction.loop_closure import (
     ClosureParams,
     Submaps,
     anchors,
-    by_loop,
     candidates,
-    holds_where_seen,
     near_ends,
     path_length,
     relative,
@@ -55,6 +53,13 @@ from gridmap_cli.poses.correction.pose_graph import (
     PoseGraph,
     edge_errors,
     edge_residuals,
+)
+from gridmap_cli.poses.correction.repair import (
+    WIDER_SEARCH,
+    carried,
+    closure_edge,
+    partial_loops,
+    wider,
 )
 from gridmap_cli.poses.correction.scan_match import (
     FALLBACK,
@@ -144,10 +149,13 @@ class SlamResult:
     #: the scans matched, one per pose of :attr:`track` (for checks of the track against them)
     scans: Scans | None = None
     #: accepted closures under the inlier gate, kept where the track failed its free-space
-    #: check without them (:func:`_partial_loops`)
+    #: check without them (:func:`.repair.partial_loops`)
     partial: int = 0
-    #: the free-space check of :attr:`track`, where the graph took it (:func:`_partial_loops`)
+    #: the free-space check of :attr:`track`
     free_space: FreeSpaceCheck | None = None
+    #: how many times wider the closure search's bounds on the drift were than asked, where
+    #: the track failed its check with them (:data:`.repair.WIDER_SEARCH`); 1: as asked
+    widened: float = 1.0
 
     @property
     def track(self) -> PoseTrack:
@@ -180,6 +188,7 @@ class SlamResult:
             "closures_rejected": self.rejected + self.dropped,
             "closures_dropped_by_consistency": self.dropped,
             "closures_of_partial_overlap": self.partial,
+            "closure_search_widened": self.widened,
             "closure_residual_m": round(self.residual_m, 4),
             "closure_residual_odometry_m": round(self.odometry_residual_m, 4),
             "sequential_bend_sigma": round(self.bend_sigma, 2),
@@ -244,7 +253,7 @@ def optimise_with_closures(
 ]:
     """Keyframes, their optimised poses, the graph, accepted closures, the counts of candidates
     tried, rejected by verification and dropped by the consistency check, and the free-space
-    check of the track where it was taken (:func:`_partial_loops`). ``progress`` is called
+    check of the track where it was taken (:func:`.repair.partial_loops`). ``progress`` is called
     after each round with ``("loop closures", rounds done, rounds)``."""
     m = match.track
     local = np.column_stack([m.x_m, m.y_m, m.theta_rad])
@@ -299,7 +308,7 @@ def optimise_with_closures(
         stages = KERNEL_STAGES
         while True:
             graph.edges = [e for e in graph.edges if not e.closure] + [
-                _closure_edge(c, params) for c in accepted.values()
+                closure_edge(c, params) for c in accepted.values()
             ]
             estimate = graph.optimise(estimate, stages)
             # once a closure is dropped, the estimate is already the tight kernel's optimum
@@ -318,60 +327,12 @@ def optimise_with_closures(
             dropped += 1
     check = None
     if partial:
-        estimate, check = _partial_loops(
+        estimate, check = partial_loops(
             scans, match, nodes, graph, estimate, accepted, partial, submaps, params
         )
     if progress is not None:
         progress("loop closures", params.rounds, params.rounds)
     return nodes, estimate, graph, list(accepted.values()), len(tried), rejected, dropped, check
-
-
-def _partial_loops(
-    scans: Scans,
-    match: ScanMatch,
-    nodes: npt.NDArray[np.intp],
-    graph: PoseGraph,
-    estimate: FloatArray,
-    accepted: dict[tuple[int, int], Closure],
-    partial: list[Closure],
-    submaps: Submaps,
-    params: SlamParams,
-) -> tuple[FloatArray, FreeSpaceCheck]:
-    """On a track that fails its free-space check only (:mod:`.overlap`): the loops that the
-    ``partial`` closures (every test passed but the inlier gate) close, none where an accepted
-    closure closes one, tried a loop at a time, the largest first, while the track fails. Of
-    each loop the closures that hold on their target's view are kept when the track with them
-    has a smaller share of its revisits contradicting and they stay within the graph's residual
-    bounds. ``accepted`` is updated; the estimate is returned, with its track's check."""
-    now = check_poses(carried(match, nodes, estimate), scans.points)
-    if not now.fails:
-        return estimate, now
-    path = path_length(estimate)
-    groups = by_loop(partial, list(accepted), path, params.closure.coarse_link_m)
-    held = [[k for k in group if holds_where_seen(submaps, k)] for group in groups]
-    for group in sorted(held, key=len, reverse=True):
-        if not now.fails or not group:
-            break
-        trial = dict(accepted)
-        trial.update({(k.i, k.j): k for k in group})
-        graph.edges = [e for e in graph.edges if not e.closure] + [
-            _closure_edge(k, params) for k in trial.values()
-        ]
-        moved = graph.optimise(estimate, KERNEL_STAGES)
-        res = edge_residuals(moved, [e for e in graph.edges if e.closure])
-        check = check_poses(carried(match, nodes, moved), scans.points)
-        better = not (
-            (res[:, 0] > params.reject_m).any()
-            or (res[:, 1] > params.reject_rad).any()
-            or not check.share < now.share
-        )
-        if better:
-            accepted.update(trial)
-            estimate, now = moved, check
-    graph.edges = [e for e in graph.edges if not e.closure] + [
-        _closure_edge(k, params) for k in accepted.values()
-    ]
-    return estimate, now
 
 
 def _bend_sigma(poses: FloatArray, edges: list[Edge]) -> float:
@@ -393,27 +354,6 @@ def _bend_sigma(poses: FloatArray, edges: list[Edge]) -> float:
     return worst
 
 
-def _closure_edge(c: Closure, p: SlamParams) -> Edge:
-    return Edge(
-        c.i, c.j, c.dx_m, c.dy_m, c.dtheta_rad, p.closure_sigma_xy_m, p.closure_sigma_theta_rad,
-        closure=True,
-    )  # fmt: skip
-
-
-def carried(match: ScanMatch, nodes: npt.NDArray[np.intp], poses: FloatArray) -> PoseTrack:
-    """Every scan's pose: its scan-matched pose carried by the keyframes' correction, blended
-    between the two keyframes around it by the share of the motion (:func:`.carry.carry`)."""
-    m = match.track
-    x, y, th = carry(
-        m.stamp_ns,
-        (m.x_m, m.y_m, m.theta_rad),
-        m.stamp_ns[nodes],
-        (m.x_m[nodes], m.y_m[nodes], m.theta_rad[nodes]),
-        (poses[:, 0], poses[:, 1], poses[:, 2]),
-    )
-    return PoseTrack(stamp_ns=m.stamp_ns.copy(), x_m=x, y_m=y, theta_rad=th)
-
-
 def slam_scans(
     scans: Scans,
     odometry: PoseTrack,
@@ -423,17 +363,41 @@ def slam_scans(
 ) -> SlamResult:
     """Scan-match ``scans`` seeded by ``odometry``, close loops, optimise; see the module.
     ``progress`` is called with (stage, done, total) as each stage moves on."""
-    params = params or SlamParams()
     started = time.perf_counter()
     match = match_scans(scans, odometry, match_params or SLAM_MATCH, progress)
-    nodes, poses, graph, closures, tried, rejected, dropped, check = optimise_with_closures(
-        scans, match, params, progress
-    )
+    return close_loops(scans, match, params, progress, started)
+
+
+def close_loops(
+    scans: Scans,
+    match: ScanMatch,
+    params: SlamParams | None = None,
+    progress: Progress | None = None,
+    started: float | None = None,
+) -> SlamResult:
+    """The pose graph on the scan match ``match`` of ``scans``: steps 2-5 of the module, the
+    closure search widened while the track fails its free-space check
+    (:data:`.repair.WIDER_SEARCH`). ``started``: the clock (``time.perf_counter``) the result's
+    seconds count from (default: now)."""
+    params = params or SlamParams()
+    started = time.perf_counter() if started is None else started
+    found = optimise_with_closures(scans, match, params, progress)
+    check = found[7] or check_poses(carried(match, found[0], found[1]), scans.points)
+    widened = 1.0
+    for factor in WIDER_SEARCH:
+        if not check.fails:
+            break
+        wide = dataclasses.replace(params, closure=wider(params.closure, factor))
+        again = optimise_with_closures(scans, match, wide, _named(progress, f"{factor:g}x wider"))
+        its = again[7] or check_poses(carried(match, again[0], again[1]), scans.points)
+        if not its.fails or its.share < check.share:
+            found, check, widened = again, its, factor
+    nodes, poses, graph, closures, tried, rejected, dropped, _ = found
     partial = sum(c.inlier_fraction < params.closure.min_inlier_fraction for c in closures)
     track = carried(match, nodes, poses)
     odo = match.odometry
     odo_nodes = np.column_stack([odo.x_m, odo.y_m, odo.theta_rad])[nodes]
-    closure_edges = [_closure_edge(c, params) for c in closures]
+    closure_edges = [closure_edge(c, params) for c in closures]
     before = edge_residuals(odo_nodes, closure_edges)
     after = edge_residuals(poses, closure_edges)
     covariance = graph.marginals(poses) if params.covariance else None
@@ -458,7 +422,16 @@ def slam_scans(
         scans=scans,
         partial=partial,
         free_space=check,
+        widened=widened,
     )
+
+
+def _named(progress: Progress | None, what: str) -> Progress | None:
+    """``progress`` with ``what`` added to each stage's name (a stage run again)."""
+    if progress is None:
+        return None
+    given = progress
+    return lambda stage, done, total: given(f"{stage}, {what}", done, total)
 
 
 def slam_log(

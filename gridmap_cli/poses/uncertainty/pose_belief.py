@@ -221,7 +221,7 @@ class PoseBelief:
     def tracks(self, track: PoseTrack, count: int) -> list[PoseTrack]:
         """``count`` draws of ``track`` (the optimised track at any stamps): each keyframe moves
         to its draw, every other pose with the keyframes around it (the correction
-        ``draw (-) optimised`` interpolated in time, as :func:`.slam.carried` places the scans
+        ``draw (-) optimised`` interpolated in time, as :func:`.repair.carried` places the scans
         between keyframes). Raises ValueError when fewer than ``count`` draws are held."""
         if count > self.draws.shape[0]:
             raise ValueError(f"{count} tracks asked of a belief holding {self.draws.shape[0]}")
