@@ -189,7 +189,8 @@ def _broken_slam(monkeypatch: pytest.MonkeyPatch, all_tracks: bool = False) -> N
         result = solve(*args, **kwargs)  # type: ignore[arg-type]
         turned = _turned_half(result.track, 5.0)
         match = dataclasses.replace(result.match, track=turned)
-        result = dataclasses.replace(result, match=match)
+        # the graph's check was of the track as it was: the build checks the turned one
+        result = dataclasses.replace(result, match=match, free_space=None)
         if all_tracks:
             matched = dataclasses.replace(result.scan_matched, track=turned, odometry=turned)
             result = dataclasses.replace(result, scan_matched=matched)
