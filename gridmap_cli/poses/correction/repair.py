@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -44,10 +44,23 @@ from gridmap_cli.poses.correction.pose_graph import (
 from gridmap_cli.poses.correction.scan_match import ScanMatch, Scans
 from gridmap_cli.records import PoseTrack
 
-if TYPE_CHECKING:
-    from gridmap_cli.poses.correction.slam import SlamParams
-
 FloatArray = npt.NDArray[np.float64]
+
+
+class GraphParams(Protocol):
+    """What the repairs read of the graph's settings (:class:`.slam.SlamParams`)."""
+
+    @property
+    def closure(self) -> ClosureParams: ...
+    @property
+    def closure_sigma_xy_m(self) -> float: ...
+    @property
+    def closure_sigma_theta_rad(self) -> float: ...
+    @property
+    def reject_m(self) -> float: ...
+    @property
+    def reject_rad(self) -> float: ...
+
 
 #: How many times wider, in turn, the closure search's bounds on the drift are on a track that
 #: still fails its check: each doubling, as long as the track fails.
@@ -75,7 +88,7 @@ def partial_loops(
     accepted: dict[tuple[int, int], Closure],
     partial: list[Closure],
     submaps: Submaps,
-    params: SlamParams,
+    params: GraphParams,
 ) -> tuple[FloatArray, FreeSpaceCheck]:
     """On a track that fails its free-space check only (:mod:`.overlap`): the loops that the
     ``partial`` closures (every test passed but the inlier gate) close, none where an accepted
@@ -114,7 +127,7 @@ def partial_loops(
     return estimate, now
 
 
-def closure_edge(c: Closure, p: SlamParams) -> Edge:
+def closure_edge(c: Closure, p: GraphParams) -> Edge:
     """The graph edge of an accepted closure, with the closures' fixed noise."""
     return Edge(
         c.i, c.j, c.dx_m, c.dy_m, c.dtheta_rad, p.closure_sigma_xy_m, p.closure_sigma_theta_rad,
