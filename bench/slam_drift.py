@@ -71,14 +71,8 @@ def run(job: tuple[str, float]) -> tuple[str, float, str]:
 
 
 def _run(name: str, bias_deg: float) -> str:
-    from gridmap_cli.poses.correction.scan_match import (
-        Scans,
-        corrected_track,
-        laser_scans,
-        match_scans,
-    )
+    from gridmap_cli.poses.correction.scan_match import corrected_track, log_scans, match_scans
     from gridmap_cli.poses.correction.slam import SLAM_MATCH, close_loops
-    from gridmap_cli.poses.sync import sensors_for_log
     from gridmap_cli.readers import read_logs
     from gridmap_cli.readers.options import ReadOptions
     from gridmap_cli.robot import robot_from_log
@@ -88,13 +82,7 @@ def _run(name: str, bias_deg: float) -> str:
     log = read_logs((DATA / bag,), None, ReadOptions())
     relations = read_relations(DATA / relations_file)
     robot = robot_from_log(DATA / bag, log.metadata)
-    scans = laser_scans(log, sensors_for_log(log, robot), SLAM_MATCH)
-    t = log.poses.stamp_ns
-    inside = (scans.stamp_ns >= t[0]) & (scans.stamp_ns <= t[-1])
-    scans = Scans(
-        stamp_ns=scans.stamp_ns[inside],
-        points=[p for p, ok in zip(scans.points, inside, strict=True) if ok],
-    )
+    scans = log_scans(log, robot, SLAM_MATCH)
     match = match_scans(scans, log.poses, SLAM_MATCH)
     match = dataclasses.replace(match, track=bent(match.track, math.radians(bias_deg)))
     result = close_loops(scans, match)

@@ -303,20 +303,17 @@ def table(results: list[Result]) -> list[str]:
 def warnings(results: list[Result]) -> list[str]:
     """What each run warned of, as ``build --pose slam`` would: the graph's own checks, then the
     free-space check of its track; first, where the graph searched again wider."""
-    wider = [
+    said = [(r, w) for r in results for w in (_wider(r), r.warning, r.free_space) if w]
+    return [f"- {r.log} {r.variant}: {w}" for r, w in said]
+
+
+def _wider(r: Result) -> str | None:
+    if r.widened == 1:
+        return None
+    return (
         f"the closure search looked {r.widened:g} times as wide, its track failing the "
         "free-space check as asked"
-        if r.widened > 1
-        else None
-        for r in results
-    ]
-    said = [
-        (r, w)
-        for r, x in zip(results, wider, strict=True)
-        for w in (x, r.warning, r.free_space)
-        if w
-    ]
-    return [f"- {r.log} {r.variant}: {w}" for r, w in said]
+    )
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -63,16 +63,14 @@ from gridmap_cli.poses.correction.repair import (
 )
 from gridmap_cli.poses.correction.scan_match import (
     FALLBACK,
-    NoLaserError,
     Progress,
     ScanMatch,
     ScanMatchParams,
     Scans,
     corrected_track,
-    laser_scans,
+    log_scans,
     match_scans,
 )
-from gridmap_cli.poses.sync import sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RobotDescription
 
@@ -246,11 +244,15 @@ def sequential_edges(
     return edges
 
 
+#: What :func:`optimise_with_closures` returns.
+_Optimised = tuple[
+    npt.NDArray[np.intp], FloatArray, PoseGraph, list[Closure], int, int, int, FreeSpaceCheck | None
+]
+
+
 def optimise_with_closures(
     scans: Scans, match: ScanMatch, params: SlamParams, progress: Progress | None = None
-) -> tuple[
-    npt.NDArray[np.intp], FloatArray, PoseGraph, list[Closure], int, int, int, FreeSpaceCheck | None
-]:
+) -> _Optimised:
     """Keyframes, their optimised poses, the graph, accepted closures, the counts of candidates
     tried, rejected by verification and dropped by the consistency check, and the free-space
     check of the track where it was taken (:func:`.repair.partial_loops`). ``progress`` is called
@@ -381,20 +383,17 @@ def close_loops(
     seconds count from (default: now)."""
     params = params or SlamParams()
     started = time.perf_counter() if started is None else started
-    found = optimise_with_closures(scans, match, params, progress)
-    check = found[7] or check_poses(carried(match, found[0], found[1]), scans.points)
+    found, track, check = _searched(scans, match, params, progress)
     widened = 1.0
     for factor in WIDER_SEARCH:
         if not check.fails:
             break
         wide = dataclasses.replace(params, closure=wider(params.closure, factor))
-        again = optimise_with_closures(scans, match, wide, _named(progress, f"{factor:g}x wider"))
-        its = again[7] or check_poses(carried(match, again[0], again[1]), scans.points)
-        if not its.fails or its.share < check.share:
-            found, check, widened = again, its, factor
+        again = _searched(scans, match, wide, _named(progress, f"{factor:g}x wider"))
+        if not again[2].fails or again[2].share < check.share:
+            (found, track, check), widened = again, factor
     nodes, poses, graph, closures, tried, rejected, dropped, _ = found
     partial = sum(c.inlier_fraction < params.closure.min_inlier_fraction for c in closures)
-    track = carried(match, nodes, poses)
     odo = match.odometry
     odo_nodes = np.column_stack([odo.x_m, odo.y_m, odo.theta_rad])[nodes]
     closure_edges = [closure_edge(c, params) for c in closures]
@@ -426,6 +425,16 @@ def close_loops(
     )
 
 
+def _searched(
+    scans: Scans, match: ScanMatch, params: SlamParams, progress: Progress | None
+) -> tuple[_Optimised, PoseTrack, FreeSpaceCheck]:
+    """:func:`optimise_with_closures`, every scan's pose on its track, and the track's
+    free-space check (the graph's own where it took one)."""
+    found = optimise_with_closures(scans, match, params, progress)
+    track = carried(match, found[0], found[1])
+    return found, track, found[7] or check_poses(track, scans.points)
+
+
 def _named(progress: Progress | None, what: str) -> Progress | None:
     """``progress`` with ``what`` added to each stage's name (a stage run again)."""
     if progress is None:
@@ -441,17 +450,7 @@ def slam_log(
     progress: Progress | None = None,
 ) -> SlamResult:
     """:func:`slam_scans` on the laser scans of ``log`` within its odometry's time span."""
-    match_params = SLAM_MATCH
-    scans = laser_scans(log, sensors_for_log(log, robot), match_params)
-    t = log.poses.stamp_ns
-    inside = (scans.stamp_ns >= t[0]) & (scans.stamp_ns <= t[-1])
-    if not inside.any():
-        raise NoLaserError(f"{log.source}: no laser scan lies within the odometry's time span")
-    kept = Scans(
-        stamp_ns=scans.stamp_ns[inside],
-        points=[p for p, ok in zip(scans.points, inside, strict=True) if ok],
-    )
-    return slam_scans(kept, log.poses, params, match_params, progress)
+    return slam_scans(log_scans(log, robot, SLAM_MATCH), log.poses, params, SLAM_MATCH, progress)
 
 
 def slam_corrected_log(
