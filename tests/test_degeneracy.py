@@ -9,14 +9,17 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from scipy.spatial import cKDTree
 
 from gridmap_cli.poses.correction.degeneracy import (
     DistanceScale,
     _clearly_constrained,
     keep_across,
+    unchosen_slide,
     weak_axis,
     weak_stretch,
 )
+from gridmap_cli.poses.correction.planar import placed_points
 
 
 def corridor_hessian(along_robot_rad: float) -> np.ndarray:
@@ -97,3 +100,70 @@ def test_the_closed_form_shortcut_never_overrules_eigh() -> None:
             shortcut += 1
             assert values[1] > 0 and values[0] / values[1] >= 0.002
     assert 5000 < shortcut < 20000  # both paths were taken
+
+
+def corridor_points(doors_every_m: float | None, end_x_m: float | None) -> np.ndarray:
+    """Points 5 cm apart on the two walls of a corridor 2 m wide along x, from -12 to 12 m:
+    each wall broken by a 0.4 m door every ``doors_every_m`` (None: none) and the corridor
+    closed by an end wall at ``end_x_m`` (None: open)."""
+    x = np.arange(-12.0, 12.0, 0.05)
+    if doors_every_m is not None:
+        x = x[np.mod(x, doors_every_m) >= 0.4]
+    if end_x_m is not None:
+        x = x[x < end_x_m]
+    walls = [np.column_stack([x, np.full_like(x, side)]) for side in (-1.0, 1.0)]
+    if end_x_m is not None:
+        y = np.arange(-1.0, 1.0, 0.05)
+        walls.append(np.column_stack([np.full_like(y, end_x_m), y]))
+    return np.vstack(walls)
+
+
+def seen_from(world: np.ndarray, pose: tuple[float, float, float], reach_m: float) -> np.ndarray:
+    """``world`` points within ``reach_m`` of ``pose``, in its frame."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    d = world - np.array(pose[:2])
+    local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+    return local[np.hypot(local[:, 0], local[:, 1]) <= reach_m]
+
+
+def fit(scan: np.ndarray, pose: tuple[float, float, float], tree: cKDTree) -> float:
+    dist, _ = tree.query(placed_points(scan, pose), distance_upper_bound=0.15)
+    return float(np.mean(np.isfinite(dist)))
+
+
+def test_a_slide_the_scan_does_not_choose_is_taken_back() -> None:
+    """Doors every metre: a match slid one door along the corridor fits as well as the
+    odometry's place, so the slide is the match's least constrained direction and is taken
+    back; the heading and the correction across the corridor stay the match's."""
+    world = corridor_points(1.0, None)
+    tree = cKDTree(world)
+    truth = (0.0, 0.0, 0.0)
+    scan = seen_from(world, truth, 8.0)
+    slid = (1.0, 0.02, 0.0)
+    along = unchosen_slide(corridor_hessian(0.0), scan, slid, truth, tree, 0.15)
+    assert along is not None and abs(float(along[0])) == pytest.approx(1.0, abs=1e-6)
+    assert keep_across(truth, slid, along) == pytest.approx((0.0, 0.02, 0.0), abs=1e-6)
+
+
+def test_a_slide_to_where_the_scan_fits_better_stands() -> None:
+    """The corridor's end wall in view: the odometry's place, 0.8 m short of the match, fits
+    worse than the match (a perfect fit, whose share has no spread), so the match stands."""
+    world = corridor_points(None, 5.0)
+    tree = cKDTree(world)
+    truth = (0.0, 0.0, 0.0)
+    scan = seen_from(world, truth, 8.0)
+    guess = (-0.8, 0.0, 0.0)
+    assert fit(scan, guess, tree) < fit(scan, truth, tree) - 0.05
+    assert unchosen_slide(corridor_hessian(0.0), scan, truth, guess, tree, 0.15) is None
+
+
+def test_a_small_move_or_one_across_the_weak_direction_is_no_slide() -> None:
+    """Within the inlier band, or moved across the corridor (its well constrained direction),
+    the match is left as it is even where the odometry's place fits as well."""
+    world = corridor_points(1.0, None)
+    tree = cKDTree(world)
+    scan = seen_from(world, (0.0, 0.0, 0.0), 8.0)
+    hessian = corridor_hessian(0.0)
+    for guess in ((-0.1, 0.0, 0.0), (0.0, -0.5, 0.0)):
+        pose = (0.0, 0.0, 0.0)
+        assert unchosen_slide(hessian, scan, pose, guess, tree, 0.15) is None

@@ -9,6 +9,11 @@ loop closure stretches or shrinks the corridor instead of bending the rest of th
 
 - :func:`weak_axis`: the weak translation direction of a match, from its Hessian.
 - :func:`keep_across`: a matched pose with its correction along the weak axis taken out.
+- :func:`unchosen_slide`: a match that slid along its least constrained direction where the
+  scan does not choose between the slide and the odometry: a corridor with a door or two is
+  far from degenerate by its Hessian, and GICP from a start a step away (a retry at another
+  heading, say) can slide a metre along it into a minimum that fits no better than where the
+  odometry put the robot.
 - :func:`weak_stretch`: how far a stretch of the track went along weak axes, and which way.
 - :class:`DistanceScale`: the odometry's distance scale, learned from the steps that matched in
   every direction, so that "the odometry along the corridor" is the odometry with its scale
@@ -27,6 +32,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from scipy.spatial import cKDTree
+
+from gridmap_cli.poses.correction.planar import placed_points
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -66,6 +74,40 @@ def keep_across(
     shift = np.array([pose[0] - guess[0], pose[1] - guess[1]])
     across = shift - weak * float(weak @ shift)
     return guess[0] + float(across[0]), guess[1] + float(across[1]), pose[2]
+
+
+def unchosen_slide(
+    hessian: FloatArray,
+    planar: FloatArray,
+    pose: tuple[float, float, float],
+    guess: tuple[float, float, float],
+    local: cKDTree,
+    inlier_m: float,
+) -> FloatArray | None:
+    """The least constrained direction (unit vector (2,), map frame) of a match that moved the
+    pose from ``guess`` along it by more than ``inlier_m``, when the scan does not choose the
+    move: of its ``planar`` points (K, 2, robot frame), those within ``inlier_m`` of the
+    ``local`` map's points at ``pose`` and not with the move taken back (:func:`keep_across`)
+    do not outnumber those the other way round by twice their chance spread (a sign test:
+    with no preference either way each such point falls either way at even odds, so the excess
+    of n of them spreads by sqrt(n)). None otherwise: the scan chose the place.
+    ``hessian`` (6, 6): small_gicp's, as :func:`weak_axis` reads it."""
+    if math.hypot(pose[0] - guess[0], pose[1] - guess[1]) <= inlier_m or len(planar) == 0:
+        return None
+    _, vectors = np.linalg.eigh(hessian[3:5, 3:5])
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    u = vectors[:, 0]
+    axis = np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
+    if abs(float(axis @ np.array([pose[0] - guess[0], pose[1] - guess[1]]))) <= inlier_m:
+        return None
+    at, _ = local.query(placed_points(planar, pose), distance_upper_bound=inlier_m)
+    back, _ = local.query(
+        placed_points(planar, keep_across(guess, pose, axis)), distance_upper_bound=inlier_m
+    )
+    moved_only = int(np.count_nonzero(np.isfinite(at) & ~np.isfinite(back)))
+    back_only = int(np.count_nonzero(np.isfinite(back) & ~np.isfinite(at)))
+    chosen = moved_only - back_only > 2.0 * math.sqrt(moved_only + back_only)
+    return None if chosen else axis
 
 
 @dataclass

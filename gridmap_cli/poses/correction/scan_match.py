@@ -12,7 +12,9 @@ A match is judged before it is trusted (``docs/scan-matching.md``):
   that, the step keeps the odometry's increment (a *fallback*);
 - *degenerate*: the translation is constrained in one direction only (a featureless corridor):
   the correction is kept across the corridor and the odometry is kept along it, its distance
-  scale corrected by what the fully constrained steps measured (:mod:`.degeneracy`).
+  scale corrected by what the fully constrained steps measured (:mod:`.degeneracy`);
+- *slid* along its least constrained direction, where the scan fits as well without the slide
+  (:func:`.degeneracy.unchosen_slide`): the odometry is kept along it, the match across it.
 
 Frames: the corrected track is in the odometry frame, from the odometry's pose at the first
 scan; poses between scans carry the odometry with the correction interpolated between scans.
@@ -37,19 +39,19 @@ from scipy.spatial import cKDTree
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.poses.correction.carry import carry
-from gridmap_cli.poses.correction.degeneracy import DistanceScale, keep_across, weak_axis
+from gridmap_cli.poses.correction.degeneracy import (
+    DistanceScale,
+    keep_across,
+    unchosen_slide,
+    weak_axis,
+)
 from gridmap_cli.poses.correction.planar import (
     placed_points,
     planar_pose,
     planar_sheet,
     pose_matrix,
 )
-from gridmap_cli.poses.correction.relocate import (
-    MOVED_M,
-    odometry_gaps,
-    relocate,
-    typical_fit,
-)
+from gridmap_cli.poses.correction.relocate import MOVED_M, odometry_gaps, relocate, typical_fit
 from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription
@@ -436,7 +438,8 @@ def _match_one(
     axis = weak_axis(hessian, params.degenerate_ratio, pose[2])
     if axis is not None:
         return keep_across(kept, pose, axis), DEGENERATE, fraction, axis
-    return pose, MATCHED, fraction, None
+    slid = unchosen_slide(hessian, planar, pose, kept, local.tree2d, params.inlier_m)
+    return pose if slid is None else keep_across(kept, pose, slid), MATCHED, fraction, None
 
 
 def match_log(
