@@ -140,7 +140,7 @@ def test_a_slide_the_scan_does_not_choose_is_taken_back() -> None:
     truth = (0.0, 0.0, 0.0)
     scan = seen_from(world, truth, 8.0)
     slid = (1.0, 0.02, 0.0)
-    along = unchosen_slide(corridor_hessian(0.0), scan, slid, truth, tree, 0.15)
+    along = unchosen_slide(corridor_hessian(0.0), scan, slid, truth, tree, 0.15, 1.0)
     assert along is not None and abs(float(along[0])) == pytest.approx(1.0, abs=1e-6)
     assert keep_across(truth, slid, along) == pytest.approx((0.0, 0.02, 0.0), abs=1e-6)
 
@@ -154,7 +154,7 @@ def test_a_slide_to_where_the_scan_fits_better_stands() -> None:
     scan = seen_from(world, truth, 8.0)
     guess = (-0.8, 0.0, 0.0)
     assert fit(scan, guess, tree) < fit(scan, truth, tree) - 0.05
-    assert unchosen_slide(corridor_hessian(0.0), scan, truth, guess, tree, 0.15) is None
+    assert unchosen_slide(corridor_hessian(0.0), scan, truth, guess, tree, 0.15, 1.0) is None
 
 
 def test_a_small_move_or_one_across_the_weak_direction_is_no_slide() -> None:
@@ -166,4 +166,18 @@ def test_a_small_move_or_one_across_the_weak_direction_is_no_slide() -> None:
     hessian = corridor_hessian(0.0)
     for guess in ((-0.1, 0.0, 0.0), (0.0, -0.5, 0.0)):
         pose = (0.0, 0.0, 0.0)
-        assert unchosen_slide(hessian, scan, pose, guess, tree, 0.15) is None
+        assert unchosen_slide(hessian, scan, pose, guess, tree, 0.15, 1.0) is None
+
+
+def test_a_slide_longer_than_the_odometry_step_is_left_to_the_match() -> None:
+    """The odometry said the robot moved 0.05 m and the match moved it 1 m along the corridor:
+    an increment that short (a stop, or odometry stamped in bursts) is no place to go back to,
+    however little the scan chooses between the two; with a 1.2 m step it is."""
+    world = corridor_points(1.0, None)
+    tree = cKDTree(world)
+    truth = (0.0, 0.0, 0.0)
+    scan = seen_from(world, truth, 8.0)
+    slid = (1.0, 0.0, 0.0)
+    hessian = corridor_hessian(0.0)
+    assert unchosen_slide(hessian, scan, slid, truth, tree, 0.15, 0.05) is None
+    assert unchosen_slide(hessian, scan, slid, truth, tree, 0.15, 1.2) is not None

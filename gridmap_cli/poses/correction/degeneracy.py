@@ -10,10 +10,9 @@ loop closure stretches or shrinks the corridor instead of bending the rest of th
 - :func:`weak_axis`: the weak translation direction of a match, from its Hessian.
 - :func:`keep_across`: a matched pose with its correction along the weak axis taken out.
 - :func:`unchosen_slide`: a match that slid along its least constrained direction where the
-  scan does not choose between the slide and the odometry: a corridor with a door or two is
-  far from degenerate by its Hessian, and GICP from a start a step away (a retry at another
-  heading, say) can slide a metre along it into a minimum that fits no better than where the
-  odometry put the robot.
+  scan does not choose between the slide and the odometry's place: a corridor with a door or
+  two is far from degenerate by its Hessian, and GICP from a retry's start can slide most of a
+  step along it into a minimum that fits no better than where the odometry put the robot.
 - :func:`weak_stretch`: how far a stretch of the track went along weak axes, and which way.
 - :class:`DistanceScale`: the odometry's distance scale, learned from the steps that matched in
   every direction, so that "the odometry along the corridor" is the odometry with its scale
@@ -83,14 +82,17 @@ def unchosen_slide(
     guess: tuple[float, float, float],
     local: cKDTree,
     inlier_m: float,
+    step_m: float,
 ) -> FloatArray | None:
     """The least constrained direction (unit vector (2,), map frame) of a match that moved the
-    pose from ``guess`` along it by more than ``inlier_m``, when the scan does not choose the
-    move: of its ``planar`` points (K, 2, robot frame), those within ``inlier_m`` of the
-    ``local`` map's points at ``pose`` and not with the move taken back (:func:`keep_across`)
-    do not outnumber those the other way round by twice their chance spread (a sign test:
-    with no preference either way each such point falls either way at even odds, so the excess
-    of n of them spreads by sqrt(n)). None otherwise: the scan chose the place.
+    pose from the odometry's ``guess`` along it by more than ``inlier_m`` and no more than the
+    odometry's step (``step_m``), when the scan does not choose the move: of its ``planar``
+    points (K, 2, robot frame), those within ``inlier_m`` of the ``local`` map's points at
+    ``pose`` and not with the move taken back (:func:`keep_across`) do not outnumber those the
+    other way round by twice their chance spread (a sign test: with no preference either way
+    each such point falls either way at even odds, so the excess of n of them spreads by
+    sqrt(n)). None otherwise: the scan chose the place, or the odometry's increment, shorter
+    than the move, is no place to go back to (a stop, or a clock that stamps in bursts).
     ``hessian`` (6, 6): small_gicp's, as :func:`weak_axis` reads it."""
     if math.hypot(pose[0] - guess[0], pose[1] - guess[1]) <= inlier_m or len(planar) == 0:
         return None
@@ -98,7 +100,8 @@ def unchosen_slide(
     c, s = math.cos(pose[2]), math.sin(pose[2])
     u = vectors[:, 0]
     axis = np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
-    if abs(float(axis @ np.array([pose[0] - guess[0], pose[1] - guess[1]]))) <= inlier_m:
+    along = abs(float(axis @ np.array([pose[0] - guess[0], pose[1] - guess[1]])))
+    if along <= inlier_m or along > step_m:
         return None
     at, _ = local.query(placed_points(planar, pose), distance_upper_bound=inlier_m)
     back, _ = local.query(

@@ -13,8 +13,8 @@ A match is judged before it is trusted (``docs/scan-matching.md``):
 - *degenerate*: the translation is constrained in one direction only (a featureless corridor):
   the correction is kept across the corridor and the odometry is kept along it, its distance
   scale corrected by what the fully constrained steps measured (:mod:`.degeneracy`);
-- *slid* along its least constrained direction, where the scan fits as well without the slide
-  (:func:`.degeneracy.unchosen_slide`): the odometry is kept along it, the match across it.
+- *slid* along its least constrained direction by up to the odometry's step, where the scan does
+  not choose the slide (:func:`.degeneracy.unchosen_slide`): the odometry is kept along it.
 
 Frames: the corrected track is in the odometry frame, from the odometry's pose at the first
 scan; poses between scans carry the odometry with the correction interpolated between scans.
@@ -438,7 +438,7 @@ def _match_one(
     axis = weak_axis(hessian, params.degenerate_ratio, pose[2])
     if axis is not None:
         return keep_across(kept, pose, axis), DEGENERATE, fraction, axis
-    slid = unchosen_slide(hessian, planar, pose, kept, local.tree2d, params.inlier_m)
+    slid = unchosen_slide(hessian, planar, pose, kept, local.tree2d, params.inlier_m, step_m)
     return pose if slid is None else keep_across(kept, pose, slid), MATCHED, fraction, None
 
 
