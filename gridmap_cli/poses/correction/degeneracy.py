@@ -50,8 +50,18 @@ def weak_axis(hessian: FloatArray, ratio: float, theta_rad: float) -> FloatArray
     values, vectors = np.linalg.eigh(hessian[3:5, 3:5])
     if values[1] > 0 and values[0] / values[1] >= ratio:
         return None
+    return _in_map(vectors[:, 0], theta_rad)
+
+
+def _least_axis(hessian: FloatArray, theta_rad: float) -> FloatArray:
+    """The x, y block's least constrained direction, a unit vector (2,) in the map frame."""
+    _, vectors = np.linalg.eigh(hessian[3:5, 3:5])
+    return _in_map(vectors[:, 0], theta_rad)
+
+
+def _in_map(u: FloatArray, theta_rad: float) -> FloatArray:
+    """``u`` (2,), robot frame, turned into the map frame by the matched heading."""
     c, s = math.cos(theta_rad), math.sin(theta_rad)
-    u = vectors[:, 0]
     return np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
 
 
@@ -94,12 +104,10 @@ def unchosen_slide(
     sqrt(n)). None otherwise: the scan chose the place, or the odometry's increment, shorter
     than the move, is no place to go back to (a stop, or a clock that stamps in bursts).
     ``hessian`` (6, 6): small_gicp's, as :func:`weak_axis` reads it."""
+    # most matches move less than the band in all: no eigenvectors for them
     if math.hypot(pose[0] - guess[0], pose[1] - guess[1]) <= inlier_m or len(planar) == 0:
         return None
-    _, vectors = np.linalg.eigh(hessian[3:5, 3:5])
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    u = vectors[:, 0]
-    axis = np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
+    axis = _least_axis(hessian, pose[2])
     along = abs(float(axis @ np.array([pose[0] - guess[0], pose[1] - guess[1]])))
     if along <= inlier_m or along > step_m:
         return None
