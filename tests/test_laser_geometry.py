@@ -6,6 +6,7 @@ taken from the scans (the ROS 1 bags of tests/readers/pioneer_bag.py)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -188,3 +189,61 @@ def test_batch_maps_a_laser_without_odometry_and_says_so(laser_alone: Path, tmp_
     (report,) = [json.loads(line) for line in (out / "batch-report.jsonl").read_text().splitlines()]
     assert report["status"] == "built"
     assert report["warnings"] == ["no odometry: motion from the scans"]
+
+
+@pytest.fixture(scope="module")
+def sparse_alone(pioneer: tuple[Path, RangeLog]) -> Path:
+    """The Pioneer bag without its odometry and with one scan in twelve: half a metre or more
+    between scans, as a log thinned to a scan per stretch driven keeps them."""
+    folder, log = pioneer
+    stamps = np.unique(log.readings.stamp_ns)[::12]
+    keep = np.isin(log.readings.stamp_ns, stamps)
+    r = log.readings
+    thinned = dataclasses.replace(
+        log,
+        readings=dataclasses.replace(
+            r, stamp_ns=r.stamp_ns[keep], sensor=r.sensor[keep], range_m=r.range_m[keep]
+        ),
+    )
+    return write_pioneer_bag(thinned, folder / "sparse-alone.bag", odometry=False)
+
+
+def test_a_laser_without_odometry_warns_where_its_scans_are_far_apart(
+    sparse_alone: Path, laser_alone: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "map.png"
+    for pose in ("slam", "scan-matched", "auto"):
+        code, stdout, stderr = run(
+            "build", str(sparse_alone), "-o", str(out), "--pose", pose, "--force", "--json"
+        )
+        assert code == 0, stderr
+        summary = json.loads(stdout)
+        assert summary["motion"] == "no odometry: motion from the scans"
+        (line,) = [w for w in stderr.splitlines() if "m apart" in w]
+        found = re.search(r"the scans are ([0-9.]+) m apart", line)
+        assert found is not None and float(found.group(1)) > 0.15
+        assert f"--pose {pose}: no odometry, and the scans are " in line
+        assert line.endswith("check the map")
+    # the full-rate bag: its scans a few centimetres apart, nothing to warn of
+    code, stdout, stderr = run("build", str(laser_alone), "-o", str(out), "--force", "--json")
+    assert code == 0, stderr
+    assert json.loads(stdout)["motion"] == "no odometry: motion from the scans"
+    assert "m apart" not in stderr
+
+
+def test_a_laser_without_odometry_falls_back_from_a_failing_graph(
+    laser_alone: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The fallback places the scans with the matcher's track, itself carried by the motion
+    from the scans (the log has no odometry to carry it)."""
+    from gridmap_cli.poses import sources
+
+    monkeypatch.setattr(sources, "graph_failure", lambda result: "forced for the test")
+    out = tmp_path / "map.png"
+    code, stdout, stderr = run("build", str(laser_alone), "-o", str(out), "--json")
+    assert code == 0, stderr
+    summary = json.loads(stdout)
+    assert summary["pose_choice"]["source"] == "scan-matched"
+    assert summary["motion"] == "no odometry: motion from the scans"
+    assert "mapped with the scan-matched track instead" in stderr
+    assert out.exists()

@@ -9,9 +9,16 @@ import math
 import numpy as np
 
 from gridmap_cli.geometry import wrap_angle
+from gridmap_cli.poses.correction.relocate import half_share
 from gridmap_cli.poses.correction.scan_match import ScanMatchParams, laser_scans
-from gridmap_cli.poses.correction.scan_odometry import ScanOdometryParams, _Keyframes, scan_odometry
+from gridmap_cli.poses.correction.scan_odometry import (
+    ScanOdometryParams,
+    _Keyframes,
+    far_apart,
+    scan_odometry,
+)
 from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
+from gridmap_cli.records import PoseTrack
 from gridmap_cli.robot import load_robot
 from gridmap_cli.sim.path import WaypointPath
 from gridmap_cli.sim.simulate import simulate
@@ -69,3 +76,30 @@ def test_a_match_that_fits_worse_than_usual_is_searched_for() -> None:
     assert fit >= 0.95
     assert math.hypot(x - tx[6], y - ty[6]) < 0.05
     assert abs(math.degrees(float(wrap_angle(th - tth[6])))) < 1.0
+
+
+def _straight(steps_m: list[float]) -> PoseTrack:
+    x = np.concatenate([[0.0], np.cumsum(steps_m)])
+    zero = np.zeros(len(x))
+    return PoseTrack(stamp_ns=np.arange(len(x), dtype=np.int64), x_m=x, y_m=zero, theta_rad=zero)
+
+
+def test_scans_further_apart_than_the_inlier_band_are_warned_of() -> None:
+    band = ScanOdometryParams().inlier_m
+    warning = far_apart(_straight([1.0] * 20))
+    assert warning is not None and "the scans are 1.00 m apart" in warning
+    assert f"{band:g} m inlier band" in warning
+    # a full-rate laser: a few centimetres a scan, and long stops, nothing to warn of
+    assert far_apart(_straight([0.05] * 200 + [0.0] * 500)) is None
+    # a robot that stood still or a single scan: no step at all
+    assert far_apart(_straight([0.0] * 10)) is None
+    assert far_apart(_straight([])) is None
+    # stops do not hide the spacing of the scans where it drove
+    assert far_apart(_straight([0.0] * 1000 + [0.6] * 30)) is not None
+
+
+def test_half_share_is_the_length_half_the_total_is_made_of() -> None:
+    # 1 + 1 + 1 + 10: the 10 alone is more than half of 13
+    assert half_share(np.array([1.0, 10.0, 1.0, 1.0])) == 10.0
+    assert half_share(np.array([2.0, 2.0, 2.0])) == 2.0
+    assert half_share(np.array([0.0, 0.0, 3.0])) == 3.0

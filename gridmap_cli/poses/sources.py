@@ -210,10 +210,10 @@ def scan_matched_poses(
     """The odometry corrected by registering each laser scan against the ones before it."""
     from gridmap_cli.poses.correction.scan_match import scan_matched_log  # scipy, small_gicp
 
-    log, motion = _scan_motion(log, robot, settings)
+    log, motion, warnings = _scan_motion(log, robot, settings, "scan-matched")
     placed, match = scan_matched_log(log, robot, progress=settings.progress)
     return PosedLog(placed, "scan-matched", match=match, summary={"scan_match": match.summary()},
-                    motion=motion)  # fmt: skip
+                    warnings=warnings, motion=motion)  # fmt: skip
 
 
 def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSettings) -> PosedLog:
@@ -221,7 +221,7 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
     when ``settings`` asks for it."""
     from gridmap_cli.poses.correction.slam import slam_corrected_log  # gtsam: only here
 
-    log, motion = _scan_motion(log, robot, settings)
+    log, motion, early = _scan_motion(log, robot, settings, "slam")
     placed, slam = slam_corrected_log(log, robot, progress=settings.progress)
     summary = slam.summary()
     belief = None
@@ -230,7 +230,7 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
 
         belief = slam_belief(slam, settings.belief_samples, settings.belief_seed)
         summary["belief_noise_scale"] = [round(f, 3) for f in belief.scale]
-    warnings = [f"{given('pose', 'slam')}: {slam.warning}"] if slam.warning else []
+    warnings = [*early, *([f"{given('pose', 'slam')}: {slam.warning}"] if slam.warning else [])]
     check = None
     if slam.scans is not None:
         from gridmap_cli.poses.correction.free_space import check_poses
@@ -246,15 +246,19 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
 
 
 def _scan_motion(
-    log: RangeLog, robot: RobotDescription | None, settings: PoseSettings
-) -> tuple[RangeLog, str | None]:
+    log: RangeLog, robot: RobotDescription | None, settings: PoseSettings, source: str
+) -> tuple[RangeLog, str | None, tuple[str, ...]]:
     """``log`` as the scan matcher takes it: a log read without odometry (a hand-held laser)
-    gets a track chained from its scans, and the note that says so; any other log as it is."""
+    gets a track chained from its scans, the note that says so, and the warning of scans too
+    far apart for such a track (:func:`.scan_odometry.far_apart`, for the pose ``source``);
+    any other log as it is."""
     if log.odometry_missing is None or len(log.poses):
-        return log, None
-    from gridmap_cli.poses.correction.scan_odometry import MOTION_NOTE, with_scan_motion
+        return log, None, ()
+    from gridmap_cli.poses.correction.scan_odometry import MOTION_NOTE, far_apart, with_scan_motion
 
-    return with_scan_motion(log, robot, progress=settings.progress), MOTION_NOTE
+    moving = with_scan_motion(log, robot, progress=settings.progress)
+    warning = far_apart(moving.poses)
+    return moving, MOTION_NOTE, () if warning is None else (f"{given('pose', source)}: {warning}",)
 
 
 def auto_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSettings) -> PosedLog:
@@ -276,6 +280,17 @@ def auto_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
             return _chosen(posed, "global", "no laser, no odometry", (why,))
         check_needs(pose_source("odometry"), log, robot)
         return _chosen(odometry_poses(log, robot, settings), "odometry", "no laser")
+    # the motion from the scans made once, here: a fallback from the graph's track needs it too
+    log, motion, early = _scan_motion(log, robot, settings, "auto")
+    chosen = _laser_choice(log, robot, settings)
+    return dataclasses.replace(chosen, warnings=(*early, *chosen.warnings), motion=motion)
+
+
+def _laser_choice(
+    log: RangeLog, robot: RobotDescription | None, settings: PoseSettings
+) -> PosedLog:
+    """The automatic choice for a log with a laser and a track to correct (see
+    :func:`auto_poses`)."""
     posed = slam_poses(log, robot, settings)
     slam = posed.slam
     assert slam is not None

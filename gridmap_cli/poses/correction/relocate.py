@@ -106,9 +106,15 @@ def usual_interval(stamps_ns: npt.NDArray[np.int64]) -> float:
     stamps messages in bursts (several at nearly the same time, then a wait) has a median
     interval of almost nothing, so that every step would look like a gap; weighted by time, the
     wait between bursts is the usual interval, as it is the robot's real rate."""
-    ordered = np.sort(np.diff(stamps_ns).astype(np.float64))
-    elapsed = np.cumsum(ordered)
-    return float(ordered[min(int(np.searchsorted(elapsed, 0.5 * elapsed[-1])), len(ordered) - 1)])
+    return half_share(np.diff(stamps_ns).astype(np.float64))
+
+
+def half_share(lengths: FloatArray) -> float:
+    """The length (of ``lengths`` (K,), K >= 1, none negative) that half their sum is made of:
+    their median weighted by themselves."""
+    ordered = np.sort(lengths)
+    total = np.cumsum(ordered)
+    return float(ordered[min(int(np.searchsorted(total, 0.5 * total[-1])), len(ordered) - 1)])
 
 
 def typical_fit(fractions: FloatArray, floor: float) -> float:

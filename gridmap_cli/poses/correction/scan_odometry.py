@@ -36,7 +36,7 @@ from gridmap_cli.poses.correction.planar import (
     planar_sheet,
     pose_matrix,
 )
-from gridmap_cli.poses.correction.relocate import TypicalFit, relocate
+from gridmap_cli.poses.correction.relocate import TypicalFit, half_share, relocate
 from gridmap_cli.poses.correction.scan_match import (
     Progress,
     ScanMatchParams,
@@ -244,3 +244,24 @@ def with_scan_motion(
     scans = laser_scans(log, sensors_for_log(log, robot), ScanMatchParams())
     track = scan_odometry(scans, params, progress)
     return dataclasses.replace(log, poses=track)
+
+
+def far_apart(track: PoseTrack, params: ScanOdometryParams | None = None) -> str | None:
+    """What a track from the scans (:func:`scan_odometry`) cannot promise, or None: scans
+    further apart than the inlier band (the step half the track's distance is driven in, so
+    that stops do not count). A prediction off by a whole step then puts a scan outside the
+    band, and in a corridor its walls fit as well wherever along it the scan is placed: the
+    motion along it is the prediction's guess, and the free-space check cannot see a corridor
+    shortened or stretched that the robot drove once."""
+    band = (params or ScanOdometryParams()).inlier_m
+    steps = np.hypot(np.diff(track.x_m), np.diff(track.y_m))
+    if len(steps) == 0 or not steps.any():
+        return None
+    spacing = half_share(steps)
+    if spacing <= band:
+        return None
+    return (
+        f"no odometry, and the scans are {spacing:.2f} m apart, more than the scan matcher's "
+        f"{band:g} m inlier band: along a corridor the scans alone may not tell how far the "
+        "robot went between them; check the map"
+    )
