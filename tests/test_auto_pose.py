@@ -60,6 +60,10 @@ def test_a_graph_that_fails_its_check_falls_back_with_a_warning(
     assert chosen in ("scan-matched", "odometry")
     assert "--pose auto: the pose graph failed its own check" in stderr
     assert f"mapped with the {chosen} track instead" in stderr
+    # trajectory writes the fallback's track and gives the same warning
+    code, _, stderr = run("trajectory", str(laser_log), "-o", str(tmp_path / "t.csv"))
+    assert code == 0, stderr
+    assert "Warning: --pose auto: the pose graph failed its own check" in stderr
     # --pose slam maps with the graph whatever its check says: not the fallback's map
     code, _, stderr = _build(laser_log, tmp_path / "slam.png", "--pose", "slam")
     assert code == 0

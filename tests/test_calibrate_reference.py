@@ -80,3 +80,22 @@ def test_a_scan_matched_track_against_itself_is_a_usage_error(tmp_path: Path) ->
     )  # fmt: skip
     assert code == 2 and err.startswith("Error: --pose scan-matched --reference slam:")
     assert len(err.splitlines()) == 1
+
+
+def test_a_reference_the_pose_graph_warns_of_is_warned_of(
+    tmp_path: Path, laser_log: RangeLog, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A calibration is only as good as its reference: the graph's warnings reach the user."""
+    pytest.importorskip("gtsam")
+    from gridmap_cli.poses.correction import slam
+
+    monkeypatch.setattr(slam, "BEND_WARN_SIGMA", -1.0)  # every closure now "bends" the track
+    bare = tmp_path / "bare.csv"
+    save_csv_log(dataclasses.replace(laser_log, truth=None), bare)
+    out = tmp_path / "odo.yaml"
+    code, _, stderr = run("calibrate", str(bare), "--reference", "slam", "-o", str(out))
+    assert code == 0, stderr
+    assert "Warning: --pose slam: the loop closures bend the scan-matched track" in stderr
+    code, _, stderr = run("calibrate", str(bare), "--reference", "slam", "-o", str(out),
+                          "--force", "--quiet")  # fmt: skip
+    assert code == 0 and "Warning" not in stderr

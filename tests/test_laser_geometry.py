@@ -224,6 +224,10 @@ def test_a_laser_without_odometry_warns_where_its_scans_are_far_apart(
         assert found is not None and float(found.group(1)) > 0.15
         assert f"--pose {pose}: no odometry, and the scans are " in line
         assert line.endswith("check the map")
+    # trajectory, which writes the same track, says so too
+    code, _, stderr = run("trajectory", str(sparse_alone), "-o", str(tmp_path / "t.csv"))
+    assert code == 0, stderr
+    assert "Warning: --pose auto: no odometry, and the scans are " in stderr
     # the full-rate bag: its scans a few centimetres apart, nothing to warn of
     code, stdout, stderr = run("build", str(laser_alone), "-o", str(out), "--force", "--json")
     assert code == 0, stderr

@@ -23,6 +23,7 @@ from gridmap_cli.cli.common import (
     quiet_option,
     read_input,
     selection_options,
+    warn,
 )
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import InputFileError, UsageError
@@ -166,7 +167,7 @@ def calibrate(
     if corrected:
         data = _corrected(log, data, robot, quiet, pose)
     elif reference != "truth":
-        data = _own_reference(log, data, robot, reference)
+        data = _own_reference(log, data, robot, reference, quiet)
     result = calibrate_log(data, window_m, math.radians(window_deg), sonar_error)
     if output is not None:
         save_odometry_error(
@@ -220,13 +221,16 @@ def _no_reference(path: Path, data: RangeLog, robot: str | None) -> None:
     )
 
 
-def _own_reference(path: Path, data: RangeLog, robot: str | None, reference: str) -> RangeLog:
-    """The log with its reference replaced by gridmap's own correction of its odometry."""
+def _own_reference(
+    path: Path, data: RangeLog, robot: str | None, reference: str, quiet: bool
+) -> RangeLog:
+    """The log with its reference replaced by gridmap's own correction of its odometry, with
+    the warnings of the correction (a reference that failed its checks calibrates nothing)."""
     from gridmap_cli.poses.correction.scan_match import NoLaserError
 
     description = _robot(path, data, robot)
     try:
-        corrected = pose_source(reference).run(data, description).log
+        posed = pose_source(reference).run(data, description)
     except NoLaserError as exc:
         kinds = sorted({s.kind for s in sensors_for_log(data, description)}) or ["none"]
         raise NoLaserError(
@@ -234,7 +238,8 @@ def _own_reference(path: Path, data: RangeLog, robot: str | None, reference: str
             f"and the log has none (its range sensors: {', '.join(kinds)}); calibrate needs a "
             "reference track or a laser"
         ) from exc
-    return dataclasses.replace(data, truth=corrected.poses)
+    warn(posed.warnings, quiet)
+    return dataclasses.replace(data, truth=posed.log.poses)
 
 
 def _corrected(path: Path, data: RangeLog, robot: str | None, quiet: bool, pose: str) -> RangeLog:
@@ -244,6 +249,7 @@ def _corrected(path: Path, data: RangeLog, robot: str | None, quiet: bool, pose:
     description = _robot(path, data, robot)
     with StageBars(quiet) as bars:
         posed = pose_source(pose).run(data, description, PoseSettings(progress=bars))
+    warn(posed.warnings, quiet)
     track = posed.log.poses
     if posed.slam is None and posed.match is not None:
         track = posed.match.track

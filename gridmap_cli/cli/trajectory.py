@@ -23,6 +23,7 @@ from gridmap_cli.cli.common import (
     logs_argument,
     quiet_option,
     topic_options,
+    warn,
 )
 from gridmap_cli.cli.progress import StageBars, reading
 from gridmap_cli.errors import GridmapError
@@ -241,11 +242,12 @@ def _report(
     click.echo(line + f" in {summary['seconds']:.1f} s", err=True)
     if cov_path is not None:
         click.echo(f"gridmap: each pose's covariance -> {cov_path}", err=True)
-    if posed.slam is not None and posed.slam.warning:
-        click.echo(f"gridmap: warning: {posed.slam.warning}", err=True)
+    # every warning the pose source gave, as build prints them: the graph's own, a failing
+    # free-space check, the automatic choice's fallback, scans too far apart to chain
+    warn(posed.warnings)
     if clock is not None and (clock.searched or clock.offset_s is None):
-        warn = "" if clock.offset_s is not None else "warning: scored on the log's clock: "
-        click.echo(f"gridmap: relations: {warn}{clock.message()}", err=True)
+        caveat = "" if clock.offset_s is not None else "warning: scored on the log's clock: "
+        click.echo(f"gridmap: relations: {caveat}{clock.message()}", err=True)
     relations = summary.get("relations")
     if isinstance(relations, dict):
         r = relations
