@@ -13,6 +13,7 @@ import pytest
 from gridmap_cli.errors import InputFileError
 from gridmap_cli.evaluation.relations import (
     find_clock_offset,
+    moved_to,
     on_logged_clock,
     printed_step_ns,
     read_relations,
@@ -20,7 +21,7 @@ from gridmap_cli.evaluation.relations import (
     score_track,
 )
 from gridmap_cli.records import MovedStamps, PoseTrack
-from tests.helpers import names, run
+from tests.helpers import names, run, simulated_laser_log
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 
@@ -305,3 +306,42 @@ def test_trajectory_finds_and_says_the_clock_offset(tmp_path: Path) -> None:
     code, stdout, stderr = run(*args, "--relations", str(rel), "--relations-offset", "5000.5")
     assert code == 0 and "found from the stamps" not in stderr
     assert "translation 0.000" not in stderr
+
+
+def test_relations_of_another_point_of_the_robot_score_the_lever_arm() -> None:
+    """Relations of a point 0.3 m ahead of the track's: the turning relations are off by
+    2 d sin(a/2); the track moved to that point scores zero."""
+    track = _circle()
+    ahead = moved_to(track, 0.3, 0.0)
+    relations = read_relations(io.StringIO(_relations_of(ahead, PAIRS)))
+    assert score_track(track, relations).trans_mean_m > 0.05
+    assert score_track(ahead, relations).trans_mean_m == pytest.approx(0.0, abs=1e-6)
+    np.testing.assert_array_equal(ahead.theta_rad, track.theta_rad)
+    assert math.hypot(ahead.x_m[0] - track.x_m[0], ahead.y_m[0] - track.y_m[0]) == (
+        pytest.approx(0.3)
+    )
+
+
+def test_trajectory_scores_the_lasers_point_too(tmp_path: Path) -> None:
+    """A robot whose laser sits 0.16 m ahead of base_link (p3at-lms200), relations of the
+    laser's point: trajectory gives both figures, the laser's near zero."""
+    log = simulated_laser_log(tmp_path)
+    out = tmp_path / "ref.tum"
+    code, _, stderr = run("trajectory", str(log), "--pose", "global", "-o", str(out))
+    assert code == 0, stderr
+    rows = np.loadtxt(out)
+    track = PoseTrack.from_rows(
+        np.round(rows[:, 0] * 1e9).astype(np.int64),
+        [(r[1], r[2], 2 * math.atan2(r[6], r[7])) for r in rows],
+    )
+    n = len(rows)
+    pairs = [(k, k + n // 3) for k in range(0, n - n // 3, max(1, n // 40))]
+    rel = _sample_relations(tmp_path, _relations_of(moved_to(track, 0.16, 0.0), pairs))
+    code, stdout, stderr = run("trajectory", str(log), "--pose", "global", "-o", str(out),
+                               "--force", "--relations", str(rel), "--json")  # fmt: skip
+    assert code == 0, stderr
+    scored = json.loads(stdout)["relations"]
+    assert scored["trans_mean_m"] > 0.02
+    assert scored["at_laser"]["laser_m"] == [0.16, 0.0]
+    assert scored["at_laser"]["trans_mean_m"] < 1e-3
+    assert "relations of the laser's point (0.16, 0) m from base_link instead" in stderr

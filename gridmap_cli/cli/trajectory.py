@@ -32,6 +32,7 @@ from gridmap_cli.evaluation.relations import (
     Relations,
     find_clock_offset,
     logged_stamps,
+    moved_to,
     read_relations,
     reordered_on_logged_clock,
     score_track,
@@ -45,6 +46,7 @@ from gridmap_cli.poses.sources import (
     pose_source,
     source_names,
 )
+from gridmap_cli.poses.sync import laser_point
 from gridmap_cli.readers import read_logs
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.records import PoseTrack, RangeLog
@@ -152,7 +154,10 @@ def trajectory(
     summary["poses"] = len(track)
     clock: ClockOffset | None = None  # found from the stamps when no offset is given
     if relations is not None:
-        summary["relations"], clock = _scored(scored, truth, data, relations, relations_offset)
+        laser = laser_point(data, robot_desc)
+        summary["relations"], clock = _scored(
+            scored, truth, data, relations, relations_offset, laser
+        )
     if data.moved_stamps is not None:
         # the log's own clock: a stamp the reader moved forward is written as the log gave it,
         # so the benchmark's relations (and evo) find this pose under the log's stamp
@@ -173,10 +178,15 @@ def _scored(
     data: RangeLog,
     relations: Path,
     relations_offset: float | None,
+    laser: tuple[float, float] | None = None,
 ) -> tuple[dict[str, object], ClockOffset | None]:
     """The track scored on the relations, on the clock offset given or found from the stamps.
     A corrected track is scored at every odometry stamp too (the track ``build`` maps with),
-    so a relation between two scans finds the pose the estimate gives at its time."""
+    so a relation between two scans finds the pose the estimate gives at its time. Where the
+    laser sits off base_link (``laser``, its point), the track of the laser's point is scored
+    too (``at_laser``): relations say the robot's relative pose, and which point of the robot
+    they are of decides a figure that turns (a lever arm d moves a relation that turns by a by
+    2 d sin(a/2))."""
     clock: ClockOffset | None = None
     offset = relations_offset
     if offset is None:
@@ -190,6 +200,12 @@ def _scored(
             + (why if clock is None else clock.message())
         )
     scored_summary: dict[str, object] = {**score.summary(), "offset_s": offset}
+    if laser is not None and laser != (0.0, 0.0):
+        at = score_track(
+            moved_to(scored, *laser), truth, moved_to(data.poses, *laser), offset_s=offset,
+            moved=data.moved_stamps,
+        )  # fmt: skip
+        scored_summary["at_laser"] = {"laser_m": list(laser), **at.summary()}
     if clock is not None:
         scored_summary["clock"] = clock.message()
     return scored_summary, clock
@@ -257,3 +273,12 @@ def _report(
             f"rotation {r['rot_mean_deg']:.2f} +/- {r['rot_std_deg']:.2f} deg",
             err=True,
         )
+        at = r.get("at_laser")
+        if isinstance(at, dict):
+            lx, ly = at["laser_m"]
+            click.echo(
+                f"gridmap: relations of the laser's point ({lx:g}, {ly:g}) m from base_link "
+                f"instead: translation {at['trans_mean_m']:.3f} +/- {at['trans_std_m']:.3f} m "
+                "(which point a benchmark's relations are of, its files do not say)",
+                err=True,
+            )

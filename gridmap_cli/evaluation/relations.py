@@ -223,6 +223,16 @@ def printed_step_ns(stamp_ns: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
     return step
 
 
+def moved_to(track: PoseTrack, x_m: float, y_m: float) -> PoseTrack:
+    """``track`` with each pose moved to the point (``x_m``, ``y_m``) of its own frame, its
+    heading kept: the track of that point of the robot (a laser's, say)."""
+    x, y, _ = compose(
+        track.x_m, track.y_m, track.theta_rad,
+        np.full(len(track.x_m), x_m), np.full(len(track.x_m), y_m), np.zeros(len(track.x_m)),
+    )  # fmt: skip
+    return PoseTrack(stamp_ns=track.stamp_ns, x_m=x, y_m=y, theta_rad=track.theta_rad.copy())
+
+
 def score_track(
     track: PoseTrack,
     relations: Relations,

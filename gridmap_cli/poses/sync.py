@@ -81,6 +81,19 @@ class SyncStats:
     below_min_range: int
 
 
+def laser_point(log: RangeLog, robot: RobotDescription | None) -> tuple[float, float] | None:
+    """The one point (x, y, robot frame) the log's laser beams start from; None without a
+    laser, with lasers at more than one point, or where the log's sensors are not described."""
+    from gridmap_cli.errors import GridmapError
+
+    try:
+        sensors = sensors_for_log(log, robot)
+    except GridmapError:
+        return None
+    points = {(s.x_m, s.y_m) for s in sensors if s.kind == "laser"}
+    return points.pop() if len(points) == 1 else None
+
+
 def sensors_for_log(log: RangeLog, robot: RobotDescription | None) -> tuple[RangeSensor, ...]:
     """Mounting geometry for each of the log's sensor names.
 
