@@ -240,3 +240,46 @@ def test_a_broken_graph_track_is_kept_with_a_warning_when_nothing_does_better(
     lines = [line for line in stderr.splitlines() if line.startswith("Warning:")]
     assert len(lines) == 1, stderr
     assert "kept it, no other track does better" in lines[0] and "check the map" in lines[0]
+
+
+def test_the_wide_look_meets_a_second_pass_drawn_beside_the_first() -> None:
+    """Out along y = 0 and back along y = 1.5: the passes never come within a metre, and
+    within two metres all along."""
+    x = np.concatenate([np.arange(0.0, 20.0, 0.5), np.arange(20.0, 0.0, -0.5)])
+    y = np.concatenate([np.zeros(40), np.full(40, 1.5)])
+    xyz = np.column_stack([x, y, np.zeros(80)])
+    assert len(fs.revisit_pairs(xyz)) == 0
+    wide = fs.revisit_pairs(xyz, fs.WIDE_M)
+    assert len(wide) >= 30
+    assert np.all(wide[:, 0] < 40) and np.all(wide[:, 1] >= 40)
+    # near pairs reach as far: each node with the next four
+    assert len(fs.near_pairs(10, 4)) == 9 + 8 + 7 + 6
+
+
+def test_a_pass_drawn_beside_the_first_is_warned_of(
+    laser_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A track whose second half lies 1.5 m to the side, the graph's own check passing (as it
+    does where the passes never meet within a metre): build warns, and maps with it."""
+    from gridmap_cli.poses.correction import slam
+
+    solve = slam.slam_log
+
+    def beside(*args: object, **kwargs: object) -> slam.SlamResult:
+        result = solve(*args, **kwargs)  # type: ignore[arg-type]
+        h = len(result.track.x_m) // 2
+        y = result.track.y_m.copy()
+        y[h:] += 1.5
+        moved = dataclasses.replace(result.track, y_m=y)
+        return dataclasses.replace(result, match=dataclasses.replace(result.match, track=moved))
+
+    monkeypatch.setattr(slam, "slam_log", beside)
+    code, stdout, stderr = run("build", str(laser_log), "-o", str(tmp_path / "s.png"),
+                               "--pose", "slam", "--json")  # fmt: skip
+    assert code == 0, stderr
+    summary = json.loads(stdout)["slam"]
+    assert not summary["free_space_check"]["fails"]
+    assert summary["free_space_check_wide"]["fails"]
+    (line,) = [w for w in stderr.splitlines() if "come within 2 m" in w]
+    assert line.startswith("Warning: --pose slam: where its passes come within 2 m of each other")
+    assert line.endswith("check the map")

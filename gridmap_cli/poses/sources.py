@@ -233,13 +233,22 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
     warnings = [*early, *([f"{given('pose', 'slam')}: {slam.warning}"] if slam.warning else [])]
     check = None
     if slam.scans is not None:
-        from gridmap_cli.poses.correction.free_space import check_poses
+        from gridmap_cli.poses.correction.free_space import WIDE_M, check_poses, wide_check
 
         # the graph's own check of this track (the same scans and poses)
         check = slam.free_space or check_poses(slam.track, slam.scans.points)
         summary["free_space_check"] = check.as_dict()
         if check.fails:
             warnings.append(f"{given('pose', 'slam')}: {check.reason()}; check the map")
+        else:
+            # a loop closed a corridor's width off passes the check above unjudged: warned of
+            wide = wide_check(slam.track, slam.scans.points)
+            summary["free_space_check_wide"] = wide.as_dict()
+            if wide.fails:
+                warnings.append(
+                    f"{given('pose', 'slam')}: where its passes come within {WIDE_M:g} m of "
+                    f"each other, {wide.reason()}; check the map"
+                )
     return PosedLog(placed, "slam", match=slam.match, slam=slam, belief=belief,
                     summary={"slam": summary}, warnings=tuple(warnings), motion=motion,
                     free_space=check)  # fmt: skip

@@ -37,7 +37,14 @@ echoes), a consistent track next to none.
 
 Several tracks of one log are judged against one noise (:func:`judged_together`): the least
 noisy of their near pairs, since each track's near pairs hold the sensor's noise plus that
-track's own short-step error. Numpy and scipy only; no file I/O.
+track's own short-step error.
+
+**The wide look** (:func:`wide_check`): the same check with revisits up to :data:`WIDE_M`
+apart and near pairs over as far (each node with the next four). A closure off by a corridor's
+width (one door or pillar along) draws the second pass beside the first and never within a
+metre of it; at two metres the passes meet. The graph does not act on it (its repairs and the
+automatic choice judge the check above); a track that fails it is warned of. Numpy and scipy
+only; no file I/O.
 """
 
 from __future__ import annotations
@@ -68,6 +75,8 @@ NEAR_STEPS = 2
 #: pair see the place from as far apart) and farther apart along the path than
 #: :data:`FAR_PATH_M` (the loop-closure search's shortest loop: no scan match related them).
 REVISIT_M = 1.0
+#: The wide look's revisits and near pairs: a corridor's width.
+WIDE_M = 2.0
 FAR_PATH_M = 8.0
 #: How deep inside another scan's free space an echo must lie to contradict it: a wall's
 #: thickness and what a good match leaves between two visits (the pose graph's closures are
@@ -350,24 +359,24 @@ def pair_shares(pairs: Ints, xyz: F64, points: list[F64], table: Polar) -> F64:
     return out
 
 
-def near_pairs(count: int) -> Ints:
-    """Each node slot with the next :data:`NEAR_STEPS` (P, 2)."""
+def near_pairs(count: int, steps: int = NEAR_STEPS) -> Ints:
+    """Each node slot with the next ``steps`` (P, 2)."""
     rows = [
         np.column_stack([np.arange(count - s), np.arange(s, count)])
-        for s in range(1, NEAR_STEPS + 1)
+        for s in range(1, steps + 1)
         if s < count
     ]
     return np.concatenate(rows).astype(np.intp) if rows else np.zeros((0, 2), dtype=np.intp)
 
 
-def revisit_pairs(xyz: F64) -> Ints:
-    """Node slots within :data:`REVISIT_M` of each other on the track (``xyz`` (N, 3)) and
-    more than :data:`FAR_PATH_M` apart along it (P, 2), in order."""
+def revisit_pairs(xyz: F64, radius_m: float = REVISIT_M) -> Ints:
+    """Node slots within ``radius_m`` of each other on the track (``xyz`` (N, 3)) and more
+    than :data:`FAR_PATH_M` apart along it (P, 2), in order."""
     if len(xyz) < 2:
         return np.zeros((0, 2), dtype=np.intp)
     steps = np.hypot(np.diff(xyz[:, 0]), np.diff(xyz[:, 1]))
     path = np.concatenate([[0.0], np.cumsum(steps)])
-    found = cKDTree(xyz[:, :2]).query_pairs(REVISIT_M, output_type="ndarray")
+    found = cKDTree(xyz[:, :2]).query_pairs(radius_m, output_type="ndarray")
     if len(found) == 0:
         return np.zeros((0, 2), dtype=np.intp)
     found = np.sort(found, axis=1)
@@ -389,14 +398,21 @@ def _spread(pairs: Ints, limit: int) -> Ints:
     return pairs[np.linspace(0, len(pairs) - 1, limit).round().astype(np.intp)]
 
 
-def check_track(xyz: F64, points: list[F64]) -> FreeSpaceCheck:
+def check_track(xyz: F64, points: list[F64], radius_m: float = REVISIT_M) -> FreeSpaceCheck:
     """The free-space check of the poses ``xyz`` (S, 3) of the scans ``points`` (S arrays (K, 2),
-    robot frame, echoes only), against the track's own near pairs."""
+    robot frame, echoes only), against the track's own near pairs; revisits within ``radius_m``
+    and near pairs over as far (:data:`NEAR_STEPS` per :data:`REVISIT_M`), so that both kinds
+    of pair see a place from as far apart."""
     if len(xyz) == 0:
         return FreeSpaceCheck(np.zeros(0), np.zeros(0), np.zeros((0, 2)), np.zeros((0, 2)))
     node_xyz, echoes, table = _node_scans(xyz, points)
-    near = pair_shares(_spread(near_pairs(len(node_xyz)), MAX_PAIRS), node_xyz, echoes, table)
-    far = pair_shares(_spread(revisit_pairs(node_xyz), MAX_PAIRS), node_xyz, echoes, table)
+    steps = round(NEAR_STEPS * radius_m / REVISIT_M)
+    near = pair_shares(
+        _spread(near_pairs(len(node_xyz), steps), MAX_PAIRS), node_xyz, echoes, table
+    )
+    far = pair_shares(
+        _spread(revisit_pairs(node_xyz, radius_m), MAX_PAIRS), node_xyz, echoes, table
+    )
     return FreeSpaceCheck(far[:, 0], far[:, 1], near, near)
 
 
@@ -426,8 +442,15 @@ def level_at(noise: F64, count: int) -> float:
     return max(TAIL_FACTOR * float(tail_at(noise, np.array([float(count)]))[0]), LEVEL_MIN)
 
 
-def check_poses(track: PoseTrack, points: list[F64]) -> FreeSpaceCheck:
+def check_poses(track: PoseTrack, points: list[F64], radius_m: float = REVISIT_M) -> FreeSpaceCheck:
     """:func:`check_track` of ``track``, one pose per scan of ``points``."""
     if len(track.x_m) != len(points):
         raise ValueError(f"{len(track.x_m)} poses for {len(points)} scans")
-    return check_track(np.column_stack([track.x_m, track.y_m, track.theta_rad]), points)
+    xyz = np.column_stack([track.x_m, track.y_m, track.theta_rad])
+    return check_track(xyz, points, radius_m)
+
+
+def wide_check(track: PoseTrack, points: list[F64]) -> FreeSpaceCheck:
+    """The wide look (see the module): :func:`check_poses` with revisits within
+    :data:`WIDE_M`."""
+    return check_poses(track, points, WIDE_M)
