@@ -75,9 +75,9 @@ NEAR_STEPS = 2
 #: pair see the place from as far apart) and farther apart along the path than
 #: :data:`FAR_PATH_M` (the loop-closure search's shortest loop: no scan match related them).
 REVISIT_M = 1.0
-#: The wide look's revisits and near pairs: a corridor's width.
-WIDE_M = 2.0
 FAR_PATH_M = 8.0
+#: The wide look's revisits and near pairs (:func:`wide_check`): a corridor's width.
+WIDE_M = 2.0
 #: How deep inside another scan's free space an echo must lie to contradict it: a wall's
 #: thickness and what a good match leaves between two visits (the pose graph's closures are
 #: held to 5 cm), so only a misplaced wall counts, not a blurred one.
