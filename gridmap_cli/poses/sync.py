@@ -84,8 +84,6 @@ class SyncStats:
 def laser_point(log: RangeLog, robot: RobotDescription | None) -> tuple[float, float] | None:
     """The one point (x, y, robot frame) the log's laser beams start from; None without a
     laser, with lasers at more than one point, or where the log's sensors are not described."""
-    from gridmap_cli.errors import GridmapError
-
     try:
         sensors = sensors_for_log(log, robot)
     except GridmapError:
