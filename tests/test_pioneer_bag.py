@@ -238,3 +238,61 @@ def test_a_scan_without_a_finite_range_max_is_refused_in_one_line(
         f"laser 'laser': need 0 <= range_min < range_max, range_max finite, got 0.0 and {range_max}"
     )
     assert not out.exists() and not out.with_suffix(".yaml").exists()
+
+
+def test_a_laser_mounted_upside_down_maps_as_an_upright_one(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    """A laser under a deck, TF rolling it by pi, sweeps the world right to left: its beams
+    are mirrored into the robot's frame, so the track and the map are the upright laser's."""
+    folder, log = pioneer
+    tracks = []
+    for name, tilt in (("upright", (0.0, 0.0)), ("under", (0.0, np.pi))):
+        bag = write_pioneer_bag(log, tmp_path / f"{name}.bag", laser_tilt=tilt)
+        out = tmp_path / f"{name}.tum"
+        code, _, stderr = run("trajectory", str(bag), "--pose", "slam", "-o", str(out))
+        assert code == 0, stderr
+        tracks.append(np.loadtxt(out))
+    upright, under = tracks
+    # the same world, but the writer's odd beams without echo fall on other beams once the
+    # scan is reversed: the same track to within what that changes in the matcher
+    assert np.abs(under[:, 1:3] - upright[:, 1:3]).max() < 0.05
+    assert f1(folder, tmp_path / "under.bag", "slam") >= 0.70
+    code, stdout, stderr = run("inspect", str(tmp_path / "under.bag"), "--json")
+    assert code == 0, stderr
+    froms = {s["mounting_from"] for s in json.loads(stdout)["log"]["sensors"]}
+    assert froms == {"TF, upside down"}
+
+
+def test_a_laser_sweeping_clockwise_reads_as_the_same_beams(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    """A driver that sends each scan from its left end (a negative angle_increment): the same
+    directions, so the same track."""
+    _, log = pioneer
+    tracks = []
+    for name, clockwise in (("anticlockwise", False), ("clockwise", True)):
+        bag = write_pioneer_bag(log, tmp_path / f"{name}.bag", clockwise=clockwise)
+        out = tmp_path / f"{name}.tum"
+        code, _, stderr = run("trajectory", str(bag), "--pose", "slam", "-o", str(out))
+        assert code == 0, stderr
+        tracks.append(np.loadtxt(out))
+    # the writer's odd beams without echo fall on other beams of the reversed scan
+    assert np.abs(tracks[1][:, 1:3] - tracks[0][:, 1:3]).max() < 0.05
+
+
+@pytest.mark.parametrize("pitch_deg", [60.0, 90.0])
+def test_a_laser_tilted_out_of_level_is_refused_in_one_line(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path, pitch_deg: float
+) -> None:
+    _, log = pioneer
+    tilt = (float(np.radians(pitch_deg)), 0.0)
+    bag = write_pioneer_bag(log, tmp_path / "tilted.bag", laser_tilt=tilt)
+    out = tmp_path / "map.png"
+    code, _, stderr = run("build", str(bag), "-o", str(out))
+    assert code == 1 and stderr.count("\n") == 1, stderr
+    assert stderr.strip().endswith(
+        f"laser 'laser' (/scan): TF tilts its scan plane {pitch_deg:.0f} degrees from the plane "
+        "of 'base_link': gridmap maps lasers that scan level (upright or upside down)"
+    )
+    assert not out.exists() and not out.with_suffix(".yaml").exists()

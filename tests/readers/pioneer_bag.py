@@ -52,13 +52,30 @@ def _quaternion(yaw: float) -> object:
     return T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
 
 
-def _transform(ns: int, parent: str, child: str, x: float, y: float, yaw: float) -> object:
+def _tilted(yaw: float, pitch: float, roll: float) -> object:
+    """The quaternion of yaw, then pitch, then roll (ROS's rpy)."""
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    return T["geometry_msgs/msg/Quaternion"](
+        x=sr * cp * cy - cr * sp * sy,
+        y=cr * sp * cy + sr * cp * sy,
+        z=cr * cp * sy - sr * sp * cy,
+        w=cr * cp * cy + sr * sp * sy,
+    )
+
+
+def _transform(
+    ns: int, parent: str, child: str, x: float, y: float, yaw: float, pitch: float = 0.0,
+    roll: float = 0.0,
+) -> object:  # fmt: skip
+    rotation = _quaternion(yaw) if pitch == roll == 0.0 else _tilted(yaw, pitch, roll)
     return T["geometry_msgs/msg/TransformStamped"](
         header=_header(0, ns, parent),
         child_frame_id=child,
         transform=T["geometry_msgs/msg/Transform"](
             translation=T["geometry_msgs/msg/Vector3"](x=x, y=y, z=0.0),
-            rotation=_quaternion(yaw),
+            rotation=rotation,
         ),
     )
 
@@ -77,6 +94,8 @@ def write_pioneer_bag(
     turning: bool = True,
     skewed: int = -1,
     range_max: float = 8.0,
+    laser_tilt: tuple[float, float] = (0.0, 0.0),
+    clockwise: bool = False,
 ) -> Path:
     """``log`` (a simulated run with one laser, ``laser_name``, beams ``laser_name_0``...) as a
     ROSARIA + SICK bag at ``target``. ``mounting``: the ``base_link -> laser`` transform (x, y,
@@ -91,7 +110,11 @@ def write_pioneer_bag(
     degrees, of which scan ``j`` of a turn takes beams ``j``, ``j + interleave``, ...;
     ``turning`` False gives every scan the first start angle (the same laser, constant). Scan
     number ``skewed`` gets an ``angle_max`` ten steps off its ranges. ``range_max``: the scans'
-    ``range_max`` field (a driver's bad one, say)."""
+    ``range_max`` field (a driver's bad one, say). ``laser_tilt``: the laser's pitch and roll
+    (rad) in its ``base_link -> laser`` transform; a roll of pi mounts it upside down, and its
+    ranges are written mirrored, as such a laser sees the world. ``clockwise``: each scan
+    from its left end to its right (``angle_min`` pi/2, a negative ``angle_increment``), as
+    some drivers send them; the same beams."""
     beams = [i for i, name in enumerate(log.sensor_names) if name.startswith(f"{laser_name}_")]
     order = np.argsort([int(log.sensor_names[i].rsplit("_", 1)[1]) for i in beams])
     beam_of = np.full(len(log.sensor_names), -1)
@@ -144,7 +167,7 @@ def write_pioneer_bag(
                 messages.append((ns + LATENCY_NS, odom2, msg))
             moving = [_transform(ns, "odom", "base_link", x, y, th)] if odometry else []
             if mounting is not None:
-                moving.append(_transform(ns, "base_link", laser_frame, *mounting))
+                moving.append(_transform(ns, "base_link", laser_frame, *mounting, *laser_tilt))
             if moving:
                 messages.append(
                     (ns + LATENCY_NS, tf, T["tf2_msgs/msg/TFMessage"](transforms=moving))
@@ -162,17 +185,23 @@ def write_pioneer_bag(
             ranges = every
             if interleave > 1:
                 ranges = np.ascontiguousarray(every[turn::interleave][: 180 + (turn == 0)])
+            if math.cos(laser_tilt[1]) < 0.0:  # upside down: the beams sweep right to left
+                ranges = np.ascontiguousarray(ranges[::-1])
             n_scan = len(ranges)
             odd = rng.random(n_scan) < 0.01  # the odd beam reads inf or nan
             ranges[odd & (rng.random(n_scan) < 0.5)] = np.inf
             ranges[odd & ~np.isinf(ranges)] = np.nan
             first = -math.pi / 2 + turn * fine
+            amin = first if interleave > 1 else -math.pi / 2
+            amax = first + (n_scan - 1) * step if interleave > 1 else math.pi / 2
+            inc = step
+            if clockwise:
+                ranges, amin, amax, inc = np.ascontiguousarray(ranges[::-1]), amax, amin, -step
             msg = T["sensor_msgs/msg/LaserScan"](
                 header=_header(seq, START_NS + int(ns), laser_frame),
-                angle_min=first if interleave > 1 else -math.pi / 2,
-                angle_max=(first + (n_scan - 1) * step if interleave > 1 else math.pi / 2)
-                + (10 * step if seq == skewed else 0.0),
-                angle_increment=step,
+                angle_min=amin,
+                angle_max=amax + (10 * inc if seq == skewed else 0.0),
+                angle_increment=inc,
                 time_increment=0.0,
                 scan_time=0.1,
                 range_min=0.0,

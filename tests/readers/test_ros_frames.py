@@ -112,3 +112,25 @@ def test_yaws_of_many_quaternions_are_yaw_of_each(yaw: float, roll: float, pitch
     many = _yaws(np.array([flat, tilted]))
     assert many[0] == pytest.approx(yaw_of(flat), abs=1e-12)
     assert many[1] == pytest.approx(yaw_of(tilted), abs=1e-12)
+
+
+@given(
+    st.floats(-math.pi, math.pi),
+    st.floats(-1.5, 1.5),
+    st.floats(-math.pi, math.pi),
+    st.floats(0.1, 10.0),
+)
+def test_up_is_the_z_axis_height_whatever_the_quaternion_norm(
+    yaw: float, pitch: float, roll: float, scale: float
+) -> None:
+    """Yaw, pitch, roll: the sensor's z axis ends at height cos(pitch) cos(roll), negative
+    when the sensor is turned upside down; a recorded quaternion of another norm says the same."""
+    chain = (
+        about((0.0, 0.0, 1.0), yaw)
+        .then(about((0.0, 1.0, 0.0), pitch))
+        .then(about((1.0, 0.0, 0.0), roll))
+    )
+    scaled = Transform(chain.translation, tuple(scale * v for v in chain.rotation))  # type: ignore[arg-type]
+    want = math.cos(pitch) * math.cos(roll)
+    assert math.isclose(chain.up(), want, abs_tol=1e-12)
+    assert math.isclose(scaled.up(), want, abs_tol=1e-12)

@@ -143,6 +143,14 @@ class Transform:
         """(x_m, y_m, yaw_rad) of the child frame in the parent frame's plane."""
         return self.translation[0], self.translation[1], yaw_of(self.rotation)
 
+    def up(self) -> float:
+        """The z component, in the parent frame, of the child frame's z axis: 1 for a child
+        level and upright, -1 for one turned upside down, whose x-y plane is the parent's
+        mirrored (a direction ``a`` to the child's left lies ``a`` to the parent's right)."""
+        x, y, z, w = self.rotation
+        # R33 of the rotation, the quaternion's norm divided out (recorded ones are not all unit)
+        return (w * w + z * z - x * x - y * y) / (x * x + y * y + z * z + w * w)
+
 
 IDENTITY = Transform((0.0, 0.0, 0.0), IDENTITY_ROTATION)
 

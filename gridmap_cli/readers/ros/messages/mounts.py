@@ -17,6 +17,10 @@ from gridmap_cli.readers.ros.frames import (
 from gridmap_cli.readers.ros.messages.fields import _transform
 from gridmap_cli.readers.ros.messages.state import _State
 
+#: A laser's scan plane tilted further than this from the base frame's plane (its z axis nearer
+#: level than upright or upside down) sees the floor or the ceiling, not the walls at its height.
+MAX_LASER_TILT_RAD = math.radians(45.0)
+
 
 class _Mounts(_State):
     """Transforms in; the base frame and sensor mountings out."""
@@ -75,6 +79,29 @@ class _Mounts(_State):
                 self.mount_from[frame] = "robot"
                 return known.x_m, known.y_m, known.yaw_rad
         return None
+
+    def _laser_turn(self, base: str, frame: str) -> float:
+        """How a laser's beam angles turn in the base frame: 1 as they are, -1 mirrored for a
+        laser that TF mounts upside down (its left the robot's right, as the field mounts them
+        under a deck); refused when TF tilts its scan plane past :data:`MAX_LASER_TILT_RAD`."""
+        transform = self.tree.lookup(base, frame)
+        if transform is None or self.mount_from.get(frame) != "TF":
+            return 1.0
+        up = transform.up()
+        if abs(up) < math.cos(MAX_LASER_TILT_RAD):
+            tilt = math.degrees(math.acos(min(1.0, abs(up))))
+            self.refusals.refuse(
+                InputFileError(
+                    self.path,
+                    f"laser '{frame}' ({self.frame_topic[frame]}): TF tilts its scan plane "
+                    f"{tilt:.0f} degrees from the plane of '{base}': gridmap maps lasers that "
+                    "scan level (upright or upside down)",
+                )
+            )
+        if up < 0.0:
+            self.mount_from[frame] = "TF, upside down"
+            return -1.0
+        return 1.0
 
     def _beamless(self, base: str) -> list[str]:
         """The laser frames that neither TF nor a robot laser of their name or beam count

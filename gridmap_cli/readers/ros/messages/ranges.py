@@ -210,7 +210,8 @@ class _Ranges(_Mounts):
                 ]
             return beams
         x, y, yaw = mount or self._given_mount(base, frame) or self._unmounted(base, frame)
-        yaws = wrap_angle(yaw + starts + book.local * steps).tolist()
+        turn = self._laser_turn(base, frame)
+        yaws = wrap_angle(yaw + turn * (starts + book.local * steps)).tolist()
         return [
             RangeSensor(name, x, y, beam_yaw, 0.0, rmin, rmax, "laser")
             for name, beam_yaw in zip(names, yaws, strict=True)
@@ -290,6 +291,8 @@ class _Ranges(_Mounts):
             transform = self.tree.lookup(base, frame) if frame != base else None
             if transform is not None:  # RosAria publishes in the robot frame; others may not
                 tx, ty, tyaw = transform.planar()
+                if transform.up() < 0.0:  # a frame upside down: its y axis is the base's -y
+                    py = -py
                 c, s = math.cos(tyaw), math.sin(tyaw)
                 px, py = tx + c * px - s * py, ty + s * px + c * py
             n = len(points)
