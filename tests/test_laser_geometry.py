@@ -179,6 +179,28 @@ def test_odometry_is_still_asked_for_where_the_pose_needs_it(
     assert summary["motion"] == "no odometry: motion from the scans"
 
 
+def test_inspect_says_a_laser_without_odometry_is_ready_and_how_build_moves_it(
+    laser_alone: Path, pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    """inspect's verdict on a laser alone: ready, the motion from the scans (it raised
+    IndexError synchronising with the empty odometry); unmounted, the mounting build stops at."""
+    code, stdout, stderr = run("inspect", str(laser_alone), "--json")
+    assert code == 0, stderr
+    verdict = json.loads(stdout)["build"]
+    assert verdict["ready"] and verdict["problem"] is None
+    assert verdict["odometry"].startswith("none: no pose topic and no 'odom' -> 'base_link'")
+    assert verdict["odometry"].endswith("; build takes the motion from the laser's scans")
+    _, log = pioneer
+    bare = write_pioneer_bag(log, tmp_path / "bare.bag", odometry=False, mounting=None)
+    code, stdout, stderr = run("inspect", str(bare), "--json")
+    assert code == 1 and stderr.count("\n") == 1, stderr
+    verdict = json.loads(stdout)["build"]
+    assert not verdict["ready"]
+    assert verdict["problem"].startswith(
+        f"{bare}: sensor frame 'laser' (/scan): mounting pose unknown"
+    )
+
+
 def test_batch_maps_a_laser_without_odometry_and_says_so(laser_alone: Path, tmp_path: Path) -> None:
     folder = tmp_path / "logs"
     folder.mkdir()

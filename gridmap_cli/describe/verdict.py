@@ -19,7 +19,8 @@ from gridmap_cli.describe.sensors import laser_text, lasers_part
 from gridmap_cli.describe.text import ends, some
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.mapping.pipeline import BuildOptions, plan_build
-from gridmap_cli.poses.sources import DEFAULT_SOURCE, check_needs, pose_source
+from gridmap_cli.poses.sources import DEFAULT_SOURCE, check_needs, has_laser, pose_source
+from gridmap_cli.poses.sync import sensors_for_log
 from gridmap_cli.readers import LogFormat
 from gridmap_cli.readers.options import ReadOptions
 from gridmap_cli.readers.ros.recording import RecordingRead
@@ -44,10 +45,15 @@ def build_problem(log: RangeLog, robot: RobotDescription | None) -> str | None:
     """The error build would stop at once it has read the log and found the robot, or None.
 
     Build's own checks with its default options (``--mode standard``, 0.05 m cells): the
-    sensors' mounting, readings left after sync, the size of the map.
+    sensors' mounting, readings left after sync, the size of the map. A log without odometry
+    that build would map (a laser alone) gets its track from the scans, too slow to make here:
+    of it only the sensors' description is checked.
     """
     try:
         check_needs(pose_source(DEFAULT_SOURCE), log, robot)  # build's default --pose
+        if len(log.poses) == 0:
+            sensors_for_log(log, robot)
+            return None
         plan_build(log, robot, BuildOptions())
     except GridmapError as exc:
         return str(exc)
@@ -65,7 +71,9 @@ def build_part(
     """What build would read each input from, its robot, and whether it would run."""
     if mcap is not None:
         plan = mcap.plan
-        if plan.odom_topic is not None:
+        if log.odometry_missing is not None:
+            odometry = _no_odometry(log, robot)
+        elif plan.odom_topic is not None:
             channel = mcap.survey.topic(plan.odom_topic)
             odometry = f"{plan.odom_topic} ({channel.type_name if channel else '?'})"
         elif plan.tf_topics:
@@ -86,7 +94,7 @@ def build_part(
         odometry = (
             "ODOM lines: the chain of their increments (the robot's own odometry)"
             if log.odometry_missing is None
-            else f"none: {log.odometry_missing.removeprefix('missing: ')}"
+            else _no_odometry(log, robot)
         )
         lasers = sorted({n.rpartition("_")[0] for n in log.sensor_names})
         ranges = [f"{laser} ({sum(n.startswith(laser + '_') for n in log.sensor_names)} beams)"
@@ -128,6 +136,13 @@ def build_part(
         "problem": problems[0] if problems else None,  # the error build stops at
         "problems": problems,
     }
+
+
+def _no_odometry(log: RangeLog, robot: RobotDescription | None) -> str:
+    """Why the log has no odometry, and what build's default makes of a laser alone."""
+    why = (log.odometry_missing or "").removeprefix("missing: ").removeprefix("no odometry: ")
+    motion = "; build takes the motion from the laser's scans" if has_laser(log, robot) else ""
+    return f"none: {why}{motion}"
 
 
 def build_lines(d: dict[str, Any]) -> list[str]:
