@@ -281,6 +281,26 @@ def test_a_laser_sweeping_clockwise_reads_as_the_same_beams(
     assert np.abs(tracks[1][:, 1:3] - tracks[0][:, 1:3]).max() < 0.05
 
 
+def test_beams_of_exactly_zero_are_no_reading(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    """A driver with range_min 0 that writes 0 for a beam that read nothing: those beams are
+    neither mapped nor matched (they were echoes at the laser's own position)."""
+    _, log = pioneer
+    summaries = []
+    for name, zeros in (("plain", 0.0), ("zeros", 0.1)):
+        bag = write_pioneer_bag(log, tmp_path / f"{name}.bag", zeros=zeros)
+        out = tmp_path / f"{name}.png"
+        code, stdout, stderr = run("build", str(bag), "--pose", "odometry", "-o", str(out),
+                                   "--json")  # fmt: skip
+        assert code == 0, stderr
+        summaries.append(json.loads(stdout)["readings"])
+    plain, zeros = summaries
+    # about a tenth of the beams fewer, every one of the rest mapped
+    assert 0.85 * plain["total"] < zeros["total"] < 0.95 * plain["total"]
+    assert zeros["used"] == zeros["total"]
+
+
 @pytest.mark.parametrize("pitch_deg", [60.0, 90.0])
 def test_a_laser_tilted_out_of_level_is_refused_in_one_line(
     pioneer: tuple[Path, RangeLog], tmp_path: Path, pitch_deg: float

@@ -96,6 +96,7 @@ def write_pioneer_bag(
     range_max: float = 8.0,
     laser_tilt: tuple[float, float] = (0.0, 0.0),
     clockwise: bool = False,
+    zeros: float = 0.0,
 ) -> Path:
     """``log`` (a simulated run with one laser, ``laser_name``, beams ``laser_name_0``...) as a
     ROSARIA + SICK bag at ``target``. ``mounting``: the ``base_link -> laser`` transform (x, y,
@@ -114,7 +115,8 @@ def write_pioneer_bag(
     (rad) in its ``base_link -> laser`` transform; a roll of pi mounts it upside down, and its
     ranges are written mirrored, as such a laser sees the world. ``clockwise``: each scan
     from its left end to its right (``angle_min`` pi/2, a negative ``angle_increment``), as
-    some drivers send them; the same beams."""
+    some drivers send them; the same beams. ``zeros``: the share of beams, at random, that read
+    0.0 (a driver's "no reading" with ``range_min`` 0)."""
     beams = [i for i, name in enumerate(log.sensor_names) if name.startswith(f"{laser_name}_")]
     order = np.argsort([int(log.sensor_names[i].rsplit("_", 1)[1]) for i in beams])
     beam_of = np.full(len(log.sensor_names), -1)
@@ -191,6 +193,8 @@ def write_pioneer_bag(
             odd = rng.random(n_scan) < 0.01  # the odd beam reads inf or nan
             ranges[odd & (rng.random(n_scan) < 0.5)] = np.inf
             ranges[odd & ~np.isinf(ranges)] = np.nan
+            if zeros > 0.0:  # drawn only then: the other bags keep their odd beams
+                ranges[rng.random(n_scan) < zeros] = 0.0
             first = -math.pi / 2 + turn * fine
             amin = first if interleave > 1 else -math.pi / 2
             amax = first + (n_scan - 1) * step if interleave > 1 else math.pi / 2

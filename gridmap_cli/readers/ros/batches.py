@@ -213,7 +213,8 @@ def scan_beams(
 ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.float64]]:
     """The beams of a batch of scans (``count`` beams each) that hold a reading: each one's
     scan (row of ``cols``), its index in the scan, and its range, +inf for no echo (at or
-    beyond the scan's ``range_max``). NaN (no reading) and -inf (too close) are left out."""
+    beyond the scan's ``range_max``). NaN and 0.0 (no reading: no laser measures an echo at
+    0 m, and drivers write 0 for a beam that read nothing) and -inf (too close) are left out."""
     assert cols.ranges is not None
     with np.errstate(invalid="ignore"):  # NaN payloads
         ranges = cols.ranges.astype(np.float64)
@@ -221,7 +222,7 @@ def scan_beams(
     beam = np.arange(len(ranges), dtype=np.int64) - np.repeat(np.cumsum(count) - count, count)
     range_max = cols.arrays["range_max"].astype(np.float64)[row_of]
     with np.errstate(invalid="ignore"):
-        valid = ~np.isnan(ranges) & (ranges >= 0.0)  # NaN: no reading; -inf: too close
+        valid = ~np.isnan(ranges) & (ranges > 0.0)  # NaN and 0.0: no reading; -inf: too close
         no_echo = valid & (ranges >= range_max)
     return row_of[valid], beam[valid], np.where(no_echo, np.inf, ranges)[valid]
 

@@ -99,7 +99,7 @@ class _Ranges(_Mounts):
             known = self.scans[frame] = _Scan(amin, ainc, count, msg.range_min, msg.range_max)
         beams = self._beam_keys(frame, known, known.book.sensors(amin, ainc, count))
         with np.errstate(invalid="ignore"):
-            valid = ~np.isnan(ranges) & (ranges >= 0.0)  # NaN: no reading; -inf: too close
+            valid = ~np.isnan(ranges) & (ranges > 0.0)  # NaN and 0.0: no reading; -inf: too close
             no_echo = valid & (ranges >= msg.range_max)
         out = np.where(no_echo, np.inf, ranges)[valid]
         keys = beams[valid]
