@@ -264,6 +264,32 @@ def test_a_laser_mounted_upside_down_maps_as_an_upright_one(
     assert froms == {"TF, upside down"}
 
 
+def test_a_robot_file_mounts_a_laser_upside_down_where_tf_does_not(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    """A bag without the laser's TF whose laser hangs upside down: the two-line robot file
+    with ``upside_down: true`` gives the track the TF-mounted bag gives."""
+    _, log = pioneer
+    under = write_pioneer_bag(log, tmp_path / "under.bag", laser_tilt=(0.0, np.pi))
+    bare = write_pioneer_bag(log, tmp_path / "bare.bag", mounting=None, laser_tilt=(0.0, np.pi))
+    robot = tmp_path / "robot.yaml"
+    robot.write_text(
+        "gridmap-robot: 1\nsensors: [{name: laser, kind: laser, x_m: 0.16, y_m: 0.0, "
+        "yaw_deg: 0, upside_down: true}]\n"
+    )
+    tracks = []
+    for bag, extra in ((under, ()), (bare, ("--robot", str(robot)))):
+        out = tmp_path / f"{bag.stem}.tum"
+        code, _, stderr = run("trajectory", str(bag), "--pose", "slam", "-o", str(out), *extra)
+        assert code == 0, stderr
+        tracks.append(np.loadtxt(out))
+    assert np.array_equal(tracks[0], tracks[1])
+    code, stdout, stderr = run("inspect", str(bare), "--robot", str(robot), "--json")
+    assert code == 0, stderr
+    froms = {s["mounting_from"] for s in json.loads(stdout)["log"]["sensors"]}
+    assert froms == {"robot, upside down"}
+
+
 def test_a_laser_sweeping_clockwise_reads_as_the_same_beams(
     pioneer: tuple[Path, RangeLog], tmp_path: Path
 ) -> None:

@@ -124,6 +124,23 @@ def test_a_laser_entry_expands_into_its_beams(tmp_path: Path) -> None:
     assert all(s.kind == "laser" and s.beam_width_rad == 0.0 for s in robot.sensors)
 
 
+def test_a_laser_entry_upside_down_mirrors_its_beams(tmp_path: Path) -> None:
+    """Hung under a deck, the laser's beams sweep from its right: each beam where the upright
+    laser's mirror image about its axis points."""
+    path = tmp_path / "bot.yaml"
+    path.write_text(
+        "gridmap-robot: 1\nname: bot\nsensors:\n"
+        "  - {name: scan, kind: laser, x_m: 0.1, y_m: 0.0, yaw_deg: 10, first_deg: -45,"
+        " last_deg: 45, samples: 3, max_range_m: 8, upside_down: true}\n"
+        "  - {name: bare, kind: laser, x_m: 0.2, y_m: 0.0, yaw_deg: 0, upside_down: true}\n"
+    )
+    robot = load_robot(str(path))
+    assert [s.yaw_rad for s in robot.sensors] == pytest.approx(
+        [math.radians(55), math.radians(10), math.radians(-35)]
+    )
+    assert robot.mounts[0].upside_down and robot.mounts[0].name == "bare"
+
+
 def test_the_lms200_preset_is_the_p3at_plus_its_laser() -> None:
     both = load_robot("p3at-lms200")
     assert both.sensors[:16] == load_robot("p3at").sensors
@@ -142,6 +159,10 @@ def test_the_lms200_preset_is_the_p3at_plus_its_laser() -> None:
          " max_range_m: 4}", "['samples'] only apply to kind: laser"),
         ("{name: s, kind: radar, x_m: 0, y_m: 0, yaw_deg: 0, beam_width_deg: 25,"
          " max_range_m: 4}", "kind must be one of ('sonar', 'laser'), got 'radar'"),
+        ("{name: l, kind: laser, x_m: 0, y_m: 0, yaw_deg: 0, upside_down: yes please}",
+         "sensor 'l': upside_down must be true or false, got 'yes please'"),
+        ("{name: s, x_m: 0, y_m: 0, yaw_deg: 0, beam_width_deg: 25, upside_down: true,"
+         " max_range_m: 4}", "['upside_down'] only apply to kind: laser"),
     ],
 )  # fmt: skip
 def test_bad_laser_entries(tmp_path: Path, entry: str, message: str) -> None:

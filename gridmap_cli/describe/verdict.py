@@ -119,7 +119,7 @@ def build_part(
         odom_topic = None
     mounted = {s.name for s in log.sensors or () if not math.isnan(s.x_m)}
     described_by_log = bool(log.sensor_names) and mounted >= set(log.sensor_names)
-    if mcap is not None and "robot" in mcap.mount_from.values():
+    if mcap is not None and any(v.startswith("robot") for v in mcap.mount_from.values()):
         described_by_log = False  # the robot gave a mounting the recording lacks
     return {
         "odometry": odometry,

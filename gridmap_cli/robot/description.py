@@ -46,6 +46,8 @@ class SensorMount:
     x_m: float
     y_m: float
     yaw_rad: float
+    #: mounted upside down (under a deck): its beams sweep the base frame the other way round
+    upside_down: bool = False
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,7 @@ _SENSOR_KEYS = {
     "first_deg",
     "last_deg",
     "samples",
+    "upside_down",
 }
 _LASER_ONLY = ("first_deg", "last_deg", "samples")
 #: What a laser entry that gives only its mounting leaves to the recording's scans (an entry
@@ -115,7 +116,7 @@ def parse_robot_yaml(text: str, source: str) -> RobotDescription:
         if kind == "laser":
             sensors.extend(_laser_beams(source, line, sname, merged, x, y, yaw, rmin, rmax))
             continue
-        stray = [k for k in _LASER_ONLY if k in entry]
+        stray = [k for k in (*_LASER_ONLY, "upside_down") if k in entry]
         if stray:
             raise RobotDescriptionError(
                 source, f"sensor '{sname}': {stray} only apply to kind: laser", line
@@ -154,7 +155,17 @@ def _mount(
     x = _number(source, f"sensor '{sname}' x_m", merged["x_m"], line)
     y = _number(source, f"sensor '{sname}' y_m", merged["y_m"], line)
     yaw = math.radians(_number(source, f"sensor '{sname}' yaw_deg", merged["yaw_deg"], line))
-    return SensorMount(sname, x, y, yaw)
+    return SensorMount(sname, x, y, yaw, _upside_down(source, line, sname, merged))
+
+
+def _upside_down(source: str, line: int | None, name: str, entry: dict[str, Any]) -> bool:
+    """A laser entry's ``upside_down`` (default false): true or false, nothing else."""
+    value = entry.get("upside_down", False)
+    if not isinstance(value, bool):
+        raise RobotDescriptionError(
+            source, f"sensor '{name}': upside_down must be true or false, got {value!r}", line
+        )
+    return value
 
 
 def _sensor_lines(node: yaml.Node | None) -> list[int]:
@@ -197,4 +208,7 @@ def _laser_beams(
             f"{MAX_LASER_SAMPLES:,} beams per laser (MAX_LASER_SAMPLES)",
             line,
         )
+    if _upside_down(source, line, name, entry):
+        # its beams sweep the base frame the other way round: a mirror about its axis
+        first, last = -first, -last
     return laser_beams(name, x, y, yaw, first, last, samples, rmin, rmax)

@@ -234,6 +234,8 @@ class _Ranges(_Mounts):
                 return None
             mount = spare[0]
         self.mount_from[frame] = "robot"
+        if mount.upside_down:
+            self.upside_down.add(frame)
         return mount.x_m, mount.y_m, mount.yaw_rad
 
     def _sole_robot_laser(self, base: str, scan: _Scan) -> list[str] | None:
