@@ -240,28 +240,35 @@ def test_a_scan_without_a_finite_range_max_is_refused_in_one_line(
     assert not out.exists() and not out.with_suffix(".yaml").exists()
 
 
+def slam_track(bag: Path, *extra: str) -> np.ndarray:
+    """``trajectory BAG --pose slam`` (beside the bag, as TUM rows), read back."""
+    out = bag.with_suffix(".tum")
+    code, _, stderr = run("trajectory", str(bag), "--pose", "slam", "-o", str(out), *extra)
+    assert code == 0, stderr
+    return np.loadtxt(out)
+
+
+def mountings_from(bag: Path, *extra: str) -> set[str]:
+    """Where ``inspect`` says the bag's sensors got their mountings."""
+    code, stdout, stderr = run("inspect", str(bag), "--json", *extra)
+    assert code == 0, stderr
+    return {s["mounting_from"] for s in json.loads(stdout)["log"]["sensors"]}
+
+
 def test_a_laser_mounted_upside_down_maps_as_an_upright_one(
     pioneer: tuple[Path, RangeLog], tmp_path: Path
 ) -> None:
     """A laser under a deck, TF rolling it by pi, sweeps the world right to left: its beams
     are mirrored into the robot's frame, so the track and the map are the upright laser's."""
     folder, log = pioneer
-    tracks = []
-    for name, tilt in (("upright", (0.0, 0.0)), ("under", (0.0, np.pi))):
-        bag = write_pioneer_bag(log, tmp_path / f"{name}.bag", laser_tilt=tilt)
-        out = tmp_path / f"{name}.tum"
-        code, _, stderr = run("trajectory", str(bag), "--pose", "slam", "-o", str(out))
-        assert code == 0, stderr
-        tracks.append(np.loadtxt(out))
-    upright, under = tracks
+    upright = slam_track(write_pioneer_bag(log, tmp_path / "upright.bag"))
+    bag = write_pioneer_bag(log, tmp_path / "under.bag", laser_tilt=(0.0, np.pi))
+    under = slam_track(bag)
     # the same world, but the writer's odd beams without echo fall on other beams once the
     # scan is reversed: the same track to within what that changes in the matcher
     assert np.abs(under[:, 1:3] - upright[:, 1:3]).max() < 0.05
-    assert f1(folder, tmp_path / "under.bag", "slam") >= 0.70
-    code, stdout, stderr = run("inspect", str(tmp_path / "under.bag"), "--json")
-    assert code == 0, stderr
-    froms = {s["mounting_from"] for s in json.loads(stdout)["log"]["sensors"]}
-    assert froms == {"TF, upside down"}
+    assert f1(folder, bag, "slam") >= 0.70
+    assert mountings_from(bag) == {"TF, upside down"}
 
 
 def test_a_robot_file_mounts_a_laser_upside_down_where_tf_does_not(
@@ -277,17 +284,8 @@ def test_a_robot_file_mounts_a_laser_upside_down_where_tf_does_not(
         "gridmap-robot: 1\nsensors: [{name: laser, kind: laser, x_m: 0.16, y_m: 0.0, "
         "yaw_deg: 0, upside_down: true}]\n"
     )
-    tracks = []
-    for bag, extra in ((under, ()), (bare, ("--robot", str(robot)))):
-        out = tmp_path / f"{bag.stem}.tum"
-        code, _, stderr = run("trajectory", str(bag), "--pose", "slam", "-o", str(out), *extra)
-        assert code == 0, stderr
-        tracks.append(np.loadtxt(out))
-    assert np.array_equal(tracks[0], tracks[1])
-    code, stdout, stderr = run("inspect", str(bare), "--robot", str(robot), "--json")
-    assert code == 0, stderr
-    froms = {s["mounting_from"] for s in json.loads(stdout)["log"]["sensors"]}
-    assert froms == {"robot, upside down"}
+    assert np.array_equal(slam_track(under), slam_track(bare, "--robot", str(robot)))
+    assert mountings_from(bare, "--robot", str(robot)) == {"robot, upside down"}
 
 
 def test_a_laser_sweeping_clockwise_reads_as_the_same_beams(
@@ -296,15 +294,10 @@ def test_a_laser_sweeping_clockwise_reads_as_the_same_beams(
     """A driver that sends each scan from its left end (a negative angle_increment): the same
     directions, so the same track."""
     _, log = pioneer
-    tracks = []
-    for name, clockwise in (("anticlockwise", False), ("clockwise", True)):
-        bag = write_pioneer_bag(log, tmp_path / f"{name}.bag", clockwise=clockwise)
-        out = tmp_path / f"{name}.tum"
-        code, _, stderr = run("trajectory", str(bag), "--pose", "slam", "-o", str(out))
-        assert code == 0, stderr
-        tracks.append(np.loadtxt(out))
+    anticlockwise = slam_track(write_pioneer_bag(log, tmp_path / "anticlockwise.bag"))
+    clockwise = slam_track(write_pioneer_bag(log, tmp_path / "clockwise.bag", clockwise=True))
     # the writer's odd beams without echo fall on other beams of the reversed scan
-    assert np.abs(tracks[1][:, 1:3] - tracks[0][:, 1:3]).max() < 0.05
+    assert np.abs(clockwise[:, 1:3] - anticlockwise[:, 1:3]).max() < 0.05
 
 
 def test_beams_of_exactly_zero_are_no_reading(
