@@ -81,13 +81,10 @@ class _Mounts(_State):
         return None
 
     def _laser_turn(self, base: str, frame: str) -> float:
-        """How a laser's beam angles turn in the base frame: 1 as they are, -1 mirrored for a
-        laser that TF (or the robot file, ``upside_down: true``) mounts upside down (its left the
-        robot's right, as the field mounts them under a deck); refused when TF tilts its scan
-        plane past :data:`MAX_LASER_TILT_RAD`."""
-        if frame in self.upside_down:
-            self.mount_from[frame] = "robot, upside down"
-            return -1.0
+        """How a TF-mounted laser's beam angles turn in the base frame: 1 as they are, -1
+        mirrored for a laser TF mounts upside down (its left the robot's right, as the field
+        mounts them under a deck); refused when TF tilts its scan plane past
+        :data:`MAX_LASER_TILT_RAD`. 1 for a laser mounted otherwise."""
         transform = self.tree.lookup(base, frame)
         if transform is None or self.mount_from.get(frame) != "TF":
             return 1.0

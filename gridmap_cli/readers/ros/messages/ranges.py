@@ -23,7 +23,7 @@ from gridmap_cli.readers.ros.messages.fields import (
 )
 from gridmap_cli.readers.ros.messages.mounts import _Mounts
 from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar, scan_angles_disagree
-from gridmap_cli.robot import RangeSensor
+from gridmap_cli.robot import RangeSensor, SensorMount
 
 
 class _Ranges(_Mounts):
@@ -209,15 +209,18 @@ class _Ranges(_Mounts):
                     for n, beam_yaw in zip(names[scan.count :], yaws, strict=True)
                 ]
             return beams
-        x, y, yaw = mount or self._given_mount(base, frame) or self._unmounted(base, frame)
-        turn = self._laser_turn(base, frame)
+        given = None if mount is not None else self._given_mount(base, frame)
+        if given is not None:
+            mount = given.x_m, given.y_m, given.yaw_rad
+        x, y, yaw = mount or self._unmounted(base, frame)
+        turn = -1.0 if given is not None and given.upside_down else self._laser_turn(base, frame)
         yaws = wrap_angle(yaw + turn * (starts + book.local * steps)).tolist()
         return [
             RangeSensor(name, x, y, beam_yaw, 0.0, rmin, rmax, "laser")
             for name, beam_yaw in zip(names, yaws, strict=True)
         ]
 
-    def _given_mount(self, base: str, frame: str) -> tuple[float, float, float] | None:
+    def _given_mount(self, base: str, frame: str) -> SensorMount | None:
         """A laser's mounting without beams: the robot's of the frame's name; else, for the
         recording's only laser left without one, ``--laser-mount`` or the robot's only such
         mounting (named after no frame of the recording)."""
@@ -228,15 +231,13 @@ class _Ranges(_Mounts):
                 return None
             if self.laser_mount is not None:
                 self.mount_from[frame] = "--laser-mount"
-                return self.laser_mount
+                return SensorMount(frame, *self.laser_mount)
             spare = [m for name, m in mounts.items() if name not in self.scans]
             if len(spare) != 1 or (self.robot is not None and self.robot.lasers()):
                 return None
             mount = spare[0]
-        self.mount_from[frame] = "robot"
-        if mount.upside_down:
-            self.upside_down.add(frame)
-        return mount.x_m, mount.y_m, mount.yaw_rad
+        self.mount_from[frame] = "robot, upside down" if mount.upside_down else "robot"
+        return mount
 
     def _sole_robot_laser(self, base: str, scan: _Scan) -> list[str] | None:
         """The beam names of the robot's laser when the pairing is unambiguous: the robot

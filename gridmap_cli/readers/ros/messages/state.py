@@ -134,8 +134,7 @@ class _State:
         self._buffer: TransformBuffer | None = None
         self.truth_from: str | None = None  # where the reference track came from
         self.odometry_missing: str | None = None  # why the odometry track is empty (RangeLog)
-        self.mount_from: dict[str, str] = {}  # sensor frame -> "TF", "robot" or "unknown"
-        self.upside_down: set[str] = set()  # laser frames a robot file mounts upside down
+        self.mount_from: dict[str, str] = {}  # frame -> "TF", "robot" (", upside down"), "unknown"
         self.odom_children: Counter[str] = Counter()
         self.frame_topic: dict[str, str] = {}  # sensor frame -> topic it arrived on
         self.sonars: dict[str, _Sonar] = {}
