@@ -212,8 +212,10 @@ def scan_matched_poses(
 
     log, motion, warnings = _scan_motion(log, robot, settings, "scan-matched")
     placed, match = scan_matched_log(log, robot, progress=settings.progress)
-    return PosedLog(placed, "scan-matched", match=match, summary={"scan_match": match.summary()},
-                    warnings=warnings, motion=motion)  # fmt: skip
+    summary: dict[str, object] = dict(match.summary())
+    mount = None if motion else _mount_check(log, robot, match, summary, "scan-matched")
+    return PosedLog(placed, "scan-matched", match=match, summary={"scan_match": summary},
+                    warnings=(*warnings, *filter(None, [mount])), motion=motion)  # fmt: skip
 
 
 def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSettings) -> PosedLog:
@@ -231,6 +233,8 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
         belief = slam_belief(slam, settings.belief_samples, settings.belief_seed)
         summary["belief_noise_scale"] = [round(f, 3) for f in belief.scale]
     warnings = [*early, *([f"{given('pose', 'slam')}: {slam.warning}"] if slam.warning else [])]
+    mount = None if motion else _mount_check(log, robot, slam.match, summary, "slam")
+    warnings.extend(filter(None, [mount]))
     check = None
     if slam.scans is not None:
         from gridmap_cli.poses.correction.free_space import WIDE_M, check_poses, wide_check
@@ -390,6 +394,29 @@ def graph_failure(slam: SlamResult) -> str | None:
             f"({slam.residual_m:.3f} m against {slam.odometry_residual_m:.3f} m)"
         )
     return None
+
+
+def _mount_check(
+    log: RangeLog,
+    robot: RobotDescription | None,
+    match: ScanMatch,
+    summary: dict[str, object],
+    source: str,
+) -> str | None:
+    """The laser's mounting checked against the odometry's turns (:mod:`.laser_mount`), into
+    ``summary["laser_mount"]``; the warning when they disagree. Only for a log with one laser
+    mounting and its own odometry (a track chained from the scans has no lever to measure)."""
+    from gridmap_cli.poses.laser_mount import check_mount
+    from gridmap_cli.poses.sync import sensors_for_log
+
+    mounts = {(s.x_m, s.y_m) for s in sensors_for_log(log, robot) if s.kind == "laser"}
+    if len(mounts) != 1:
+        return None
+    check = check_mount(match.track, match.odometry, mounts.pop())
+    if check is None:
+        return None
+    summary["laser_mount"] = check.as_dict()
+    return f"{given('pose', source)}: {check.reason()}" if check.disagrees else None
 
 
 def has_laser(log: RangeLog, robot: RobotDescription | None) -> bool:
