@@ -279,6 +279,7 @@ def _report(
             click.echo(
                 f"gridmap: relations of the laser's point ({lx:g}, {ly:g}) m from base_link "
                 f"instead: translation {at['trans_mean_m']:.3f} +/- {at['trans_std_m']:.3f} m "
-                "(which point a benchmark's relations are of, its files do not say)",
+                "(a relations file does not say which point it is of; the SLAM benchmark's "
+                "are of the laser's)",
                 err=True,
             )

@@ -407,12 +407,12 @@ def _mount_check(
     ``summary["laser_mount"]``; the warning when they disagree. Only for a log with one laser
     mounting and its own odometry (a track chained from the scans has no lever to measure)."""
     from gridmap_cli.poses.laser_mount import check_mount
-    from gridmap_cli.poses.sync import sensors_for_log
+    from gridmap_cli.poses.sync import laser_point
 
-    mounts = {(s.x_m, s.y_m) for s in sensors_for_log(log, robot) if s.kind == "laser"}
-    if len(mounts) != 1:
+    mount = laser_point(log, robot)
+    if mount is None:
         return None
-    check = check_mount(match.track, match.odometry, mounts.pop())
+    check = check_mount(match.track, match.odometry, mount)
     if check is None:
         return None
     summary["laser_mount"] = check.as_dict()
