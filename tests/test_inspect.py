@@ -73,8 +73,8 @@ def test_rosbag2_text_explains_channels_odometry_and_why_build_fails() -> None:
     assert any("travelled 34.32 m" in line for line in lines)
     assert "Range readings: none" in lines
     assert lines[-1] == (
-        "  -> build would fail: no range readings: no sensor_msgs/Range, LaserScan, PointCloud "
-        "(sonar) or gridmap.RangeReading topic"
+        "  -> build would fail: no range readings: no sensor_msgs/Range, LaserScan, "
+        "MultiEchoLaserScan, PointCloud (sonar) or gridmap.RangeReading topic"
     )
 
 

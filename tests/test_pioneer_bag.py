@@ -300,6 +300,36 @@ def test_a_laser_sweeping_clockwise_reads_as_the_same_beams(
     assert np.abs(clockwise[:, 1:3] - anticlockwise[:, 1:3]).max() < 0.05
 
 
+def test_a_multi_echo_laser_maps_by_its_first_echoes(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    """sensor_msgs/MultiEchoLaserScan (a second echo 1.5 m behind each first one, no echo
+    where the single-echo scan has NaN): the map of the single-echo bag, byte for byte; inspect
+    lists it as the laser's range readings."""
+    _, log = pioneer
+    maps = []
+    for name, multi in (("single", False), ("multi", True)):
+        bag = write_pioneer_bag(log, tmp_path / f"{name}.bag", multi_echo=multi)
+        out = tmp_path / f"{name}.pgm"
+        code, _, stderr = run("build", str(bag), "-o", str(out), "--quiet")
+        assert code == 0, stderr
+        maps.append(out.read_bytes())
+    assert maps[0] == maps[1]
+    code, stdout, stderr = run("inspect", str(tmp_path / "multi.bag"), "--json")
+    assert code == 0, stderr
+    described = json.loads(stdout)
+    channels = {c["topic"]: c for c in described["mcap"]["channels"]}
+    assert channels["/scan"]["type"] == "sensor_msgs/MultiEchoLaserScan"
+    assert channels["/scan"]["used_as"] == "range readings"
+    assert described["build"]["lasers"][0]["beams"] == 181
+    # a multi-echo laser alone (no odometry: a backpack's) takes its motion from its scans
+    alone = write_pioneer_bag(log, tmp_path / "alone.bag", multi_echo=True, odometry=False)
+    code, _, stderr = run("build", str(alone), "-o", str(tmp_path / "alone.pgm"))
+    assert code == 0, stderr
+    assert "no odometry: motion from the scans" in stderr
+    assert {s["mounting_from"] for s in described["log"]["sensors"]} == {"TF"}
+
+
 def test_beams_of_exactly_zero_are_no_reading(
     pioneer: tuple[Path, RangeLog], tmp_path: Path
 ) -> None:
@@ -335,3 +365,28 @@ def test_a_laser_tilted_out_of_level_is_refused_in_one_line(
         "of 'base_link': gridmap maps lasers that scan level (upright or upside down)"
     )
     assert not out.exists() and not out.with_suffix(".yaml").exists()
+
+
+def test_a_vertical_laser_beside_a_level_one_is_refused_naming_the_topics_to_map_with(
+    pioneer: tuple[Path, RangeLog], tmp_path: Path
+) -> None:
+    """A backpack's pair: a level laser and one TF pitches 90 degrees. The refusal says how to
+    map without the vertical one, and that way maps as the level laser alone does."""
+    _, log = pioneer
+    bag = write_pioneer_bag(log, tmp_path / "pair.bag", vertical=True)
+    out = tmp_path / "pair.pgm"
+    code, _, stderr = run("build", str(bag), "-o", str(out))
+    assert code == 1 and stderr.count("\n") == 1, stderr
+    assert stderr.strip().endswith(
+        "laser 'vertical_laser' (/vertical_scan): TF tilts its scan plane 90 degrees from the "
+        "plane of 'base_link': gridmap maps lasers that scan level (upright or upside down); "
+        "map without it: --range-topic /scan"
+    )
+    assert not out.exists()
+    code, _, stderr = run("build", str(bag), "-o", str(out), "--range-topic", "/scan", "--quiet")
+    assert code == 0, stderr
+    alone = tmp_path / "alone.pgm"
+    code, _, stderr = run("build", str(write_pioneer_bag(log, tmp_path / "alone.bag")), "-o",
+                          str(alone), "--quiet")  # fmt: skip
+    assert code == 0, stderr
+    assert out.read_bytes() == alone.read_bytes()

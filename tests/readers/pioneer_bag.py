@@ -24,6 +24,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 from rosbags.rosbag1 import Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -97,6 +98,8 @@ def write_pioneer_bag(
     laser_tilt: tuple[float, float] = (0.0, 0.0),
     clockwise: bool = False,
     zeros: float = 0.0,
+    multi_echo: bool = False,
+    vertical: bool = False,
 ) -> Path:
     """``log`` (a simulated run with one laser, ``laser_name``, beams ``laser_name_0``...) as a
     ROSARIA + SICK bag at ``target``. ``mounting``: the ``base_link -> laser`` transform (x, y,
@@ -116,7 +119,11 @@ def write_pioneer_bag(
     ranges are written mirrored, as such a laser sees the world. ``clockwise``: each scan
     from its left end to its right (``angle_min`` pi/2, a negative ``angle_increment``), as
     some drivers send them; the same beams. ``zeros``: the share of beams, at random, that read
-    0.0 (a driver's "no reading" with ``range_min`` 0)."""
+    0.0 (a driver's "no reading" with ``range_min`` 0). ``multi_echo``: the scans as
+    ``sensor_msgs/MultiEchoLaserScan``, each beam's range its first echo and a second one 1.5 m
+    behind it (a beam of NaN no echo at all, one of inf the one echo inf). ``vertical``: a
+    second laser, ``vertical_laser`` on ``/vertical_scan``, its TF mounting pitched 90 degrees
+    (a backpack's), sending the same scans."""
     beams = [i for i, name in enumerate(log.sensor_names) if name.startswith(f"{laser_name}_")]
     order = np.argsort([int(log.sensor_names[i].rsplit("_", 1)[1]) for i in beams])
     beam_of = np.full(len(log.sensor_names), -1)
@@ -135,7 +142,13 @@ def write_pioneer_bag(
             else None
         )
         tf = bag.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=STORE)
-        scan = bag.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=STORE)
+        scan_type = "MultiEchoLaserScan" if multi_echo else "LaserScan"
+        scan = bag.add_connection("/scan", f"sensor_msgs/msg/{scan_type}", typestore=STORE)
+        upright = (
+            bag.add_connection("/vertical_scan", f"sensor_msgs/msg/{scan_type}", typestore=STORE)
+            if vertical
+            else None
+        )
         volts = bag.add_connection("/RosAria/battery_voltage", "std_msgs/msg/Float64",
                                    typestore=STORE)  # fmt: skip
         cloud = bag.add_connection("/RosAria/sonar", "sensor_msgs/msg/PointCloud",
@@ -170,6 +183,9 @@ def write_pioneer_bag(
             moving = [_transform(ns, "odom", "base_link", x, y, th)] if odometry else []
             if mounting is not None:
                 moving.append(_transform(ns, "base_link", laser_frame, *mounting, *laser_tilt))
+            if upright is not None:
+                moving.append(_transform(ns, "base_link", "vertical_laser", 0.0, 0.0, 0.0,
+                                         math.pi / 2, 0.0))  # fmt: skip
             if moving:
                 messages.append(
                     (ns + LATENCY_NS, tf, T["tf2_msgs/msg/TFMessage"](transforms=moving))
@@ -201,25 +217,49 @@ def write_pioneer_bag(
             inc = step
             if clockwise:
                 ranges, amin, amax, inc = np.ascontiguousarray(ranges[::-1]), amax, amin, -step
-            msg = T["sensor_msgs/msg/LaserScan"](
-                header=_header(seq, START_NS + int(ns), laser_frame),
-                angle_min=amin,
-                angle_max=amax + (10 * inc if seq == skewed else 0.0),
-                angle_increment=inc,
-                time_increment=0.0,
-                scan_time=0.1,
-                range_min=0.0,
-                range_max=range_max,
-                ranges=ranges,
-                intensities=np.zeros(0, dtype=np.float32),
-            )
+            fields = {
+                "header": _header(seq, START_NS + int(ns), laser_frame),
+                "angle_min": amin,
+                "angle_max": amax + (10 * inc if seq == skewed else 0.0),
+                "angle_increment": inc,
+                "time_increment": 0.0,
+                "scan_time": 0.1,
+                "range_min": 0.0,
+                "range_max": range_max,
+            }
+            if multi_echo:
+                echo = T["sensor_msgs/msg/LaserEcho"]
+                msg = T["sensor_msgs/msg/MultiEchoLaserScan"](
+                    **fields,
+                    ranges=[echo(echoes=_echoes(float(v))) for v in ranges],
+                    intensities=[],
+                )
+            else:
+                msg = T["sensor_msgs/msg/LaserScan"](
+                    **fields, ranges=ranges, intensities=np.zeros(0, dtype=np.float32)
+                )
             messages.append((START_NS + int(ns) + LATENCY_NS, scan, msg))
+            if upright is not None:
+                fields["header"] = _header(seq, START_NS + int(ns), "vertical_laser")
+                messages.append((START_NS + int(ns) + LATENCY_NS, upright,
+                                 type(msg)(**{**fields, "ranges": msg.ranges,
+                                              "intensities": msg.intensities})))  # fmt: skip
         if cloud is not None:
             messages.extend(_sonar_clouds(log, cloud))
         messages.sort(key=lambda m: m[0])
         for log_time, conn, msg in messages:
             bag.write(conn, log_time, STORE.serialize_ros1(msg, conn.msgtype))
     return target
+
+
+def _echoes(value: float) -> npt.NDArray[np.float32]:
+    """A beam's echoes for a multi-echo scan whose first echo reads ``value``: none for NaN, the
+    one for inf, else it and a second 1.5 m behind."""
+    if math.isnan(value):
+        return np.zeros(0, dtype=np.float32)
+    if math.isinf(value):
+        return np.array([value], dtype=np.float32)
+    return np.array([value, value + 1.5], dtype=np.float32)
 
 
 def _sonar_clouds(log: RangeLog, conn: object) -> list[tuple[int, object, object]]:

@@ -19,9 +19,12 @@ TF_TYPES = ("tf/tfMessage", "tf2_msgs/TFMessage")
 RANGE_TYPES = (
     "sensor_msgs/Range",
     "sensor_msgs/LaserScan",
+    "sensor_msgs/MultiEchoLaserScan",
     "sensor_msgs/PointCloud",
     "gridmap.RangeReading",
 )
+#: The range types that are a laser's scans.
+LASER_TYPES = ("sensor_msgs/LaserScan", "sensor_msgs/MultiEchoLaserScan")
 SENSOR_TYPES = ("gridmap.RangeSensor",)
 #: Pose types that are a corrected (localised) pose, never odometry: AMCL's /amcl_pose.
 REFERENCE_TYPES = ("geometry_msgs/PoseWithCovarianceStamped",)
@@ -207,7 +210,7 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
     static_topics = tuple(c.topic for c in by_role.get("tf_static", []))
     # the scans can make the motion where there is no odometry, for a caller that asks; a
     # recording without laser scans still needs its odometry
-    scans = any(c.type_name == "sensor_msgs/LaserScan" for c in survey.channels if c.count > 0)
+    scans = any(c.type_name in LASER_TYPES for c in survey.channels if c.count > 0)
     odometry_optional = options.odometry_optional and scans
 
     odom_topic: str | None
@@ -286,7 +289,8 @@ def plan_topics(survey: Survey, options: ReadOptions, refusals: Refusals | None 
             refuse(
                 InputFileError(
                     path,
-                    "no range readings: no sensor_msgs/Range, LaserScan, PointCloud (sonar) or "
+                    "no range readings: no sensor_msgs/Range, LaserScan, MultiEchoLaserScan, "
+                    "PointCloud (sonar) or "
                     f"gridmap.RangeReading topic; {survey.listing()}",
                 )
             )

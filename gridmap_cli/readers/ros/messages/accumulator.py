@@ -11,7 +11,7 @@ from gridmap_cli.errors import InputFileError
 from gridmap_cli.readers.ros.bulk import lexsort_order
 from gridmap_cli.readers.ros.messages.fields import float32_decimal
 from gridmap_cli.readers.ros.messages.poses import _Poses
-from gridmap_cli.readers.ros.messages.ranges import _Ranges
+from gridmap_cli.readers.ros.messages.ranges import FirstEchoes, _Ranges
 from gridmap_cli.records import RangeLog, RangeReadings
 
 
@@ -57,6 +57,8 @@ class MessageAccumulator(_Poses, _Ranges):
             self._range(topic, log_time, msg)
         elif type_name == "sensor_msgs/LaserScan":
             self._scan(topic, log_time, msg)
+        elif type_name == "sensor_msgs/MultiEchoLaserScan":
+            self._scan(topic, log_time, FirstEchoes.of(msg))
         elif type_name == "sensor_msgs/PointCloud":
             self._cloud(topic, log_time, msg)
         elif type_name == "gridmap.RangeReading":

@@ -91,12 +91,17 @@ class _Mounts(_State):
         up = transform.up()
         if abs(up) < math.cos(MAX_LASER_TILT_RAD):
             tilt = math.degrees(math.acos(min(1.0, abs(up))))
+            topic = self.frame_topic[frame]
+            # a robot with a level laser beside this one (a backpack's vertical laser) maps
+            # with the others: say which
+            others = [t for t in self.plan.range_topics if t != topic]
+            without = f"; map without it: --range-topic {' --range-topic '.join(others)}"
             self.refusals.refuse(
                 InputFileError(
                     self.path,
-                    f"laser '{frame}' ({self.frame_topic[frame]}): TF tilts its scan plane "
-                    f"{tilt:.0f} degrees from the plane of '{base}': gridmap maps lasers that "
-                    "scan level (upright or upside down)",
+                    f"laser '{frame}' ({topic}): TF tilts its scan plane {tilt:.0f} degrees "
+                    f"from the plane of '{base}': gridmap maps lasers that scan level (upright "
+                    f"or upside down){without if others else ''}",
                 )
             )
         if up < 0.0:

@@ -1,11 +1,13 @@
 """Range readings: ``sensor_msgs/Range`` (sonar), ``sensor_msgs/LaserScan`` (one sensor per
-beam), RosAria's sonar ``sensor_msgs/PointCloud`` and ``gridmap.RangeReading`` /
+beam; ``MultiEchoLaserScan`` read as the scan of its first echoes), RosAria's sonar
+``sensor_msgs/PointCloud`` and ``gridmap.RangeReading`` /
 ``gridmap.RangeSensor``, into readings by sensor key; and the RangeSensors of the result, in a
 stable order."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -24,6 +26,30 @@ from gridmap_cli.readers.ros.messages.fields import (
 from gridmap_cli.readers.ros.messages.mounts import _Mounts
 from gridmap_cli.readers.ros.messages.state import _Scan, _Sonar, scan_angles_disagree
 from gridmap_cli.robot import RangeSensor, SensorMount
+
+
+@dataclass(frozen=True)
+class FirstEchoes:
+    """A ``sensor_msgs/MultiEchoLaserScan`` as the ``LaserScan`` of each beam's first echo: the
+    nearest return, as Cartographer reads such scans (a later echo is what the beam met behind
+    something it partly passed: glass, a fence, rain). A beam without an echo is NaN, no
+    reading, as a ``LaserScan`` beam of NaN."""
+
+    header: Any
+    angle_min: float
+    angle_max: float
+    angle_increment: float
+    range_min: float
+    range_max: float
+    ranges: npt.NDArray[np.float64]
+
+    @classmethod
+    def of(cls, msg: Any) -> FirstEchoes:
+        first = [e.echoes[0] if len(e.echoes) else math.nan for e in msg.ranges]
+        return cls(
+            msg.header, msg.angle_min, msg.angle_max, msg.angle_increment, msg.range_min,
+            msg.range_max, np.asarray(first, dtype=np.float64),
+        )  # fmt: skip
 
 
 class _Ranges(_Mounts):
