@@ -104,3 +104,28 @@ def test_a_bag_mapped_with_the_wrong_laser_mounting_is_warned_of(
     assert "Warning: --pose slam: the odometry's turns put the laser at x 0.1" in stderr
     right, stderr = _trajectory(bag, "0.16,0,0", tmp_path / "right.tum")
     assert right["disagrees"] is False and "laser's mounting" not in stderr
+
+
+def test_laser_mount_on_the_command_line_wins_over_a_recorded_tf(
+    pioneer: tuple[Path, RangeLog],  # noqa: F811
+    tmp_path: Path,
+) -> None:
+    """A recorded TF cannot be mended by its user: --laser-mount gives the recording's one
+    laser another mounting. Given TF's own (0.16 m) it changes nothing; given 0.36 m, inspect
+    says where the mounting came from and the check measures the laser where TF had it."""
+    _, log = pioneer
+    bag = write_pioneer_bag(log, tmp_path / "tf.bag", mounting=(0.16, 0.0, 0.0))
+    plain = tmp_path / "plain.tum"
+    code, _, stderr = run("trajectory", str(bag), "--pose", "slam", "-o", str(plain))
+    assert code == 0, stderr
+    same, _ = _trajectory(bag, "0.16,0,0", tmp_path / "same.tum")
+    assert plain.read_bytes() == (tmp_path / "same.tum").read_bytes()
+    assert same["given_x_m"] == 0.16 and same["disagrees"] is False
+    wrong, stderr = _trajectory(bag, "0.36,0,0", tmp_path / "wrong.tum")
+    assert wrong["given_x_m"] == 0.36 and wrong["disagrees"] is True
+    assert abs(float(wrong["x_m"]) - 0.16) < 0.02  # type: ignore[arg-type]
+    code, stdout, stderr = run("inspect", str(bag), "--laser-mount", "0.36,0,0", "--json")
+    assert code == 0, stderr
+    sensors = json.loads(stdout)["log"]["sensors"]
+    assert {s["mounting_from"] for s in sensors} == {"--laser-mount over TF"}
+    assert {s["mounting"]["x_m"] for s in sensors} == {0.36}

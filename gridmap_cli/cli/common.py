@@ -256,7 +256,8 @@ def topic_options(func: Callable[..., R]) -> Callable[..., R]:
             metavar="X,Y,YAW_DEG",
             callback=_laser_mount,
             help="ROS: the pose on the base frame (metres, degrees) of the recording's laser "
-            "that TF does not mount; its beams and range come from its LaserScan messages.",
+            "that TF does not mount, or of its one laser over TF's; its beams and range come "
+            "from its LaserScan messages.",
         ),
     ]
     for option in reversed(options):

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from gridmap_cli.errors import given
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.records import PoseTrack
 
@@ -105,8 +106,9 @@ class MountCheck:
             f"the odometry's turns put the laser at x {self.x_m:.3f} m, y {self.y_m:.3f} m on "
             f"the base frame (within {self.spread_m:.3f} m), {self.off_m:.3f} m from its "
             f"mounting (x {self.given[0]:.3f} m, y {self.given[1]:.3f} m): check the laser's "
-            f"mounting (TF or robot file); a map from the odometry alone smears its walls by up "
-            f"to {2 * self.off_m:.2f} m where the robot turns"
+            f"mounting (its TF, which {given('laser_mount')} overrides, or the robot file); a "
+            f"map from the odometry alone smears its walls by up to {2 * self.off_m:.2f} m "
+            "where the robot turns"
         )
 
 

@@ -28,7 +28,8 @@ class ReadOptions:
     goes through them by :meth:`~gridmap_cli.records.RangeLog.reading_chunks` and cuts no time
     window. CSV files do it above :data:`gridmap_cli.readers.text.csv_stream.STREAM_FROM_BYTES`.
     ``laser_mount``: ``--laser-mount``, the mounting (x_m, y_m, yaw_rad) of the recording's
-    only laser that TF and the robot leave without one; its beams come from its scans.
+    only laser that TF and the robot leave without one, or of its one laser over TF's; its
+    beams come from its scans.
     ``poses_only``: the caller wants the tracks alone (``gridmap trajectory --pose odometry`` or
     ``global``), so a recording without range topics is read rather than refused.
     ``odometry_optional``: the caller can make the motion from the laser scans (``--pose
