@@ -41,6 +41,7 @@ from gridmap_cli.records import PoseTrack, RangeLog
 
 if TYPE_CHECKING:
     from gridmap_cli.poses.correction.slam import SlamResult
+    from gridmap_cli.robot import RobotDescription
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data"
@@ -113,7 +114,7 @@ def _tracks(log: RangeLog, path: Path, sources: tuple[str, ...]) -> dict[str, Ce
                 warning = f"; {result.warning}" if result.warning else ""
                 out["note:slam"] = Cell(
                     note=f"{s['closures_accepted']:,} closures, {s['closures_rejected']:,} "
-                    f"rejected{warning}{_revisit_note(result)}"
+                    f"rejected{warning}{_revisit_note(result)}{_mount_note(log, robot, result)}"
                 )
         except Exception as exc:  # a failure is a result: the row says so, the rest runs
             out[source] = Cell(error=f"{type(exc).__name__}: {exc}".splitlines()[0])
@@ -134,6 +135,23 @@ def _revisit_note(result: SlamResult) -> str:
     return (
         f"; free-space check: {check.contradicting} of {check.revisits} places contradict, "
         f"{verdict} ({time.process_time() - started:.2f} s)"
+    )
+
+
+def _mount_note(log: RangeLog, robot: RobotDescription | None, result: SlamResult) -> str:
+    """Where the slam track puts the laser on the odometry's frame, against the mounting the
+    log gives (:mod:`gridmap_cli.poses.laser_mount`, as ``build`` checks it)."""
+    from gridmap_cli.poses.laser_mount import check_mount
+    from gridmap_cli.poses.sync import laser_point
+
+    given = laser_point(log, robot)
+    check = None if given is None else check_mount(result.match.track, result.match.odometry, given)
+    if check is None:
+        return ""
+    return (
+        f"; the laser measured at ({check.x_m:.3f}, {check.y_m:.3f}) m within "
+        f"{check.spread_m:.3f} m, mounted at ({check.given[0]:g}, {check.given[1]:g})"
+        + (": warned" if check.disagrees else "")
     )
 
 
