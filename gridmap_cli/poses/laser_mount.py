@@ -63,9 +63,9 @@ class MountCheck:
 
     ``x_m``, ``y_m``: measured (metres, the base frame: x forward, y left); ``spread_m``: about
     95 % of its uncertainty, twice the jackknife's standard error over :data:`GROUPS`
-    stretches of the log; ``given``: the
-    mounting's (x, y); ``pairs``: pairs kept, ``turns`` of them turned :data:`TURN_RAD` or more;
-    ``distance_scale``: the odometry's distance over the laser's (1: none to take out).
+    stretches of the log; ``given``: the mounting's (x, y); ``pairs``: pairs kept, ``turns`` of
+    them turned :data:`TURN_RAD` or more; ``distance_scale``: the odometry's distance over the
+    laser's (1: none to take out).
     """
 
     x_m: float
@@ -98,6 +98,7 @@ class MountCheck:
             "disagrees": self.disagrees,
             "pairs": self.pairs,
             "turns": self.turns,
+            "odometry_distance_scale": round(self.distance_scale, 4),
         }
 
     def reason(self) -> str:

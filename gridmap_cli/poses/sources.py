@@ -213,9 +213,9 @@ def scan_matched_poses(
     log, motion, warnings = _scan_motion(log, robot, settings, "scan-matched")
     placed, match = scan_matched_log(log, robot, progress=settings.progress)
     summary: dict[str, object] = dict(match.summary())
-    mount = None if motion else _mount_check(log, robot, match, summary, "scan-matched")
+    mounting = None if motion else _mount_check(log, robot, match, summary, "scan-matched")
     return PosedLog(placed, "scan-matched", match=match, summary={"scan_match": summary},
-                    warnings=(*warnings, *filter(None, [mount])), motion=motion)  # fmt: skip
+                    warnings=(*warnings, *filter(None, [mounting])), motion=motion)  # fmt: skip
 
 
 def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSettings) -> PosedLog:
@@ -233,8 +233,8 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
         belief = slam_belief(slam, settings.belief_samples, settings.belief_seed)
         summary["belief_noise_scale"] = [round(f, 3) for f in belief.scale]
     warnings = [*early, *([f"{given('pose', 'slam')}: {slam.warning}"] if slam.warning else [])]
-    mount = None if motion else _mount_check(log, robot, slam.match, summary, "slam")
-    warnings.extend(filter(None, [mount]))
+    mounting = None if motion else _mount_check(log, robot, slam.match, summary, "slam")
+    warnings.extend(filter(None, [mounting]))
     check = None
     if slam.scans is not None:
         from gridmap_cli.poses.correction.free_space import WIDE_M, check_poses, wide_check
