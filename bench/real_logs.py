@@ -141,11 +141,9 @@ def _revisit_note(result: SlamResult) -> str:
 def _mount_note(log: RangeLog, robot: RobotDescription | None, result: SlamResult) -> str:
     """Where the slam track puts the laser on the odometry's frame, against the mounting the
     log gives (:mod:`gridmap_cli.poses.laser_mount`, as ``build`` checks it)."""
-    from gridmap_cli.poses.laser_mount import check_mount
-    from gridmap_cli.poses.sync import laser_point
+    from gridmap_cli.poses.laser_mount import check_match
 
-    given = laser_point(log, robot)
-    check = None if given is None else check_mount(result.match.track, result.match.odometry, given)
+    check = check_match(log, robot, result.match)
     if check is None:
         return ""
     return (

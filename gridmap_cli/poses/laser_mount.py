@@ -19,20 +19,26 @@ neither leaks into ``m``; ``m`` is the laser's position on the odometry's frame 
 turn of a laser's yaw error, which it does not measure). Linear least squares, the worst pairs
 trimmed; its spread by leaving out a tenth of the log at a time.
 
-No file I/O; numpy only.
+No file I/O.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.errors import given
 from gridmap_cli.geometry import compose, inverse, wrap_angle
-from gridmap_cli.records import PoseTrack
+from gridmap_cli.poses.sync import laser_point
+from gridmap_cli.records import PoseTrack, RangeLog
+from gridmap_cli.robot import RobotDescription
+
+if TYPE_CHECKING:
+    from gridmap_cli.poses.correction.scan_match import ScanMatch
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -111,6 +117,16 @@ class MountCheck:
             f"map from the odometry alone smears its walls by up to {2 * self.off_m:.2f} m "
             "where the robot turns"
         )
+
+
+def check_match(
+    log: RangeLog, robot: RobotDescription | None, match: ScanMatch
+) -> MountCheck | None:
+    """:func:`check_mount` of a scan match of ``log`` (its track against its odometry), with
+    the mounting ``log`` and ``robot`` give its laser; None for lasers at more than one point
+    or a log that does not measure it."""
+    mount = laser_point(log, robot)
+    return None if mount is None else check_mount(match.track, match.odometry, mount)
 
 
 def check_mount(

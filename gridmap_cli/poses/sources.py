@@ -406,13 +406,9 @@ def _mount_check(
     """The laser's mounting checked against the odometry's turns (:mod:`.laser_mount`), into
     ``summary["laser_mount"]``; the warning when they disagree. Only for a log with one laser
     mounting and its own odometry (a track chained from the scans has no lever to measure)."""
-    from gridmap_cli.poses.laser_mount import check_mount
-    from gridmap_cli.poses.sync import laser_point
+    from gridmap_cli.poses.laser_mount import check_match
 
-    mount = laser_point(log, robot)
-    if mount is None:
-        return None
-    check = check_mount(match.track, match.odometry, mount)
+    check = check_match(log, robot, match)
     if check is None:
         return None
     summary["laser_mount"] = check.as_dict()

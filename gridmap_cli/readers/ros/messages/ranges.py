@@ -207,9 +207,6 @@ class _Ranges(_Mounts):
         """The beam sensors of a laser frame: the first scan's beams, then those of the
         directions later scans added (:class:`~gridmap_cli.robot.BeamBook`)."""
         mount = self._mount(base, frame)
-        # --laser-mount for the recording's one laser wins over its TF: a recorded TF is not
-        # the user's to mend, and the odometry may say it is wrong (poses.laser_mount)
-        over_tf = mount is not None and self.laser_mount is not None and len(self.scans) == 1
         book = scan.book
         names = [f"{frame}_{i}" for i in range(len(book))]
         rmin, rmax = float32_decimal([scan.range_min, scan.range_max]).tolist()
@@ -243,7 +240,10 @@ class _Ranges(_Mounts):
             mount = given.x_m, given.y_m, given.yaw_rad
         x, y, yaw = mount or self._unmounted(base, frame)
         turn = -1.0 if given is not None and given.upside_down else self._laser_turn(base, frame)
-        if over_tf and self.laser_mount is not None:
+        from_tf = self.mount_from.get(frame, "").startswith("TF")
+        if from_tf and self.laser_mount is not None and len(self.scans) == 1:
+            # --laser-mount for the recording's one laser wins over its TF: a recorded TF is
+            # not the user's to mend, and the odometry may say it is wrong (poses.laser_mount);
             # TF still says which way up the laser is (and refuses one tilted past level)
             x, y, yaw = self.laser_mount
             self.mount_from[frame] = "--laser-mount over TF" + (", upside down" if turn < 0 else "")
