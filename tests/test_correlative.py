@@ -93,11 +93,25 @@ def test_search_finds_the_offset() -> None:
     assert found.score > 0.8
 
 
-def test_compiled_search_equals_the_numpy_one(monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("vectors", [True, False], ids=["vector sums", "scalar sums"])
+def test_compiled_search_equals_the_numpy_one(
+    monkeypatch: pytest.MonkeyPatch, vectors: bool
+) -> None:
     """The compiled branch and bound returns the numpy reference's pose and score bit for bit,
-    ties included (targets and sources on a lattice give tied scores)."""
-    if optional("gridmap_cli.poses.correction._cbranch") is None:
+    ties included (targets and sources on a lattice give tied scores), with its sums in
+    vectors where the processor has them and without."""
+    compiled_module = optional("gridmap_cli.poses.correction._cbranch")
+    if compiled_module is None:
         pytest.skip("the compiled branch and bound is not built")
+    try:
+        if compiled_module.vectors(vectors) != vectors:
+            pytest.skip("this processor has no AVX2")
+        _compare_searches(monkeypatch)
+    finally:
+        compiled_module.vectors(True)
+
+
+def _compare_searches(monkeypatch: pytest.MonkeyPatch) -> None:
     rng = np.random.default_rng(5)
     outcomes = set()
     for trial in range(40):
