@@ -12,6 +12,9 @@ stream the reader built (no bag is written):
   revisits;
 - ``beams-1/2``: every second beam of the laser only (another laser: half the angular
   resolution, half the points to match);
+- ``interleave-2``: every second beam, the even beams on one scan and the odd ones on the next
+  (a laser that interleaves its scans, as the SICK LMS does: each scan at half the angular
+  resolution, its start angle shifting by a beam from one scan to the next);
 - ``range-5.6``: the laser's range cut to 5.6 m, every longer beam "no echo" up to there (a
   short-range laser as small robots carry, a Hokuyo URG's 5.6 m: long corridors and large
   rooms lose their far walls);
@@ -117,6 +120,12 @@ def thinned_beams(log: RangeLog) -> RangeLog:
     return _keep_readings(log, log.readings.sensor % 2 == 0)
 
 
+def interleaved_beams(log: RangeLog) -> RangeLog:
+    r = log.readings
+    scan = np.searchsorted(_scan_stamps(log), r.stamp_ns)
+    return _keep_readings(log, r.sensor % 2 == scan % 2)
+
+
 #: the short-range laser's reach (``range-5.6``), metres
 SHORT_RANGE_M = 5.6
 
@@ -143,6 +152,7 @@ VARIANTS: dict[str, Callable[[RangeLog], RangeLog]] = {
     "from-1/3": from_share(1 / 3),
     "from-2/3": from_share(2 / 3),
     "beams-1/2": thinned_beams,
+    "interleave-2": interleaved_beams,
     "range-5.6": short_range,
 }
 SOURCES = ("odometry", "scan-matched", "slam")
