@@ -150,3 +150,30 @@ def test_a_target_at_either_end_of_the_log_keeps_its_length() -> None:
     # the source is what the robot saw about the node, at the ends too
     assert extent(0, False) == pytest.approx((0.0, p.source_m), abs=0.3)
     assert extent(n - 1, False) == pytest.approx((30.0 - p.source_m, 30.0), abs=0.3)
+
+
+def test_built_submaps_are_kept_within_their_byte_budget(monkeypatch: pytest.MonkeyPatch) -> None:
+    # the closure rounds come back to the same submaps: those kept are the ones built (the same
+    # object again), the least recently used go first once the budget is spent, and one evicted
+    # is built again with the same points
+    from gridmap_cli.poses.correction import loop_closure
+    from gridmap_cli.poses.correction.loop_closure import Submaps, _sheet_bytes
+
+    n = 61
+    local = np.column_stack([np.linspace(0.0, 30.0, n), np.zeros(n), np.zeros(n)])
+    rng = np.random.default_rng(1)
+    scans = [rng.uniform(-3.0, 3.0, (40, 2)) for _ in range(n)]
+    whole = Submaps(scans, local, np.arange(n), ClosureParams())
+    sizes = [_sheet_bytes(whole.get(node)) for node in (0, 30, 60)]
+    assert all(size > 0 for size in sizes)
+    monkeypatch.setattr(loop_closure, "CACHED_SUBMAP_BYTES", sizes[0] + sizes[1])
+    submaps = Submaps(scans, local, np.arange(n), ClosureParams())
+    first, second = submaps.get(0), submaps.get(30)
+    assert submaps.get(0) is first and submaps.get(30) is second  # both fit
+    submaps.get(0)  # 30 is now the least recently used
+    third = submaps.get(60)
+    assert submaps.get(0) is first
+    again = submaps.get(30)
+    assert again is not second  # evicted, built afresh
+    np.testing.assert_array_equal(again.points, second.points)
+    assert submaps.get(60) is not third  # and 60 gave way to it in turn

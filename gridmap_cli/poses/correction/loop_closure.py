@@ -39,8 +39,10 @@ FloatArray = npt.NDArray[np.float64]
 
 #: Metres of travel a radian of turning counts as when submaps are cut along the path.
 TURN_M = 1.0
-#: Submaps kept built (the most recently used): each holds about a megabyte.
-CACHED_SUBMAPS = 60
+#: Bytes of built submaps kept (the most recently used). The closure rounds come back to the
+#: same submaps, most of them evicted by a round's end under a cache of a few dozen; a
+#: building's keyframes' submaps together take some tens of megabytes, so most logs keep all.
+CACHED_SUBMAP_BYTES = 64 << 20
 
 
 @dataclass(frozen=True)
@@ -165,6 +167,7 @@ class Submaps:
     ) -> None:
         self.points, self.local, self.nodes, self.params = points, local, nodes, params
         self._cache: OrderedDict[tuple[int, bool], Sheet] = OrderedDict()
+        self._cached_bytes = 0
         # travel along the scan-matched path, turning counted at TURN_M metres per radian
         steps = np.hypot(np.diff(local[:, 0]), np.diff(local[:, 1]))
         turns = np.abs(wrap_angle(np.diff(local[:, 2])))
@@ -224,8 +227,9 @@ class Submaps:
         flat = self._gather(s, *self._span(node, wide))
         entry = sheet_of(flat, p.voxel_m if wide else p.source_voxel_m)
         self._cache[key] = entry
-        if len(self._cache) > CACHED_SUBMAPS:
-            self._cache.popitem(last=False)
+        self._cached_bytes += _sheet_bytes(entry)
+        while self._cached_bytes > CACHED_SUBMAP_BYTES and len(self._cache) > 1:
+            self._cached_bytes -= _sheet_bytes(self._cache.popitem(last=False)[1])
         return entry
 
     def scans(self, node: int, wide: bool = True) -> tuple[FloatArray, list[FloatArray]]:
@@ -288,6 +292,15 @@ class Submaps:
         x = np.repeat(rx, counts) + cos * pts[:, 0] - sin * pts[:, 1]
         y = np.repeat(ry, counts) + sin * pts[:, 0] + cos * pts[:, 1]
         return np.column_stack([x, y])
+
+
+def _sheet_bytes(sheet: Sheet) -> int:
+    """The memory a built submap holds: its arrays, or where small_gicp holds the sheet, its
+    three copies of each point with their covariances (4 and 16 doubles each)."""
+    if sheet.covs is not None:
+        dims = 0 if sheet.dims is None else sheet.dims.nbytes
+        return int(sheet.points.nbytes + dims + sheet.covs.nbytes)
+    return int(sheet.points.nbytes + len(sheet) * 3 * 20 * 8)
 
 
 def verify(
