@@ -119,21 +119,18 @@ def _pooled_levels(
     hit[cells[:, 0] - r0, cells[:, 1] - c0] = True
     dist = ndimage.distance_transform_edt(~hit) * resolution_m
     near = np.exp(-0.5 * (dist / sigma_m) ** 2).astype(np.float32)
-    # the pooled box: [lo, hi) in both axes, zero outside the interior [pad, hi)
-    base = np.zeros((hi[0] - lo, hi[1] - lo), dtype=np.float32)
-    inner = near[pad - r0 : hi[0] - r0, pad - c0 : hi[1] - c0]
-    base[pad - lo :, pad - lo :] = inner
-    boxes = [base]
+    # the pooled box: [lo, hi) in both axes, zero outside the interior [pad, hi); each level
+    # is written straight into its grid's box, from the level below's
+    grids = _zero_grids(levels + 1, shape)
+    boxes = [g[lo : hi[0], lo : hi[1]] for g in grids]
+    boxes[0][pad - lo :, pad - lo :] = near[pad - r0 : hi[0] - r0, pad - c0 : hi[1] - c0]
+    rows = np.empty_like(boxes[0])
     for level in range(levels):
-        g, h = boxes[-1], 2**level
-        up = g.copy()
-        up[:-h, :] = np.maximum(up[:-h, :], g[h:, :])
-        up2 = up.copy()
-        up2[:, :-h] = np.maximum(up2[:, :-h], up[:, h:])
-        boxes.append(up2)
-    grids = _zero_grids(len(boxes), shape)
-    for full, box in zip(grids, boxes, strict=True):
-        full[lo : hi[0], lo : hi[1]] = box
+        g, up, h = boxes[level], boxes[level + 1], 2**level
+        np.maximum(g[:-h, :], g[h:, :], out=rows[:-h, :])
+        rows[-h:, :] = g[-h:, :]
+        np.maximum(rows[:, :-h], rows[:, h:], out=up[:, :-h])
+        up[:, -h:] = rows[:, -h:]
     return grids
 
 
