@@ -58,7 +58,10 @@ static float pairwise(const float *g, const int32_t *idx, Py_ssize_t n)
 static int use_avx2 = 0;
 
 #if defined(__x86_64__)
-/* pairwise() with a block's 8 accumulators as the 8 lanes of one vector. */
+/* pairwise() with a block's 8 accumulators as the 8 lanes of one vector. It repeats pairwise()'s
+ * small case and halving so that the whole walk is compiled for AVX2: with one walk calling
+ * either block sum (an AVX2 function cannot be inlined into a generic one) the search measured
+ * a tenth slower. */
 __attribute__((target("avx2"))) static float pairwise_avx2(const float *g, const int32_t *idx,
                                                            Py_ssize_t n)
 {
