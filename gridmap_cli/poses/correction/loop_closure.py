@@ -40,8 +40,8 @@ FloatArray = npt.NDArray[np.float64]
 #: Metres of travel a radian of turning counts as when submaps are cut along the path.
 TURN_M = 1.0
 #: Bytes of built submaps kept (the most recently used). The closure rounds come back to the
-#: same submaps, most of them evicted by a round's end under a cache of a few dozen; a
-#: building's keyframes' submaps together take some tens of megabytes, so most logs keep all.
+#: same submaps, most of them evicted by a round's end under a cache of a few dozen; a submap
+#: holds tens of kilobytes, so a building's worth of keyframes fits (docs/slam-speed.md).
 CACHED_SUBMAP_BYTES = 64 << 20
 
 
