@@ -7,12 +7,12 @@
  * node's children are tried in the order numpy's argsort puts their scores, given by the
  * caller as a table (a tie's order is the sort's own: tied scores at the end pick the pose).
  *
- * Arrays arrive through the buffer protocol (contiguous float32 / int64, checked here), so the
- * module needs no numpy headers. Built with -ffp-contract=off: no fused multiply-adds.
+ * Arrays arrive through the buffer protocol (contiguous float32 / int32 / int64, checked here),
+ * so the module needs no numpy headers. Built with -ffp-contract=off: no fused multiply-adds.
  *
- * A score reads one grid cell per point, scattered over the grid: the sums take the points'
- * cells as 32-bit indices (half the memory traffic of numpy's int64), and where the processor
- * has AVX2, a block's 8 running sums are one vector filled by gathers. Each lane adds the same
+ * A score reads one grid cell per point, scattered over the grid: the points' cells come as
+ * 32-bit indices (half the memory traffic of numpy's int64), and where the processor has AVX2,
+ * a block's 8 running sums are one vector filled by gathers. Each lane adds the same
  * values in the same order as the scalar code, so every sum is the same bit for bit.
  */
 #define PY_SSIZE_T_CLEAN
@@ -204,7 +204,7 @@ static int take(PyObject *obj, Py_buffer *view, Py_ssize_t itemsize, const char 
 
 /* search(levels, width, cells, turns, tiles, reach, min_score, order)
  * levels: sequence of top+1 float32 grids (flat, equal sizes); width: cells in a row;
- * cells: int64 (turns * K) flat fine cells of the points at each heading; tiles: int64 (R * 2)
+ * cells: int32 (turns * K) flat fine cells of the points at each heading; tiles: int64 (R * 2)
  * the root offsets; reach: the window in cells; order: bytes, the argsort table.
  * Returns (score, turn, u, v) of the best pose scoring above min_score, or None. */
 static PyObject *search(PyObject *self, PyObject *args)
@@ -228,7 +228,6 @@ static PyObject *search(PyObject *self, PyObject *args)
     PyObject *result = NULL;
     Root *roots = NULL;
     Node *stack = NULL;
-    int32_t *cells32 = NULL;
     double best = min_score;
     Py_ssize_t best_turn = -1;
     int64_t best_u = 0, best_v = 0;
@@ -247,7 +246,7 @@ static PyObject *search(PyObject *self, PyObject *args)
             goto done;
         }
     }
-    if (take(cells_obj, &cv, 8, "cells"))
+    if (take(cells_obj, &cv, 4, "cells"))
         goto done;
     if (take(tiles_obj, &tv, 8, "tiles")) {
         PyBuffer_Release(&cv);
@@ -261,12 +260,13 @@ static PyObject *search(PyObject *self, PyObject *args)
     ok = 1;
     gr.size = views[0].len / 4;
     gr.width = width;
-    gr.k = cv.len / 8 / turns;
+    gr.k = cv.len / 4 / turns;
     gr.order = ov.buf;
     int top = (int)nlev - 1;
     Py_ssize_t ntiles = tv.len / 16;
-    const int64_t *cells = cv.buf, *tiles = tv.buf;
-    if (ov.len != 4 * 256 * 4 || gr.k < 1 || gr.k * turns * 8 != cv.len) {
+    const int32_t *cells = cv.buf;
+    const int64_t *tiles = tv.buf;
+    if (ov.len != 4 * 256 * 4 || gr.k < 1 || gr.k * turns * 4 != cv.len) {
         PyErr_SetString(PyExc_ValueError, "search: bad order table or cells");
         goto done;
     }
@@ -287,17 +287,14 @@ static PyObject *search(PyObject *self, PyObject *args)
     }
     roots = malloc(sizeof(Root) * (size_t)(turns * ntiles + 1));
     stack = malloc(sizeof(Node) * (size_t)(4 * (top + 1) + 4));
-    cells32 = malloc(sizeof(int32_t) * (size_t)(gr.k * turns));
-    if (roots == NULL || stack == NULL || cells32 == NULL) {
+    if (roots == NULL || stack == NULL) {
         PyErr_NoMemory();
         goto done;
     }
-    for (Py_ssize_t i = 0; i < gr.k * turns; i++)
-        cells32[i] = (int32_t)cells[i];
     for (Py_ssize_t t = 0; t < turns; t++)
         for (Py_ssize_t m = 0; m < ntiles; m++) {
             Py_ssize_t r = t * ntiles + m;
-            roots[r].bound = score(&gr, top, cells32 + t * gr.k, tiles[2 * m], tiles[2 * m + 1]);
+            roots[r].bound = score(&gr, top, cells + t * gr.k, tiles[2 * m], tiles[2 * m + 1]);
             roots[r].index = r;
         }
     qsort(roots, (size_t)(turns * ntiles), sizeof(Root), by_bound);
@@ -306,7 +303,7 @@ static PyObject *search(PyObject *self, PyObject *args)
             break;
         Py_ssize_t t = roots[r].index / ntiles, m = roots[r].index % ntiles;
         int64_t u = 0, v = 0;
-        if (descend(&gr, cells32 + t * gr.k, tiles[2 * m], tiles[2 * m + 1], top, reach, &best, &u,
+        if (descend(&gr, cells + t * gr.k, tiles[2 * m], tiles[2 * m + 1], top, reach, &best, &u,
                     &v, stack)) {
             best_turn = t;
             best_u = u;
@@ -321,7 +318,6 @@ static PyObject *search(PyObject *self, PyObject *args)
     }
 done:
     free(roots);
-    free(cells32);
     free(stack);
     for (int i = 0; i < held; i++)
         PyBuffer_Release(&views[i]);

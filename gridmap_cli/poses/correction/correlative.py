@@ -179,9 +179,10 @@ def search(
         )
         cells_by_turn.append(grid.cells(moved))
     compiled = optional("gridmap_cli.poses.correction._cbranch")
-    if compiled is not None and len(source):
+    # the compiled walk reads the cells as 32-bit indices
+    if compiled is not None and len(source) and grid.flat[0].size < 2**31:
         found = compiled.search(
-            grid.flat, grid.shape[1], np.ascontiguousarray(cells_by_turn, dtype=np.int64),
+            grid.flat, grid.shape[1], np.ascontiguousarray(cells_by_turn, dtype=np.int32),
             len(thetas), np.ascontiguousarray(tiles, dtype=np.int64), reach, min_score,
             _argsort_table(),
         )  # fmt: skip
