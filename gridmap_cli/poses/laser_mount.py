@@ -113,7 +113,8 @@ class MountCheck:
             f"the odometry's turns put the laser at x {self.x_m:.3f} m, y {self.y_m:.3f} m on "
             f"the base frame (within {self.spread_m:.3f} m), {self.off_m:.3f} m from its "
             f"mounting (x {self.given[0]:.3f} m, y {self.given[1]:.3f} m): check the laser's "
-            f"mounting (its TF, which {given('laser_mount')} overrides, or the robot file); a "
+            "mounting where the log takes it from (`gridmap inspect` says: a robot file, the "
+            f"log's own, or a ROS recording's TF, which {given('laser_mount')} overrides); a "
             f"map from the odometry alone smears its walls by up to {2 * self.off_m:.2f} m "
             "where the robot turns"
         )
