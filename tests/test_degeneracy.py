@@ -181,3 +181,19 @@ def test_a_slide_longer_than_the_odometry_step_is_left_to_the_match() -> None:
     hessian = corridor_hessian(0.0)
     assert unchosen_slide(hessian, scan, slid, truth, tree, 0.15, 0.05) is None
     assert unchosen_slide(hessian, scan, slid, truth, tree, 0.15, 1.2) is not None
+
+
+def test_a_slide_that_turns_the_travel_back_is_judged_past_the_step() -> None:
+    """The odometry moved the robot 0.1 m forwards (from -0.1 m to the guess at 0): a match
+    that puts it 1 m back, behind where it came from, turns its travel against the wheels' and
+    is judged by the scan past the step's length (here taken back); the same slide forwards,
+    along the odometry's travel, is left to the match as before."""
+    world = corridor_points(1.0, None)
+    tree = cKDTree(world)
+    guess = (0.0, 0.0, 0.0)
+    scan = seen_from(world, guess, 8.0)
+    hessian = corridor_hessian(0.0)
+    back, ahead = (-1.0, 0.0, 0.0), (1.0, 0.0, 0.0)
+    assert unchosen_slide(hessian, scan, back, guess, tree, 0.15, 0.1, (-0.1, 0.0)) is not None
+    assert unchosen_slide(hessian, scan, ahead, guess, tree, 0.15, 0.1, (-0.1, 0.0)) is None
+    assert unchosen_slide(hessian, scan, back, guess, tree, 0.15, 0.1) is None  # no way back known

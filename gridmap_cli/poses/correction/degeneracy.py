@@ -93,6 +93,7 @@ def unchosen_slide(
     local: cKDTree,
     inlier_m: float,
     step_m: float,
+    came_from: tuple[float, float] | None = None,
 ) -> FloatArray | None:
     """The least constrained direction (unit vector (2,), map frame) of a match that moved the
     pose from the odometry's ``guess`` along it by more than ``inlier_m`` and no more than the
@@ -109,8 +110,17 @@ def unchosen_slide(
         return None
     axis = _least_axis(hessian, pose[2])
     along = abs(float(axis @ np.array([pose[0] - guess[0], pose[1] - guess[1]])))
-    if along <= inlier_m or along > step_m:
+    if along <= inlier_m:
         return None
+    if along > step_m:
+        # past the odometry's step only where the match turns the robot's travel back against
+        # the odometry's: wheels say which way they turned even where their stamps bunch
+        if came_from is None:
+            return None
+        odo = np.array([guess[0] - came_from[0], guess[1] - came_from[1]])
+        matched = np.array([pose[0] - came_from[0], pose[1] - came_from[1]])
+        if float(odo @ matched) >= 0.0:
+            return None
     at, _ = local.query(placed_points(planar, pose), distance_upper_bound=inlier_m)
     back, _ = local.query(
         placed_points(planar, keep_across(guess, pose, axis)), distance_upper_bound=inlier_m

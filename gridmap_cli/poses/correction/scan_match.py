@@ -340,6 +340,7 @@ def _match_pass(
                     2.0 * params.max_correction_rad if step_m >= MOVED_M
                     else params.max_correction_rad
                 ),
+                (float(poses[k - 1, 0]), float(poses[k - 1, 1])),
             )  # fmt: skip
             if axis is not None:
                 scale.kept(abs(float(axis @ (poses[k, :2] - poses[k - 1, :2]))))
@@ -369,6 +370,7 @@ def _match_one(
     kept: tuple[float, float, float] | None = None,
     typical: Callable[[], float] | None = None,
     window_rad: float = 0.0,
+    came_from: tuple[float, float] | None = None,
 ) -> tuple[tuple[float, float, float], int, float, FloatArray | None]:
     """One scan's pose, status, inlier fraction and weak axis (map frame; None unless
     degenerate). GICP starts from ``guess``; ``kept`` (default ``guess``) is the pose a
@@ -438,7 +440,9 @@ def _match_one(
     axis = weak_axis(hessian, params.degenerate_ratio, pose[2])
     if axis is not None:
         return keep_across(kept, pose, axis), DEGENERATE, fraction, axis
-    slid = unchosen_slide(hessian, planar, pose, kept, local.tree2d, params.inlier_m, step_m)
+    slid = unchosen_slide(
+        hessian, planar, pose, kept, local.tree2d, params.inlier_m, step_m, came_from
+    )
     return pose if slid is None else keep_across(kept, pose, slid), MATCHED, fraction, None
 
 
