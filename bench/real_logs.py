@@ -124,17 +124,19 @@ def _tracks(log: RangeLog, path: Path, sources: tuple[str, ...]) -> dict[str, Ce
 
 
 def _revisit_note(result: SlamResult) -> str:
-    """What the free-space check says of the graph's track (as ``build`` checks it), its cost."""
-    from gridmap_cli.poses.correction.free_space import check_poses
+    """What the free-space check and its wide look say of the graph's track (as ``build``
+    checks it), their cost."""
+    from gridmap_cli.poses.correction.free_space import verdict
 
     if result.scans is None:
         return ""
     started = time.process_time()
-    check = check_poses(result.track, result.scans.points)
-    verdict = f"fails it: {check.reason()}" if check.fails else "passes"
+    check, wide, said = verdict(result.track, result.scans.points, result.free_space)
+    wide_note = "" if wide is None else f", {wide.contradicting} of {wide.revisits} within 2 m"
     return (
-        f"; free-space check: {check.contradicting} of {check.revisits} places contradict, "
-        f"{verdict} ({time.process_time() - started:.2f} s)"
+        f"; free-space check: {check.contradicting} of {check.revisits} places contradict"
+        f"{wide_note}, {'passes' if said is None else 'warned: ' + said} "
+        f"({time.process_time() - started:.2f} s)"
     )
 
 

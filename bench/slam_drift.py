@@ -71,6 +71,7 @@ def run(job: tuple[str, float]) -> tuple[str, float, str]:
 
 
 def _run(name: str, bias_deg: float) -> str:
+    from gridmap_cli.poses.correction.free_space import verdict
     from gridmap_cli.poses.correction.scan_match import corrected_track, log_scans, match_scans
     from gridmap_cli.poses.correction.slam import SLAM_MATCH, close_loops
     from gridmap_cli.readers import read_logs
@@ -88,14 +89,19 @@ def _run(name: str, bias_deg: float) -> str:
     result = close_loops(scans, match)
     matched = score_track(corrected_track(log.poses, match), relations, log.poses)
     slam = score_track(corrected_track(log.poses, result.match), relations, log.poses)
-    check = result.free_space
-    assert check is not None
-    verdict = f"fails ({check.contradicting} of {check.revisits})" if check.fails else "passes"
+    assert result.scans is not None
+    check, wide, said = verdict(result.track, result.scans.points, result.free_space)
+    if check.fails:
+        judged = f"fails ({check.contradicting} of {check.revisits})"
+    elif said is not None and wide is not None:
+        judged = f"wide look fails ({wide.contradicting} of {wide.revisits})"
+    else:
+        judged = "passes"
     return (
         f"| {name} | {bias_deg:g} | {matched.trans_mean_m:.3f} m, {matched.rot_mean_deg:.2f}° | "
         f"{slam.trans_mean_m:.3f} m, {slam.rot_mean_deg:.2f}° | "
         f"{len(result.closures):,}/{result.candidates:,} | "
-        f"{verdict} | {result.widened:g} | {time.process_time() - started:.0f} |"
+        f"{judged} | {result.widened:g} | {time.process_time() - started:.0f} |"
     )
 
 

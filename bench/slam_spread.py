@@ -28,8 +28,8 @@ def _one(job: tuple[str, str, str, int | None]) -> tuple[str, str, int | None, s
     row = run(name, (source,), jitter=seed)
     cell = row.cells[source]
     text = cell.error or (f"{cell.value[0]:.3f}" if cell.value else "?")
-    if cell.note and "fails it" in cell.note:
-        text += " (free space fails)"
+    if cell.note and "warned: " in cell.note:
+        text += " (free space warned)"
     print(
         f"{kind} {name} seed {seed}: {text} in {time.perf_counter() - started:.0f} s; {cell.note}",
         file=sys.stderr,

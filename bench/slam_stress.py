@@ -201,7 +201,7 @@ def run(job: tuple[str, str, str | None]) -> Result:
 
 
 def _run(name: str, variant: str, maps: str | None) -> Result:
-    from gridmap_cli.poses.correction.free_space import check_poses
+    from gridmap_cli.poses.correction.free_space import verdict
     from gridmap_cli.poses.correction.scan_match import corrected_track, match_log
     from gridmap_cli.poses.correction.slam import slam_log
     from gridmap_cli.readers import read_logs
@@ -234,8 +234,7 @@ def _run(name: str, variant: str, maps: str | None) -> Result:
     closures = f"{summary['closures_accepted']:,}/{summary['candidates']:,}"
     free_space = None
     if slam.scans is not None:
-        check = check_poses(slam.track, slam.scans.points)
-        free_space = check.reason() if check.fails else None
+        free_space = verdict(slam.track, slam.scans.points, slam.free_space)[2]
     if maps is not None:
         _save(Path(maps) / f"{name}-{variant.replace('/', '_')}", log, robot, slam)
     return Result(
@@ -312,7 +311,8 @@ def table(results: list[Result]) -> list[str]:
 
 def warnings(results: list[Result]) -> list[str]:
     """What each run warned of, as ``build --pose slam`` would: the graph's own checks, then the
-    free-space check of its track; first, where the graph searched again wider."""
+    free-space check of its track (or its wide look where it passes); first, where the graph
+    searched again wider."""
     said = [(r, w) for r in results for w in (_wider(r), r.warning, r.free_space) if w]
     return [f"- {r.log} {r.variant}: {w}" for r, w in said]
 

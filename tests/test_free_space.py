@@ -176,6 +176,12 @@ def test_the_graphs_track_passes_and_a_broken_one_fails(laser_log: Path) -> None
     assert broken.fails and broken.contradicting > 5 * max(good.contradicting, 1), broken
     # the drifting odometry's revisits contradict too
     assert fs.check_poses(result.scan_matched.odometry, points).fails
+    # the verdict build warns by: the graph's track passes both looks and says nothing; the
+    # broken one is warned of by the check itself, the wide look not taken
+    check, wide, said = fs.verdict(result.track, points)
+    assert not check.fails and wide is not None and not wide.fails and said is None
+    check, wide, said = fs.verdict(_turned_half(result.track, 5.0), points)
+    assert check.fails and wide is None and said == check.reason()
 
 
 def _broken_slam(monkeypatch: pytest.MonkeyPatch, all_tracks: bool = False) -> None:

@@ -237,22 +237,15 @@ def slam_poses(log: RangeLog, robot: RobotDescription | None, settings: PoseSett
     warnings.extend(filter(None, [mounting]))
     check = None
     if slam.scans is not None:
-        from gridmap_cli.poses.correction.free_space import WIDE_M, check_poses, wide_check
+        from gridmap_cli.poses.correction.free_space import verdict
 
-        # the graph's own check of this track (the same scans and poses)
-        check = slam.free_space or check_poses(slam.track, slam.scans.points)
+        # the graph's own check of this track (the same scans and poses), then the wide look
+        check, wide, said = verdict(slam.track, slam.scans.points, slam.free_space)
         summary["free_space_check"] = check.as_dict()
-        if check.fails:
-            warnings.append(f"{given('pose', 'slam')}: {check.reason()}; check the map")
-        else:
-            # a loop closed a corridor's width off passes the check above unjudged: warned of
-            wide = wide_check(slam.track, slam.scans.points)
+        if wide is not None:
             summary["free_space_check_wide"] = wide.as_dict()
-            if wide.fails:
-                warnings.append(
-                    f"{given('pose', 'slam')}: where its passes come within {WIDE_M:g} m of "
-                    f"each other, {wide.reason()}; check the map"
-                )
+        if said is not None:
+            warnings.append(f"{given('pose', 'slam')}: {said}; check the map")
     return PosedLog(placed, "slam", match=slam.match, slam=slam, belief=belief,
                     summary={"slam": summary}, warnings=tuple(warnings), motion=motion,
                     free_space=check)  # fmt: skip

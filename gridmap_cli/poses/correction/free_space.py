@@ -454,3 +454,18 @@ def wide_check(track: PoseTrack, points: list[F64]) -> FreeSpaceCheck:
     """The wide look (see the module): :func:`check_poses` with revisits within
     :data:`WIDE_M`."""
     return check_poses(track, points, WIDE_M)
+
+
+def verdict(
+    track: PoseTrack, points: list[F64], check: FreeSpaceCheck | None = None
+) -> tuple[FreeSpaceCheck, FreeSpaceCheck | None, str | None]:
+    """What a slam track is judged by and warned of: its check (``check`` where the graph
+    already took it), the wide look where that passes (None where it fails: the track is warned
+    of already), and the one-clause warning either gives (None when both pass)."""
+    check = check or check_poses(track, points)
+    if check.fails:
+        return check, None, check.reason()
+    wide = wide_check(track, points)
+    if not wide.fails:
+        return check, wide, None
+    return check, wide, f"where its passes come within {WIDE_M:g} m of each other, {wide.reason()}"
