@@ -137,8 +137,7 @@ class Scans:
     """Laser scans: one per distinct stamp of the log's laser readings.
 
     ``stamp_ns`` shape (S,); ``points`` a list of S arrays, shape (K_i, 2), the beam end points
-    (echoes only, within the matching range) in the robot base frame, metres.
-    """
+    (echoes only, within the matching range) in the robot base frame, metres."""
 
     stamp_ns: npt.NDArray[np.int64]
     points: list[FloatArray]
@@ -157,8 +156,7 @@ class ScanMatch:
     within ``inlier_m`` of the local map after the match (NaN for the first scan).
     ``weak_axis`` (S, 2): the unit vector (odometry frame) along which a degenerate match kept
     the odometry, NaN for the others; ``distance_scale``: the odometry's distance scale the
-    matcher had learned by the last scan (1: none learned).
-    """
+    matcher had learned by the last scan (1: none learned)."""
 
     track: PoseTrack
     odometry: PoseTrack
