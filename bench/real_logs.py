@@ -126,13 +126,15 @@ def _tracks(log: RangeLog, path: Path, sources: tuple[str, ...]) -> dict[str, Ce
 def _revisit_note(result: SlamResult) -> str:
     """What the free-space check and its wide look say of the graph's track (as ``build``
     checks it), their cost."""
-    from gridmap_cli.poses.correction.free_space import verdict
+    from gridmap_cli.poses.correction.free_space import WIDE_M, verdict
 
     if result.scans is None:
         return ""
     started = time.process_time()
     check, wide, said = verdict(result.track, result.scans.points, result.free_space)
-    wide_note = "" if wide is None else f", {wide.contradicting} of {wide.revisits} within 2 m"
+    wide_note = (
+        "" if wide is None else f", {wide.contradicting} of {wide.revisits} within {WIDE_M:g} m"
+    )
     return (
         f"; free-space check: {check.contradicting} of {check.revisits} places contradict"
         f"{wide_note}, {'passes' if said is None else 'warned: ' + said} "

@@ -462,7 +462,7 @@ def verdict(
     """What a slam track is judged by and warned of: its check (``check`` where the graph
     already took it), the wide look where that passes (None where it fails: the track is warned
     of already), and the one-clause warning either gives (None when both pass)."""
-    check = check or check_poses(track, points)
+    check = check if check is not None else check_poses(track, points)
     if check.fails:
         return check, None, check.reason()
     wide = wide_check(track, points)
