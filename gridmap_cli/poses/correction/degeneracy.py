@@ -96,14 +96,18 @@ def unchosen_slide(
     came_from: tuple[float, float] | None = None,
 ) -> FloatArray | None:
     """The least constrained direction (unit vector (2,), map frame) of a match that moved the
-    pose from the odometry's ``guess`` along it by more than ``inlier_m`` and no more than the
-    odometry's step (``step_m``), when the scan does not choose the move: of its ``planar``
+    pose from the odometry's ``guess`` along it by more than ``inlier_m`` and either no more
+    than the odometry's step (``step_m``) or so far that the robot's travel from ``came_from``
+    (the previous scan's x, y; None: unknown) points against the odometry's, when the scan
+    does not choose the move: of its ``planar``
     points (K, 2, robot frame), those within ``inlier_m`` of the ``local`` map's points at
     ``pose`` and not with the move taken back (:func:`keep_across`) do not outnumber those the
     other way round by twice their chance spread (a sign test: with no preference either way
     each such point falls either way at even odds, so the excess of n of them spreads by
     sqrt(n)). None otherwise: the scan chose the place, or the odometry's increment, shorter
-    than the move, is no place to go back to (a stop, or a clock that stamps in bursts).
+    than the move and along it, is no place to go back to (a stop, or a clock that stamps in
+    bursts); a move that turns the travel back is judged all the same, since which way wheels
+    turned holds even where their stamps bunch.
     ``hessian`` (6, 6): small_gicp's, as :func:`weak_axis` reads it."""
     # most matches move less than the band in all: no eigenvectors for them
     if math.hypot(pose[0] - guess[0], pose[1] - guess[1]) <= inlier_m or len(planar) == 0:

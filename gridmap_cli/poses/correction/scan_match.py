@@ -191,8 +191,7 @@ def laser_scans(log: RangeLog, sensors: tuple[RangeSensor, ...], params: ScanMat
     """The log's laser readings grouped into scans by stamp (all lasers at one stamp together).
 
     ``sensors`` is the mounting of each of ``log.sensor_names``. Raises :class:`NoLaserError`
-    when no sensor is a laser or no laser reading is in the log.
-    """
+    when no sensor is a laser or no laser reading is in the log."""
     is_laser = np.array([s.kind == "laser" for s in sensors], dtype=bool)
     if not is_laser.any():
         kinds = sorted({s.kind for s in sensors}) or ["none"]
@@ -375,7 +374,8 @@ def _match_one(
     fallback takes and a degenerate match keeps along its weak axis. ``window_rad``: the
     heading window of the search for a lost scan (:mod:`.relocate`; at most ``search_rad``);
     ``typical``: the fit a relocation turned beyond the heading bound must reach
-    (:func:`.relocate.typical_fit`; None: it never is)."""
+    (:func:`.relocate.typical_fit`; None: it never is); ``came_from``: the previous scan's
+    x, y, for the slide rule (:func:`.degeneracy.unchosen_slide`)."""
     kept = kept or guess
     if local.cloud is None or local.tree is None or local.tree2d is None:
         return kept, FALLBACK, 0.0, None
