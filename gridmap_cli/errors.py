@@ -16,6 +16,20 @@ from pathlib import Path
 class GridmapError(Exception):
     """Root of every error gridmap raises on purpose."""
 
+    def __reduce__(self) -> tuple[object, ...]:
+        # rebuilt from its fields and message, not by calling the class again with the message
+        # alone (the subclasses' constructors take fields): an error raised in a worker process
+        # (Dask, multiprocessing) reaches the caller as the same error
+        return _rebuilt, (type(self), str(self), dict(self.__dict__))
+
+
+def _rebuilt(cls: type[GridmapError], message: str, fields: dict[str, object]) -> GridmapError:
+    """An error of ``cls`` with ``message`` and its ``fields``, its constructor not called."""
+    err = cls.__new__(cls)
+    Exception.__init__(err, message)
+    err.__dict__.update(fields)
+    return err
+
 
 class UsageError(GridmapError):
     """The command line asks for something that cannot be done (exit code 2)."""
