@@ -178,3 +178,48 @@ def test_built_submaps_are_kept_within_their_byte_budget(monkeypatch: pytest.Mon
     assert again is not second  # evicted, built afresh
     np.testing.assert_array_equal(again.points, second.points)
     assert submaps.get(60) is not third  # and 60 gave way to it in turn
+
+
+def test_shorter_loops_are_tried_first_by_doubling_length() -> None:
+    """Pairs grouped by the path between them (8-16 m, 16-32 m, 32-64 m, ... from the shortest
+    loop of 8 m), the shortest group first, each group in the order it was offered."""
+    from gridmap_cli.poses.correction.slam import by_gap
+
+    path = np.arange(0.0, 200.0, 1.0)  # node k at k metres along the path
+    pairs = [(100, 0), (30, 20), (50, 10), (60, 50), (99, 90), (41, 10), (150, 130)]
+    tiers = by_gap(pairs, path, 8.0)
+    assert tiers == [[(30, 20), (60, 50), (99, 90)], [(41, 10), (150, 130)], [(50, 10)], [(100, 0)]]
+    assert by_gap([], path, 8.0) == []
+
+
+def test_a_search_has_drifted_when_its_closures_turn_the_track_by_half_its_window() -> None:
+    """The closures' median heading correction from the scan-matched track against half the
+    coarse search's heading window; the track's own turn between the two nodes is no
+    correction."""
+    from gridmap_cli.poses.correction.loop_closure import Closure
+    from gridmap_cli.poses.correction.repair import drifted
+    from gridmap_cli.records import PoseTrack
+
+    k = np.arange(40)
+    heading = 0.05 * k  # the track turns as it goes: a closure's own turn is taken off
+    track = PoseTrack(
+        stamp_ns=k.astype(np.int64), x_m=np.cos(heading), y_m=np.sin(heading), theta_rad=heading
+    )
+    nodes = np.arange(0, 40, 2)
+    params = ClosureParams(coarse_window_rad=math.radians(15.0))
+
+    def closures(corrections_deg: list[float]) -> list[Closure]:
+        # node j's pose in node i's frame: the track's relative turn plus the correction
+        out = []
+        for n, deg in enumerate(corrections_deg):
+            i, j = 15 + n, 2
+            turn = heading[nodes[j]] - heading[nodes[i]]
+            out.append(Closure(i, j, 0.0, 0.0, turn + math.radians(deg), 0.6))
+        return out
+
+    assert drifted(track, nodes, closures([9.0, -8.0, 0.5]), params)  # median 8 > 7.5
+    assert not drifted(track, nodes, closures([9.0, 7.0, -0.5]), params)  # median 7
+    assert not drifted(track, nodes, closures([0.0, 0.0, 0.0]), params)
+    assert not drifted(track, nodes, [], params)
+    wide = ClosureParams(coarse_window_rad=math.radians(30.0))
+    assert not drifted(track, nodes, closures([9.0, -8.0, 0.5]), wide)

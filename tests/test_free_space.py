@@ -182,6 +182,11 @@ def test_the_graphs_track_passes_and_a_broken_one_fails(laser_log: Path) -> None
     assert not check.fails and wide is not None and not wide.fails and said is None
     check, wide, said = fs.verdict(_turned_half(result.track, 5.0), points)
     assert check.fails and wide is None and said == check.reason()
+    # how the graph ranks the two when it searches wider: passing both first
+    from gridmap_cli.poses.correction.repair import PASSES, standing
+
+    assert standing(result.track, points, good) == PASSES
+    assert standing(_turned_half(result.track, 5.0), points, broken) == (2, broken.share)
 
 
 def _broken_slam(monkeypatch: pytest.MonkeyPatch, all_tracks: bool = False) -> None:

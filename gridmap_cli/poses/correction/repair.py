@@ -1,5 +1,6 @@
 """What the pose graph tries when its track fails its free-space check, and the pieces it
-shares with :mod:`.slam`: a closure's edge and every scan's pose carried by the keyframes.
+shares with :mod:`.slam`: a closure's edge, the graph solved with its closures, and every
+scan's pose carried by the keyframes.
 
 A track fails the check (:mod:`.free_space`) when the places the robot came back to contradict
 what it saw there the first time: a loop closed wrongly, or missed. Only then, so that no
@@ -7,13 +8,22 @@ passing track moves:
 
 - :func:`partial_loops` tries the loops that closures under the inlier gate would close
   (:mod:`.overlap`), keeping each that leaves fewer revisits contradicting;
-- where the track still fails, the closure search runs again with its bounds on the drift
-  :data:`WIDER_SEARCH` times as wide (:func:`wider`): the scan matcher may have drifted further
-  before the robot came back than the bounds allow (a campus, a laser that sees little), so the
-  true closures were never offered or their coarse search looked too narrowly, while a
-  look-alike place within the bounds could pass. The first wider track that passes is kept,
-  else the one with the smallest share of its revisits contradicting, the search as asked
+- where the track still fails, or fails the check's wide look, the closure search runs again
+  with its bounds on the drift :data:`WIDER_SEARCH` times as wide (:func:`wider`): the scan
+  matcher may have drifted further before the robot came back than the bounds allow (a campus,
+  a laser that sees little), so the true closures were never offered or their coarse search
+  looked too narrowly, while a look-alike place within the bounds could pass. A wider track is
+  kept where it stands better by the two looks (:func:`standing`), the search as asked
   included (:func:`.slam.close_loops`).
+
+A track that passes both can still have been searched too narrowly: where the closures it
+accepted turned the scan-matched track by as much as the search's heading window allowed
+(:func:`drifted`), the drift the log has is the bounds' own size, and the loops that drifted
+further were never offered; a loop guessed tens of metres off may then be closed onto a
+look-alike place, leaving a track bent but consistent where it comes back (its revisits few).
+The search runs wider there too, and a wider track that stands as well is kept where more of
+its revisits agree (:func:`agreeing`): the loops it closed brought the robot back to places its
+scans confirm.
 """
 
 from __future__ import annotations
@@ -25,8 +35,9 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
+from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.poses.correction.carry import carry
-from gridmap_cli.poses.correction.free_space import FreeSpaceCheck, check_poses
+from gridmap_cli.poses.correction.free_space import FreeSpaceCheck, check_poses, verdict
 from gridmap_cli.poses.correction.loop_closure import (
     Closure,
     ClosureParams,
@@ -34,6 +45,7 @@ from gridmap_cli.poses.correction.loop_closure import (
     by_loop,
     holds_where_seen,
     path_length,
+    relative,
 )
 from gridmap_cli.poses.correction.pose_graph import (
     KERNEL_STAGES,
@@ -77,6 +89,43 @@ def wider(c: ClosureParams, factor: float) -> ClosureParams:
         max_search_m=factor * c.max_search_m,
         coarse_window_rad=min(math.pi, factor * c.coarse_window_rad),
     )
+
+
+#: How a track stands that passes its free-space check and the check's wide look
+#: (:func:`standing`).
+PASSES = (0, 0.0)
+
+
+def standing(
+    track: PoseTrack, points: list[FloatArray], check: FreeSpaceCheck
+) -> tuple[int, float]:
+    """How ``track`` stands by its free-space check ``check`` and the wide look (the order of
+    the tuples, lower better): :data:`PASSES`; (1, the wide look's share of contradicting
+    revisits) failing that only; (2, the check's share) failing the check."""
+    check, wide, said = verdict(track, points, check)
+    if said is None:
+        return PASSES
+    return (2, check.share) if check.fails else (1, wide.share if wide is not None else 0.0)
+
+
+def agreeing(check: FreeSpaceCheck) -> int:
+    """The revisits of a checked track that do not contradict."""
+    return check.revisits - check.contradicting
+
+
+def drifted(
+    track: PoseTrack, nodes: npt.NDArray[np.intp], closures: list[Closure], c: ClosureParams
+) -> bool:
+    """Whether the accepted ``closures`` (between keyframes ``nodes``, indices into the
+    scan-matched ``track``) turned that track by as much as the closure search ``c`` allowed:
+    their median heading correction past half its coarse heading window. Where the drift a
+    search measures is the size of its bounds, the loops that drifted further were never
+    offered."""
+    if not closures:
+        return False
+    local = np.column_stack([track.x_m, track.y_m, track.theta_rad])[nodes]
+    turns = [abs(wrap_angle(k.dtheta_rad - relative(local, k.j, k.i)[2])) for k in closures]
+    return bool(np.median(turns) > c.coarse_window_rad / 2)
 
 
 def partial_loops(
@@ -125,6 +174,38 @@ def partial_loops(
         closure_edge(k, params) for k in accepted.values()
     ]
     return estimate, now
+
+
+def solved(
+    graph: PoseGraph,
+    estimate: FloatArray,
+    accepted: dict[tuple[int, int], Closure],
+    params: GraphParams,
+) -> tuple[FloatArray, int]:
+    """The graph solved with the ``accepted`` closures from ``estimate``, dropping (from
+    ``accepted`` too) the worst closure while any disagrees with the solution past the
+    rejection bounds; the solution and how many were dropped."""
+    dropped = 0
+    stages = KERNEL_STAGES
+    while True:
+        graph.edges = [e for e in graph.edges if not e.closure] + [
+            closure_edge(k, params) for k in accepted.values()
+        ]
+        estimate = graph.optimise(estimate, stages)
+        # once a closure is dropped, the estimate is already the tight kernel's optimum
+        # with that one closure more: none of the rest is far from it for the wide kernels
+        # to pull in, so the tight stage alone solves again, from close by
+        stages = KERNEL_STAGES[-1:]
+        closure_edges = [e for e in graph.edges if e.closure]
+        res = edge_residuals(estimate, closure_edges)
+        bad = (res[:, 0] > params.reject_m) | (res[:, 1] > params.reject_rad)
+        if not bad.any():
+            return estimate, dropped
+        # drop the worst one at a time: one false closure can make true ones look bad
+        worst = int(np.argmax(res[:, 0] / params.reject_m + res[:, 1] / params.reject_rad))
+        e = closure_edges[worst]
+        del accepted[(e.i, e.j)]
+        dropped += 1
 
 
 def closure_edge(c: Closure, p: GraphParams) -> Edge:

@@ -6,15 +6,17 @@
    standard deviation growing with the distance between them (larger where a scan fell back to
    odometry).
 3. Loop closures (:mod:`.loop_closure`) are sought among keyframes near each other in the current
-   estimate but far along the path, verified by registration, and added with a robust kernel; the
-   graph is optimised (:mod:`.pose_graph`, gtsam), closures whose residual stays large are
-   dropped (the consistency check) and the search is repeated from the better estimate, for up
-   to ``rounds`` rounds.
+   estimate but far along the path, verified by registration, and added with a robust kernel,
+   shorter loops first: the graph (:mod:`.pose_graph`, gtsam) is solved after each doubling of
+   loop length, so a long loop is guessed from a track its shorter loops corrected. Closures
+   whose residual stays large are then dropped (the consistency check) and the search is
+   repeated from the better estimate, for up to ``rounds`` rounds.
 4. A track that fails its free-space check (:mod:`.free_space`: a loop closed wrongly or
    missed) tries the loops that only candidates under the inlier gate would close, judged on
    what their targets saw (:mod:`.overlap`), a loop at a time, keeping each that leaves fewer
-   of the track's revisits contradicting; where it still fails, steps 3-4 run again with the
-   search's bounds on the drift wider (:mod:`.repair`), kept where that track does better.
+   of the track's revisits contradicting; where it still fails, or fails the check's wide
+   look, or its closures corrected the drift by as much as the search allowed, steps 3-4 run
+   again with the search's bounds on the drift wider (:mod:`.repair`).
 5. Every scan's pose is the scan-matched one carried by the correction of the keyframes around it
    (interpolated in time); every other pose of the log likewise (:func:`.corrected_track`).
 
@@ -48,17 +50,21 @@ from gridmap_cli.poses.correction.loop_closure import (
     verify,
 )
 from gridmap_cli.poses.correction.pose_graph import (
-    KERNEL_STAGES,
     Edge,
     PoseGraph,
     edge_errors,
     edge_residuals,
 )
 from gridmap_cli.poses.correction.repair import (
+    PASSES,
     WIDER_SEARCH,
+    agreeing,
     carried,
     closure_edge,
+    drifted,
     partial_loops,
+    solved,
+    standing,
     wider,
 )
 from gridmap_cli.poses.correction.scan_match import (
@@ -283,50 +289,43 @@ def optimise_with_closures(
         ends = np.array([(path[k[0]], path[k[1]]) for k in accepted]).reshape(-1, 2)
         fresh: list[tuple[float, float]] = []
         searched: list[tuple[float, float]] = []  # coarse searches that found nothing
-        for i, j in candidates(estimate, spots, c, targets=spots):
-            if (i, j) in tried or near_ends(ends, path[i], path[j], c.decimate_m):
-                continue
-            tried.add((i, j))
-            gap = path[i] - path[j]
-            radius = min(c.max_search_m, c.min_search_m + c.drift_per_m * gap)
-            coarse = not (
-                near_ends(np.array(fresh).reshape(-1, 2), path[i], path[j], c.coarse_link_m)
-                or near_ends(np.array(searched).reshape(-1, 2), path[i], path[j], c.decimate_m)
-            )
-            closure = verify(i, j, relative(estimate, i, j), submaps, radius, coarse, partial)
-            if closure is None:
-                rejected += 1
-                if coarse:
-                    searched.append((path[i], path[j]))
-                continue
-            # the closure's target may be another keyframe than the one offered
-            i, j = closure.i, closure.j
-            accepted[(i, j)] = closure
-            ends = np.vstack([ends, [(path[i], path[j])]])
-            fresh.append((path[i], path[j]))
-            new += 1
+        # shorter loops first, the graph solved after each length: a long loop's candidates
+        # are then guessed from a track its shorter loops have already corrected
+        for tier in by_gap(candidates(estimate, spots, c, targets=spots), path, c.min_path_m):
+            added = 0
+            for i, j in tier:
+                if (i, j) in tried or near_ends(ends, path[i], path[j], c.decimate_m):
+                    continue
+                tried.add((i, j))
+                gap = path[i] - path[j]
+                radius = min(c.max_search_m, c.min_search_m + c.drift_per_m * gap)
+                coarse = not (
+                    near_ends(np.array(fresh).reshape(-1, 2), path[i], path[j], c.coarse_link_m)
+                    or near_ends(np.array(searched).reshape(-1, 2), path[i], path[j], c.decimate_m)
+                )
+                closure = verify(i, j, relative(estimate, i, j), submaps, radius, coarse, partial)
+                if closure is None:
+                    rejected += 1
+                    if coarse:
+                        searched.append((path[i], path[j]))
+                    continue
+                # the closure's target may be another keyframe than the one offered
+                i, j = closure.i, closure.j
+                accepted[(i, j)] = closure
+                ends = np.vstack([ends, [(path[i], path[j])]])
+                fresh.append((path[i], path[j]))
+                added += 1
+            if added:
+                # the next, longer loops guessed from this solution; closures judged below
+                graph.edges = [e for e in graph.edges if not e.closure] + [
+                    closure_edge(k, params) for k in accepted.values()
+                ]
+                estimate = graph.optimise(estimate)
+                new += added
         if new == 0:
             break
-        stages = KERNEL_STAGES
-        while True:
-            graph.edges = [e for e in graph.edges if not e.closure] + [
-                closure_edge(c, params) for c in accepted.values()
-            ]
-            estimate = graph.optimise(estimate, stages)
-            # once a closure is dropped, the estimate is already the tight kernel's optimum
-            # with that one closure more: none of the rest is far from it for the wide kernels
-            # to pull in, so the tight stage alone solves again, from close by
-            stages = KERNEL_STAGES[-1:]
-            closure_edges = [e for e in graph.edges if e.closure]
-            res = edge_residuals(estimate, closure_edges)
-            bad = (res[:, 0] > params.reject_m) | (res[:, 1] > params.reject_rad)
-            if not bad.any():
-                break
-            # drop the worst one at a time: one false closure can make true ones look bad
-            worst = int(np.argmax(res[:, 0] / params.reject_m + res[:, 1] / params.reject_rad))
-            e = closure_edges[worst]
-            del accepted[(e.i, e.j)]
-            dropped += 1
+        estimate, drops = solved(graph, estimate, accepted, params)
+        dropped += drops
     check = None
     if partial:
         estimate, check = partial_loops(
@@ -335,6 +334,18 @@ def optimise_with_closures(
     if progress is not None:
         progress("loop closures", params.rounds, params.rounds)
     return nodes, estimate, graph, list(accepted.values()), len(tried), rejected, dropped, check
+
+
+def by_gap(
+    pairs: list[tuple[int, int]], path: FloatArray, shortest_m: float
+) -> list[list[tuple[int, int]]]:
+    """``pairs`` (i, j) grouped by the path between them, each group twice the length of the
+    one before from ``shortest_m`` on, shortest first; each group in its given order."""
+    tiers: dict[int, list[tuple[int, int]]] = {}
+    for i, j in pairs:
+        gap = max(float(path[i] - path[j]), shortest_m)
+        tiers.setdefault(int(math.log2(gap / shortest_m)), []).append((i, j))
+    return [tiers[k] for k in sorted(tiers)]
 
 
 def _bend_sigma(poses: FloatArray, edges: list[Edge]) -> float:
@@ -378,20 +389,29 @@ def close_loops(
     started: float | None = None,
 ) -> SlamResult:
     """The pose graph on the scan match ``match`` of ``scans``: steps 2-5 of the module, the
-    closure search widened while the track fails its free-space check
-    (:data:`.repair.WIDER_SEARCH`). ``started``: the clock (``time.perf_counter``) the result's
-    seconds count from (default: now)."""
+    closure search widened (:data:`.repair.WIDER_SEARCH`) while the track fails its free-space
+    check or its wide look, or has drifted past the search (:func:`.repair.drifted`); a wider
+    track is kept where it stands better by the two (:func:`.repair.standing`), or, searched
+    for the drift alone, as well and at more revisits that agree. ``started``: the clock
+    (``time.perf_counter``) the result's seconds count from (default: now)."""
     params = params or SlamParams()
     started = time.perf_counter() if started is None else started
     found, track, check = _searched(scans, match, params, progress)
     widened = 1.0
+    stands = standing(track, scans.points, check)
+    drift = drifted(match.track, found[0], found[3], params.closure)
     for factor in WIDER_SEARCH:
-        if not check.fails:
+        if stands == PASSES and not drift:
             break
         wide = dataclasses.replace(params, closure=wider(params.closure, factor))
         again = _searched(scans, match, wide, _named(progress, f"{factor:g}x wider"))
-        if not again[2].fails or again[2].share < check.share:
-            (found, track, check), widened = again, factor
+        stands_again = standing(again[1], scans.points, again[2])
+        # widened for the drift alone, the wider track must also agree at more revisits
+        if stands_again < stands or (
+            drift and stands_again == stands and agreeing(again[2]) > agreeing(check)
+        ):
+            (found, track, check), widened, stands = again, factor, stands_again
+            drift = drifted(match.track, found[0], found[3], wide.closure)
     nodes, poses, graph, closures, tried, rejected, dropped, _ = found
     partial = sum(c.inlier_fraction < params.closure.min_inlier_fraction for c in closures)
     odo = match.odometry
