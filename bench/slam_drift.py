@@ -101,7 +101,8 @@ def _run(name: str, bias_deg: float) -> str:
         f"| {name} | {bias_deg:g} | {matched.trans_mean_m:.3f} m, {matched.rot_mean_deg:.2f}° | "
         f"{slam.trans_mean_m:.3f} m, {slam.rot_mean_deg:.2f}° | "
         f"{len(result.closures):,}/{result.candidates:,} | "
-        f"{judged} | {result.widened:g} | {time.process_time() - started:.0f} |"
+        f"{judged} | {result.widened:g} ({result.widened_for or 'not searched wider'}) | "
+        f"{time.process_time() - started:.0f} |"
     )
 
 

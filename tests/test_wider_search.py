@@ -1,6 +1,7 @@
-"""A track that fails its free-space check searches for closures again with its bounds on the
-drift wider (:mod:`gridmap_cli.poses.correction.repair`); a passing track never does, and a
-wider search is kept only where its track does better."""
+"""A track that fails its free-space check or its wide look, or whose closures show it drifted
+as far as the search allowed, searches for closures again with its bounds on the drift wider
+(:mod:`gridmap_cli.poses.correction.repair`); any other track never does, and a wider search
+is kept only where its track does better."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import pytest
 from gridmap_cli.geometry import compose, inverse
 from gridmap_cli.poses.correction import slam
 from gridmap_cli.poses.correction.loop_closure import ClosureParams
-from gridmap_cli.poses.correction.repair import WIDER_SEARCH, wider
+from gridmap_cli.poses.correction.repair import PASSES, WIDER_SEARCH, wider
 from gridmap_cli.records import PoseTrack
 
 
@@ -40,6 +41,8 @@ def test_wider_bounds_grow_by_the_factor_and_the_heading_window_stops_all_round(
 class _Check:
     fails: bool
     share: float
+    revisits: int = 100
+    contradicting: int = 0
 
 
 @pytest.fixture(scope="module")
@@ -58,9 +61,12 @@ def _close(
     room_scans: tuple[Any, Any],
     checks: list[_Check],
     stages: list[str] | None = None,
+    stands: list[tuple[int, float]] | None = None,
+    drifts: list[bool] | None = None,
 ) -> tuple[slam.SlamResult, list[ClosureParams]]:
-    """close_loops with the graph's checks of its tracks given in turn; the closure search
-    parameters of each pass."""
+    """close_loops with the graph's checks of its tracks given in turn (and how each stands,
+    by default as its check alone says; whether the search kept has drifted, by default
+    never); the closure search parameters of each pass."""
     scans, match = room_scans
     real = slam.optimise_with_closures
     asked: list[ClosureParams] = []
@@ -71,8 +77,12 @@ def _close(
         return (*found, None)  # the check is the one below
 
     calls = iter(checks)
+    ranks = iter(stands or [(2, c.share) if c.fails else PASSES for c in checks])
+    drift = iter(drifts or [False] * (len(checks) + 1))
     monkeypatch.setattr(slam, "optimise_with_closures", recorded)
     monkeypatch.setattr(slam, "check_poses", lambda track, points: next(calls))
+    monkeypatch.setattr(slam, "standing", lambda track, points, check: next(ranks))
+    monkeypatch.setattr(slam, "drifted", lambda *args: next(drift))
     seen = [] if stages is None else stages
     return slam.close_loops(scans, match, progress=lambda stage, *_: seen.append(stage)), asked
 
@@ -84,6 +94,7 @@ def test_a_passing_track_searches_once(
     assert asked == [ClosureParams()]
     assert result.widened == 1.0
     assert result.summary()["closure_search_widened"] == 1.0
+    assert result.summary()["closure_search_widened_for"] is None
 
 
 def test_a_failing_track_keeps_the_first_wider_search_that_passes(
@@ -97,6 +108,7 @@ def test_a_failing_track_keeps_the_first_wider_search_that_passes(
     # the search run again shows as a stage of its own
     assert stages[0] == "loop closures" and stages[-1] == "loop closures, 2x wider"
     assert result.widened == WIDER_SEARCH[0]
+    assert result.widened_for == "check"
     assert result.free_space is not None and not result.free_space.fails
 
 
@@ -115,6 +127,40 @@ def test_a_wider_search_that_does_no_better_is_not_kept(
     result, _ = _close(monkeypatch, room_scans, checks)
     assert result.widened == 1.0
     assert result.free_space is not None and result.free_space.share == 0.2
+
+
+def test_a_track_failing_the_wide_look_searches_wider_and_keeps_what_passes_both(
+    monkeypatch: pytest.MonkeyPatch, room_scans: tuple[Any, Any]
+) -> None:
+    # the check passes as asked; the wide look fails (1, its share), then both pass
+    checks = [_Check(False, 0.01), _Check(False, 0.01)]
+    result, asked = _close(monkeypatch, room_scans, checks, stands=[(1, 0.05), PASSES])
+    assert asked == [ClosureParams(), wider(ClosureParams(), WIDER_SEARCH[0])]
+    assert result.widened == WIDER_SEARCH[0] and result.widened_for == "wide look"
+    # a wider track failing the check ranks below one failing the wide look: not kept
+    checks = [_Check(False, 0.01), _Check(True, 0.02), _Check(True, 0.02)]
+    stands = [(1, 0.05), (2, 0.02), (2, 0.02)]
+    result, asked = _close(monkeypatch, room_scans, checks, stands=stands)
+    assert len(asked) == 3 and result.widened == 1.0 and result.widened_for == "wide look"
+
+
+def test_a_drifted_search_is_widened_and_kept_where_more_revisits_agree(
+    monkeypatch: pytest.MonkeyPatch, room_scans: tuple[Any, Any]
+) -> None:
+    # every track passes both looks; the search as asked has drifted, twice as wide too
+    checks = [_Check(False, 0.0, 100), _Check(False, 0.0, 150), _Check(False, 0.0, 140)]
+    result, asked = _close(monkeypatch, room_scans, checks, drifts=[True, True])
+    assert asked == [ClosureParams(), *(wider(ClosureParams(), f) for f in WIDER_SEARCH)]
+    # twice as wide agrees at more revisits (150 of 100) and is kept; four times (140) is not
+    assert result.widened == WIDER_SEARCH[0] and result.widened_for == "drift"
+    # a wider track that agrees at no more revisits is not kept, the drift or not
+    checks = [_Check(False, 0.0, 100), _Check(False, 0.0, 100), _Check(False, 0.0, 90, 5)]
+    result, asked = _close(monkeypatch, room_scans, checks, drifts=[True])
+    assert len(asked) == 3 and result.widened == 1.0
+    # a drifted search that is widened stops once the wider one has not drifted
+    checks = [_Check(False, 0.0, 100), _Check(False, 0.0, 150)]
+    result, asked = _close(monkeypatch, room_scans, checks, drifts=[True, False])
+    assert len(asked) == 2 and result.widened == WIDER_SEARCH[0]
 
 
 def _bent(track: PoseTrack, rad_per_m: float) -> PoseTrack:

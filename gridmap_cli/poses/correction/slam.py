@@ -157,9 +157,12 @@ class SlamResult:
     partial: int = 0
     #: the free-space check of :attr:`track`
     free_space: FreeSpaceCheck | None = None
-    #: how many times wider the closure search's bounds on the drift were than asked, where
-    #: the track failed its check with them (:data:`.repair.WIDER_SEARCH`); 1: as asked
+    #: how many times wider the closure search's bounds on the drift were than asked
+    #: (:data:`.repair.WIDER_SEARCH`); 1: as asked
     widened: float = 1.0
+    #: why the search as asked was searched again wider, kept or not: its track failed the
+    #: "check" or the "wide look", or it had "drift"ed as far as it allowed; None: it was not
+    widened_for: str | None = None
 
     @property
     def track(self) -> PoseTrack:
@@ -193,6 +196,7 @@ class SlamResult:
             "closures_dropped_by_consistency": self.dropped,
             "closures_of_partial_overlap": self.partial,
             "closure_search_widened": self.widened,
+            "closure_search_widened_for": self.widened_for,
             "closure_residual_m": round(self.residual_m, 4),
             "closure_residual_odometry_m": round(self.odometry_residual_m, 4),
             "sequential_bend_sigma": round(self.bend_sigma, 2),
@@ -400,6 +404,8 @@ def close_loops(
     widened = 1.0
     stands = standing(track, scans.points, check)
     drift = drifted(match.track, found[0], found[3], params.closure)
+    searched = stands != PASSES or drift
+    why = ("drift", "wide look", "check")[stands[0]] if searched else None
     for factor in WIDER_SEARCH:
         if stands == PASSES and not drift:
             break
@@ -442,6 +448,7 @@ def close_loops(
         partial=partial,
         free_space=check,
         widened=widened,
+        widened_for=why,
     )
 
 
