@@ -412,7 +412,7 @@ def close_loops(
         wide = dataclasses.replace(params, closure=wider(params.closure, factor))
         again = _searched(scans, match, wide, _named(progress, f"{factor:g}x wider"))
         stands_again = standing(again[1], scans.points, again[2])
-        # widened for the drift alone, the wider track must also agree at more revisits
+        # a track that stands no better is kept for the drift only, where more revisits agree
         if stands_again < stands or (
             drift and stands_again == stands and agreeing(again[2]) > agreeing(check)
         ):
