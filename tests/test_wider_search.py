@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from gridmap_cli.cli.build_report import widened_clause
 from gridmap_cli.geometry import compose, inverse
 from gridmap_cli.poses.correction import slam
 from gridmap_cli.poses.correction.loop_closure import ClosureParams
@@ -95,6 +96,7 @@ def test_a_passing_track_searches_once(
     assert result.widened == 1.0
     assert result.summary()["closure_search_widened"] == 1.0
     assert result.summary()["closure_search_widened_for"] is None
+    assert widened_clause(result.summary()) == ""  # the summary line says nothing more
 
 
 def test_a_failing_track_keeps_the_first_wider_search_that_passes(
@@ -109,6 +111,10 @@ def test_a_failing_track_keeps_the_first_wider_search_that_passes(
     assert stages[0] == "loop closures" and stages[-1] == "loop closures, 2x wider"
     assert result.widened == WIDER_SEARCH[0]
     assert result.widened_for == "check"
+    assert widened_clause(result.summary()) == (
+        ", the closure search run again wider (the track as asked failed its free-space check),"
+        " kept 2 times as wide"
+    )
     assert result.free_space is not None and not result.free_space.fails
 
 
@@ -157,6 +163,9 @@ def test_a_drifted_search_is_widened_and_kept_where_more_revisits_agree(
     checks = [_Check(False, 0.0, 100), _Check(False, 0.0, 100), _Check(False, 0.0, 90, 5)]
     result, asked = _close(monkeypatch, room_scans, checks, drifts=[True])
     assert len(asked) == 3 and result.widened == 1.0
+    assert widened_clause(result.summary()).endswith(
+        "(its closures showed a drift as large as the search allowed), kept as asked"
+    )
     # a drifted search that is widened stops once the wider one has not drifted
     checks = [_Check(False, 0.0, 100), _Check(False, 0.0, 150)]
     result, asked = _close(monkeypatch, room_scans, checks, drifts=[True, False])

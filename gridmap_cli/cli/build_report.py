@@ -4,6 +4,7 @@ the one-line summary on standard error, and the warning of a trinary map drawn m
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -95,7 +96,7 @@ def summary_line(s: dict[str, Any]) -> str:
         matched = (
             f"; slam: {sl['closures_accepted']:,} loop closures accepted, "
             f"{sl['closures_rejected']:,} rejected, {sl['fallbacks']:,} scans fell back to "
-            "odometry"
+            f"odometry{widened_clause(sl)}"
         )
     choice = s.get("pose_choice")
     if choice is not None and choice["source"] != "odometry":
@@ -159,3 +160,22 @@ def report(summary: dict[str, Any], line: str, as_json: bool, quiet: bool) -> No
         click.echo(json_text(summary))
     if not quiet:
         click.echo(line, err=True)
+
+
+#: Why the closure search ran again wider (``slam.closure_search_widened_for``), for the summary.
+_WIDENED_FOR = {
+    "check": "the track as asked failed its free-space check",
+    "wide look": "the track as asked failed the check's wide look",
+    "drift": "its closures showed a drift as large as the search allowed",
+}
+
+
+def widened_clause(slam: Mapping[str, Any]) -> str:
+    """The summary's clause on a closure search run again wider (empty where it was not): how
+    many times as wide the track kept was searched, and why it searched wider."""
+    why = slam.get("closure_search_widened_for")
+    if why is None:
+        return ""
+    factor = slam["closure_search_widened"]
+    kept = f"kept {factor:g} times as wide" if factor > 1 else "kept as asked"
+    return f", the closure search run again wider ({_WIDENED_FOR[why]}), {kept}"

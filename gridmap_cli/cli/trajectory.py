@@ -13,6 +13,7 @@ import click
 import numpy as np
 import numpy.typing as npt
 
+from gridmap_cli.cli.build_report import widened_clause
 from gridmap_cli.cli.common import (
     check_input,
     check_output_folder,
@@ -251,7 +252,7 @@ def _report(
         line += (
             f" ({sl['closures_accepted']:,} loop closures accepted, "
             f"{sl['closures_rejected']:,} rejected; {sl['fallbacks']:,} scans fell back "
-            "to odometry)"
+            f"to odometry{widened_clause(sl)})"
         )
     if posed.motion is not None:
         line += f"; {posed.motion}"
