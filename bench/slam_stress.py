@@ -320,15 +320,9 @@ def warnings(results: list[Result]) -> list[str]:
 
 
 def _wider(r: Result) -> str | None:
-    if r.widened_for is None:
-        return None
-    why = {
-        "check": "its track failing the free-space check as asked",
-        "wide look": "its track failing the check's wide look as asked",
-        "drift": "its closures turning the track by half its heading window as asked",
-    }[r.widened_for]
-    kept = f"kept {r.widened:g} times as wide" if r.widened > 1 else "kept as asked"
-    return f"the closure search looked wider, {why}; {kept}"
+    from gridmap_cli.poses.correction.repair import widening
+
+    return widening(r.widened_for, r.widened)
 
 
 def main(argv: list[str] | None = None) -> None:

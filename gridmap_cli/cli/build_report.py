@@ -162,20 +162,11 @@ def report(summary: dict[str, Any], line: str, as_json: bool, quiet: bool) -> No
         click.echo(line, err=True)
 
 
-#: Why the closure search ran again wider (``slam.closure_search_widened_for``), for the summary.
-_WIDENED_FOR = {
-    "check": "the track as asked failed its free-space check",
-    "wide look": "the track as asked failed the check's wide look",
-    "drift": "its closures showed a drift as large as the search allowed",
-}
-
-
 def widened_clause(slam: Mapping[str, Any]) -> str:
-    """The summary's clause on a closure search run again wider (empty where it was not): how
-    many times as wide the track kept was searched, and why it searched wider."""
-    why = slam.get("closure_search_widened_for")
-    if why is None:
-        return ""
-    factor = slam["closure_search_widened"]
-    kept = f"kept {factor:g} times as wide" if factor > 1 else "kept as asked"
-    return f", the closure search run again wider ({_WIDENED_FOR[why]}), {kept}"
+    """The summary's clause on a closure search run again wider (empty where it was not)."""
+    # here, not at the top: the pose graph's modules load gtsam, which a build without slam
+    # never needs (and a slam build has loaded already)
+    from gridmap_cli.poses.correction.repair import widening
+
+    said = widening(slam.get("closure_search_widened_for"), slam["closure_search_widened"])
+    return "" if said is None else f", {said}"

@@ -105,7 +105,29 @@ def standing(
     check, wide, said = verdict(track, points, check)
     if said is None:
         return PASSES
-    return (2, check.share) if check.fails else (1, wide.share if wide is not None else 0.0)
+    if check.fails:
+        return 2, check.share
+    assert wide is not None  # the verdict takes its wide look wherever the check passes
+    return 1, wide.share
+
+
+#: Why the closure search ran again wider (:attr:`.slam.SlamResult.widened_for`), as the
+#: summaries say it.
+WIDENED_FOR = {
+    "check": "the track as asked failed its free-space check",
+    "wide look": "the track as asked failed the check's wide look",
+    "drift": "its closures showed a drift as large as the search allowed",
+}
+
+
+def widening(why: str | None, factor: float) -> str | None:
+    """What a summary says of a closure search run again wider for ``why`` (a key of
+    :data:`WIDENED_FOR`), the track kept searched ``factor`` times as wide; None where it was
+    not run again."""
+    if why is None:
+        return None
+    kept = f"kept {factor:g} times as wide" if factor > 1 else "kept as asked"
+    return f"the closure search run again wider ({WIDENED_FOR[why]}), {kept}"
 
 
 def agreeing(check: FreeSpaceCheck) -> int:
