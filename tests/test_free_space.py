@@ -294,3 +294,53 @@ def test_a_pass_drawn_beside_the_first_is_warned_of(
     (line,) = [w for w in stderr.splitlines() if "come within 2 m" in w]
     assert line.startswith("Warning: --pose slam: where its passes come within 2 m of each other")
     assert line.endswith("check the map")
+
+
+def test_a_check_whose_near_pairs_disagree_says_it_cannot_judge() -> None:
+    # near pairs as a track whose scan matching failed leaves them: one in ten puts 30 % of
+    # its echoes in the other's free space, so the level is twice that
+    near = _pairs(np.concatenate([np.zeros(900), np.full(100, 0.3)]))
+    blind = _check(np.full(50, 0.4), near)
+    assert blind.level == pytest.approx(0.6)
+    # revisits with 40 % of their echoes in free space, a loop closed wrongly, go unseen
+    assert blind.contradicting == 0 and not blind.fails
+    assert blind.blind and blind.as_dict()["blind"]
+    assert "cannot judge the track" in blind.blindness()
+    assert "over 60 % of its echoes" in blind.blindness()
+    # the near pairs of a consistent track leave the check its sight
+    seeing = _check(np.full(50, 0.4), _pairs(np.concatenate([np.zeros(990), np.full(10, 0.1)])))
+    assert not seeing.blind and seeing.fails
+
+
+def test_a_track_whose_scans_near_in_time_disagree_is_warned_of(
+    laser_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Every scan of the graph's track thrown off its neighbours (as a scan matcher failing
+    between sparse scans leaves them): the check cannot judge, and build says so."""
+    from gridmap_cli.poses.correction import slam
+
+    solve = slam.slam_log
+
+    def scattered(*args: object, **kwargs: object) -> slam.SlamResult:
+        result = solve(*args, **kwargs)  # type: ignore[arg-type]
+        t = result.track
+        rng = np.random.default_rng(3)
+        off = rng.normal(0.0, 1.0, (len(t.x_m), 3)) * (0.5, 0.5, math.radians(20.0))
+        moved = dataclasses.replace(
+            t, x_m=t.x_m + off[:, 0], y_m=t.y_m + off[:, 1], theta_rad=t.theta_rad + off[:, 2]
+        )
+        match = dataclasses.replace(result.match, track=moved)
+        return dataclasses.replace(result, match=match, free_space=None)
+
+    monkeypatch.setattr(slam, "slam_log", scattered)
+    out = tmp_path / "s.png"
+    code, stdout, stderr = run("build", str(laser_log), "-o", str(out), "--pose", "slam",
+                               "--json")  # fmt: skip
+    assert code == 0, stderr
+    summary = json.loads(stdout)["slam"]
+    assert summary["free_space_check"]["blind"]
+    assert not summary["free_space_check"]["fails"]
+    (line,) = [w for w in stderr.splitlines() if "cannot judge" in w]
+    assert line.startswith("Warning: --pose slam: the free-space check cannot judge the track")
+    assert line.endswith("check the map")
+    assert out.exists()

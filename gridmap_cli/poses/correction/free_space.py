@@ -108,6 +108,12 @@ TAIL_FACTOR = 2.0
 LEVEL_MIN = 0.05
 #: The chance that a consistent track fails anyway: one log in a thousand.
 SIGNIFICANCE = 1e-3
+#: A check whose level (at the median near pair's count) passes this cannot judge its track:
+#: a misplaced visit puts a third to a half of its echoes in the other's free space, so with
+#: the level over a half not even one would count. Scans near in time that disagree so much
+#: were placed wrongly relative to each other (the scan matching failed between them), and
+#: such a track is no yardstick of its own noise.
+BLIND_LEVEL = 0.5
 
 
 @dataclass(frozen=True)
@@ -178,6 +184,21 @@ class FreeSpaceCheck:
         # the same tail but is a large import that nothing else in a slam build needs
         return bool(bdtrc(self.contradicting - 1, self.revisits, chance) < SIGNIFICANCE)
 
+    @property
+    def blind(self) -> bool:
+        """The near pairs disagree so much that no misplaced visit would count
+        (:data:`BLIND_LEVEL`)."""
+        return bool(self.level > BLIND_LEVEL)
+
+    def blindness(self) -> str:
+        """Why the check cannot judge its track, in one clause."""
+        return (
+            f"the free-space check cannot judge the track: scans near in time disagree (a "
+            f"place seen twice would need over {100 * self.level:.0f} % of its echoes inside "
+            "the free space the first visit saw to count), so the scan matching between them "
+            "failed and a loop closed wrongly would pass unseen"
+        )
+
     def reason(self) -> str:
         """What fails, in one clause."""
         return (
@@ -198,6 +219,7 @@ class FreeSpaceCheck:
             "level": r(self.level),
             "near_pairs": len(self.near),
             "fails": self.fails,
+            "blind": self.blind,
         }
 
 
@@ -461,11 +483,13 @@ def verdict(
 ) -> tuple[FreeSpaceCheck, FreeSpaceCheck | None, str | None]:
     """What a slam track is judged by and warned of: its check (``check`` where the graph
     already took it), the wide look where that passes (None where it fails: the track is warned
-    of already), and the one-clause warning either gives (None when both pass)."""
+    of already), and the one-clause warning either gives, or that the check cannot judge the
+    track (None when both pass and the check can judge)."""
     check = check if check is not None else check_poses(track, points)
     if check.fails:
         return check, None, check.reason()
     wide = wide_check(track, points)
-    if not wide.fails:
-        return check, wide, None
-    return check, wide, f"where its passes come within {WIDE_M:g} m of each other, {wide.reason()}"
+    if wide.fails:
+        where = f"where its passes come within {WIDE_M:g} m of each other"
+        return check, wide, f"{where}, {wide.reason()}"
+    return check, wide, check.blindness() if check.blind else None

@@ -102,13 +102,13 @@ def standing(
     """How ``track`` stands by its free-space check ``check`` and the wide look (the order of
     the tuples, lower better): :data:`PASSES`; (1, the wide look's share of contradicting
     revisits) failing that only; (2, the check's share) failing the check."""
-    check, wide, said = verdict(track, points, check)
-    if said is None:
-        return PASSES
+    check, wide, _ = verdict(track, points, check)
     if check.fails:
         return 2, check.share
     assert wide is not None  # the verdict takes its wide look wherever the check passes
-    return 1, wide.share
+    # a check too noisy to judge (:attr:`.free_space.FreeSpaceCheck.blind`) ranks as passing:
+    # the tracks are ranked by what the looks saw, and that one saw nothing
+    return (1, wide.share) if wide.fails else PASSES
 
 
 #: Why the closure search ran again wider (:attr:`.slam.SlamResult.widened_for`), as the
