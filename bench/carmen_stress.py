@@ -39,7 +39,7 @@ from gridmap_cli.records import PoseTrack
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from real_logs import CARMEN, write_section
-from slam_stress import SAME_NS, VARIANTS, Result, warnings
+from slam_stress import VARIANTS, Result, on_scan, slam_tracks, warnings
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "carmen"
@@ -68,10 +68,8 @@ def at_kept(track: PoseTrack, reference: PoseTrack, scans_ns: np.ndarray) -> flo
     from gridmap_cli.poses.track_error import track_error
 
     t = reference.stamp_ns
-    i = np.clip(np.searchsorted(scans_ns, t), 1, len(scans_ns) - 1)
-    on_scan = np.minimum(np.abs(scans_ns[i] - t), np.abs(scans_ns[i - 1] - t)) <= SAME_NS
     x, y, th, ok = interpolate_pose(track, t)
-    keep = on_scan & ok
+    keep = on_scan(t, scans_ns) & ok
     at = PoseTrack(t[keep], x[keep], y[keep], th[keep])
     ref = PoseTrack(t[keep], reference.x_m[keep], reference.y_m[keep], reference.theta_rad[keep])
     return track_error(at, ref).ape_rmse_m
@@ -87,9 +85,6 @@ def run(job: tuple[str, str]) -> Row:
 
 
 def _run(name: str, variant: str) -> Row:
-    from gridmap_cli.poses.correction.free_space import verdict
-    from gridmap_cli.poses.correction.scan_match import corrected_track, match_log
-    from gridmap_cli.poses.correction.slam import slam_log
     from gridmap_cli.poses.sync import interpolate_pose
     from gridmap_cli.readers import read_logs
     from gridmap_cli.readers.options import ReadOptions
@@ -102,20 +97,12 @@ def _run(name: str, variant: str) -> Row:
     log = VARIANTS[variant](data)
     robot = robot_from_log(path, log.metadata)
     stamps = np.unique(log.readings.stamp_ns)
-    slam = slam_log(log, robot)
-    tracks = {
-        "odometry": log.poses,
-        "scan-matched": corrected_track(log.poses, match_log(log, robot)),
-        "slam": corrected_track(log.poses, slam.match),
-    }
+    slam, tracks, free_space = slam_tracks(log, robot)
     ape = {s: at_kept(t, data.truth, stamps) for s, t in tracks.items()}
     x, y, th, _ = interpolate_pose(log.poses, stamps)
     turn = np.abs(np.angle(np.exp(1j * np.diff(th))))
     step = (float(np.median(np.hypot(np.diff(x), np.diff(y)))), math.degrees(np.median(turn)))
     summary = slam.summary()
-    free_space = None
-    if slam.scans is not None:
-        free_space = verdict(slam.track, slam.scans.points, slam.free_space)[2]
     result = Result(
         name, variant, len(stamps),
         closures=f"{summary['closures_accepted']:,}/{summary['candidates']:,}",

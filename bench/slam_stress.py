@@ -50,12 +50,17 @@ from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from gridmap_cli.evaluation.relations import Relations, read_relations, score_track
 from gridmap_cli.geometry import compose, inverse
 from gridmap_cli.records import PoseTrack, RangeLog, RangeReadings
+
+if TYPE_CHECKING:
+    from gridmap_cli.poses.correction.slam import SlamResult
+    from gridmap_cli.robot import RobotDescription
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from real_logs import write_section
@@ -181,15 +186,37 @@ class Result:
     widened_for: str | None = None
 
 
+def on_scan(t: np.ndarray, scans_ns: np.ndarray) -> np.ndarray:
+    """Which stamps ``t`` are stamps of ``scans_ns`` (sorted), to within :data:`SAME_NS`."""
+    i = np.clip(np.searchsorted(scans_ns, t), 1, len(scans_ns) - 1)
+    near: np.ndarray = np.minimum(np.abs(scans_ns[i] - t), np.abs(scans_ns[i - 1] - t)) <= SAME_NS
+    return near
+
+
 def kept_relations(rel: Relations, scans_ns: np.ndarray) -> Relations:
     """The relations whose two stamps are stamps of ``scans_ns`` (sorted)."""
-
-    def on_scan(t: np.ndarray) -> np.ndarray:
-        i = np.clip(np.searchsorted(scans_ns, t), 1, len(scans_ns) - 1)
-        return np.minimum(np.abs(scans_ns[i] - t), np.abs(scans_ns[i - 1] - t)) <= SAME_NS
-
-    ok = on_scan(rel.t1_ns) & on_scan(rel.t2_ns)
+    ok = on_scan(rel.t1_ns, scans_ns) & on_scan(rel.t2_ns, scans_ns)
     return Relations(rel.t1_ns[ok], rel.t2_ns[ok], rel.dx_m[ok], rel.dy_m[ok], rel.dtheta_rad[ok])
+
+
+def slam_tracks(
+    log: RangeLog, robot: RobotDescription | None
+) -> tuple[SlamResult, dict[str, PoseTrack], str | None]:
+    """The slam run of ``log``, each source's track, and the free-space check's warning of the
+    slam track as ``build`` gives it (None: it passes)."""
+    from gridmap_cli.poses.correction.free_space import verdict
+    from gridmap_cli.poses.correction.scan_match import corrected_track, match_log
+    from gridmap_cli.poses.correction.slam import slam_log
+
+    slam = slam_log(log, robot)
+    tracks = {
+        "odometry": log.poses,
+        "scan-matched": corrected_track(log.poses, match_log(log, robot)),
+        "slam": corrected_track(log.poses, slam.match),
+    }
+    if slam.scans is None:
+        return slam, tracks, None
+    return slam, tracks, verdict(slam.track, slam.scans.points, slam.free_space)[2]
 
 
 def run(job: tuple[str, str, str | None]) -> Result:
@@ -202,9 +229,6 @@ def run(job: tuple[str, str, str | None]) -> Result:
 
 
 def _run(name: str, variant: str, maps: str | None) -> Result:
-    from gridmap_cli.poses.correction.free_space import verdict
-    from gridmap_cli.poses.correction.scan_match import corrected_track, match_log
-    from gridmap_cli.poses.correction.slam import slam_log
     from gridmap_cli.readers import read_logs
     from gridmap_cli.readers.options import ReadOptions
     from gridmap_cli.robot import robot_from_log
@@ -217,12 +241,7 @@ def _run(name: str, variant: str, maps: str | None) -> Result:
     robot = robot_from_log(path, log.metadata)
     stamps = _scan_stamps(log)
     kept = kept_relations(relations, stamps)
-    slam = slam_log(log, robot)
-    tracks = {
-        "odometry": log.poses,
-        "scan-matched": corrected_track(log.poses, match_log(log, robot)),
-        "slam": corrected_track(log.poses, slam.match),
-    }
+    slam, tracks, free_space = slam_tracks(log, robot)
     scores = {}
     for source, track in tracks.items():
         s = score_track(track, kept, log.poses)
@@ -233,9 +252,6 @@ def _run(name: str, variant: str, maps: str | None) -> Result:
         slam_all = (s.trans_mean_m, s.rot_mean_deg)
     summary = slam.summary()
     closures = f"{summary['closures_accepted']:,}/{summary['candidates']:,}"
-    free_space = None
-    if slam.scans is not None:
-        free_space = verdict(slam.track, slam.scans.points, slam.free_space)[2]
     if maps is not None:
         _save(Path(maps) / f"{name}-{variant.replace('/', '_')}", log, robot, slam)
     return Result(
