@@ -39,6 +39,11 @@ Several tracks of one log are judged against one noise (:func:`judged_together`)
 noisy of their near pairs, since each track's near pairs hold the sensor's noise plus that
 track's own short-step error.
 
+**A check that cannot judge** (:attr:`FreeSpaceCheck.blind`): where the scan matching failed
+between scans near in time, the near pairs disagree as much as a misplaced visit does and the
+level rises past anything a revisit would show; the check then passes every track, so it says
+it cannot judge instead (:func:`verdict`).
+
 **The wide look** (:func:`wide_check`): the same check with revisits up to :data:`WIDE_M`
 apart and near pairs over as far (each node with the next four). A closure off by a corridor's
 width (one door or pillar along) draws the second pass beside the first and never within a
