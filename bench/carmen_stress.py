@@ -18,6 +18,11 @@ the table, what each slam run warned of, as ``build --pose slam`` would.
 
     nice .venv/bin/python bench/carmen_stress.py --jobs 2               # every log and variant
     nice .venv/bin/python bench/carmen_stress.py --logs seattle --variants every-3 --no-doc
+    nice .venv/bin/python bench/carmen_stress.py --logs aces --variants full --seeds 1,2,3
+
+``--seeds``: each row again with its odometry jittered (``real_logs.jittered``, as
+``bench/slam_spread.py`` does the full logs), one draw per seed, so a change that moves a row can
+be told from the row's own chance spread; such draws are printed, never written into the doc.
 
 Writes its table into ``docs/slam-stress.md`` between the markers below unless ``--no-doc``.
 """
@@ -38,7 +43,7 @@ import numpy as np
 from gridmap_cli.records import PoseTrack
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from real_logs import CARMEN
+from real_logs import CARMEN, jittered
 from slam_stress import VARIANTS, Result, on_scan, report, slam_tracks
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -74,16 +79,17 @@ def at_kept(track: PoseTrack, reference: PoseTrack, scans_ns: np.ndarray) -> flo
     return track_error(at, ref).ape_rmse_m
 
 
-def run(job: tuple[str, str]) -> Row:
-    name, variant = job
+def run(job: tuple[str, str, int | None]) -> Row:
+    name, variant, seed = job
+    label = variant if seed is None else f"{variant}, seed {seed}"
     try:
-        return _run(name, variant)
+        return _run(name, variant, seed, label)
     except Exception as exc:  # a failure is a result: the row says so, the rest runs
         traceback.print_exc(file=sys.stderr)
-        return Row(Result(name, variant, error=f"{type(exc).__name__}: {exc}".splitlines()[0]))
+        return Row(Result(name, label, error=f"{type(exc).__name__}: {exc}".splitlines()[0]))
 
 
-def _run(name: str, variant: str) -> Row:
+def _run(name: str, variant: str, seed: int | None, label: str) -> Row:
     from gridmap_cli.poses.sync import interpolate_pose
     from gridmap_cli.readers import read_logs
     from gridmap_cli.readers.options import ReadOptions
@@ -93,7 +99,7 @@ def _run(name: str, variant: str) -> Row:
     path = DATA / f"{name}-corrected.log.gz"
     data = read_logs((path,), None, ReadOptions())
     assert data.truth is not None
-    log = VARIANTS[variant](data)
+    log = VARIANTS[variant](jittered(data, seed))
     robot = robot_from_log(path, log.metadata)
     stamps = np.unique(log.readings.stamp_ns)
     slam, tracks, free_space = slam_tracks(log, robot)
@@ -103,7 +109,7 @@ def _run(name: str, variant: str) -> Row:
     step = (float(np.median(np.hypot(np.diff(x), np.diff(y)))), math.degrees(np.median(turn)))
     summary = slam.summary()
     result = Result(
-        name, variant, len(stamps),
+        name, label, len(stamps),
         closures=f"{summary['closures_accepted']:,}/{summary['candidates']:,}",
         warning=slam.warning, free_space=free_space, seconds=time.process_time() - started,
         widened=slam.widened, widened_for=slam.widened_for,
@@ -138,7 +144,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--variants", default=",".join(VARIANTS), help="comma-separated")
     parser.add_argument("--jobs", type=int, default=1, help="runs at a time")
     parser.add_argument("--no-doc", action="store_true", help="print the table only")
+    parser.add_argument("--seeds", help="comma-separated odometry jitter seeds (implies --no-doc)")
     args = parser.parse_args(argv)
+    seeds: list[int | None] = [None]
+    if args.seeds:
+        try:
+            seeds = [int(s) for s in args.seeds.split(",") if s]
+        except ValueError:
+            parser.error(f"--seeds takes comma-separated integers, got {args.seeds!r}")
     logs = [n for n in args.logs.split(",") if n]
     variants = [v for v in args.variants.split(",") if v]
     bad = [n for n in logs if n not in CARMEN] + [v for v in variants if v not in VARIANTS]
@@ -149,14 +162,14 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{DATA} holds none of the logs: nothing to measure", file=sys.stderr)
         return
     started = time.perf_counter()
-    work = [(n, v) for n in logs for v in variants]
+    work = [(n, v, s) for n in logs for v in variants for s in seeds]
     rows: list[Row] = []
     with ProcessPoolExecutor(max_workers=max(args.jobs, 1)) as pool:
         for row in pool.map(run, work):
             r = row.result
             print(f"{r.log} {r.variant}: {r.seconds:.0f} s", file=sys.stderr, flush=True)
             rows.append(row)
-    markers = None if args.no_doc else (BEGIN, END)
+    markers = None if args.no_doc or args.seeds else (BEGIN, END)
     report(table(rows), [r.result for r in rows], started, args.jobs, markers, "carmen_stress")
 
 
