@@ -79,17 +79,22 @@ def at_kept(track: PoseTrack, reference: PoseTrack, scans_ns: np.ndarray) -> flo
     return track_error(at, ref).ape_rmse_m
 
 
+def _label(variant: str, seed: int | None) -> str:
+    """The row's variant column: the variant, and its jitter seed if any."""
+    return variant if seed is None else f"{variant}, seed {seed}"
+
+
 def run(job: tuple[str, str, int | None]) -> Row:
     name, variant, seed = job
-    label = variant if seed is None else f"{variant}, seed {seed}"
     try:
-        return _run(name, variant, seed, label)
+        return _run(name, variant, seed)
     except Exception as exc:  # a failure is a result: the row says so, the rest runs
         traceback.print_exc(file=sys.stderr)
-        return Row(Result(name, label, error=f"{type(exc).__name__}: {exc}".splitlines()[0]))
+        error = f"{type(exc).__name__}: {exc}".splitlines()[0]
+        return Row(Result(name, _label(variant, seed), error=error))
 
 
-def _run(name: str, variant: str, seed: int | None, label: str) -> Row:
+def _run(name: str, variant: str, seed: int | None) -> Row:
     from gridmap_cli.poses.sync import interpolate_pose
     from gridmap_cli.readers import read_logs
     from gridmap_cli.readers.options import ReadOptions
@@ -109,7 +114,7 @@ def _run(name: str, variant: str, seed: int | None, label: str) -> Row:
     step = (float(np.median(np.hypot(np.diff(x), np.diff(y)))), math.degrees(np.median(turn)))
     summary = slam.summary()
     result = Result(
-        name, label, len(stamps),
+        name, _label(variant, seed), len(stamps),
         closures=f"{summary['closures_accepted']:,}/{summary['candidates']:,}",
         warning=slam.warning, free_space=free_space, seconds=time.process_time() - started,
         widened=slam.widened, widened_for=slam.widened_for,
