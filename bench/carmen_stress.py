@@ -156,6 +156,8 @@ def main(argv: list[str] | None = None) -> None:
         try:
             seeds = [int(s) for s in args.seeds.split(",") if s]
         except ValueError:
+            seeds = []
+        if not seeds:
             parser.error(f"--seeds takes comma-separated integers, got {args.seeds!r}")
     logs = [n for n in args.logs.split(",") if n]
     variants = [v for v in args.variants.split(",") if v]
