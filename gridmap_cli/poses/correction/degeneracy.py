@@ -14,6 +14,8 @@ loop closure stretches or shrinks the corridor instead of bending the rest of th
   two is far from degenerate by its Hessian, and GICP from a retry's start can slide most of a
   step along it into a minimum that fits no better than where the odometry put the robot.
 - :func:`weak_stretch`: how far a stretch of the track went along weak axes, and which way.
+- :func:`second_ends`: the odometry's end of each step whose scan match and odometry disagree
+  far beyond the log's usual, a second hypothesis for the pose graph (:mod:`.pose_graph`).
 - :class:`DistanceScale`: the odometry's distance scale, learned from the steps that matched in
   every direction, so that "the odometry along the corridor" is the odometry with its scale
   error taken out (a Pioneer's uncalibrated distance is off by 1-2 %: a metre in a 60 m
@@ -33,9 +35,16 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial import cKDTree
 
+from gridmap_cli.geometry import compose, inverse
 from gridmap_cli.poses.correction.planar import placed_points
 
 FloatArray = npt.NDArray[np.float64]
+
+#: A step is doubted when its scan match misses the odometry by more than this many of the
+#: log's typical misses, read as a Rayleigh sigma (the median of a Rayleigh variable is
+#: 1.1774 sigma): a 2-D Gaussian miss passes 3 sigma once in 90 steps.
+DOUBT_SIGMAS = 3.0
+_RAYLEIGH_MEDIAN = math.sqrt(2.0 * math.log(2.0))
 
 
 def weak_axis(hessian: FloatArray, ratio: float, theta_rad: float) -> FloatArray | None:
@@ -204,3 +213,31 @@ def weak_stretch(
     mean /= float(np.hypot(*mean)) or 1.0
     c, s = math.cos(poses[end, 2]), math.sin(poses[end, 2])
     return distance, (float(c * mean[0] + s * mean[1]), float(-s * mean[0] + c * mean[1]))
+
+
+def second_ends(
+    matched: FloatArray, odometry: FloatArray, nodes: npt.NDArray[np.intp], scale: float
+) -> list[tuple[float, float] | None]:
+    """For each step between consecutive ``nodes`` (indices into the scan-matched poses
+    ``matched`` and the odometry ``odometry``, both (S, 3)): where the two disagree in
+    translation by more than :data:`DOUBT_SIGMAS` times the log's own typical miss, the
+    odometry's end of the step (x, y in the frame of the step's start, its distance times
+    ``scale``, the odometry's learned scale); None elsewhere.
+
+    Such a step is where a scan match may have slid (a corridor, a short-range laser that sees
+    one wall) or the wheels slipped; which, only a loop closure can tell, so both ends are
+    kept. Headings are the scan's: a scan's heading, from walls, is rarely what slides."""
+    s, t = nodes[:-1], nodes[1:]
+    ends = []
+    for track in (matched, odometry):
+        x, y, th = inverse(track[s, 0], track[s, 1], track[s, 2])
+        ex, ey, _ = compose(x, y, th, track[t, 0], track[t, 1], track[t, 2])
+        ends.append(np.column_stack([ex, ey]))
+    scan, odo = ends[0], scale * ends[1]
+    miss = np.hypot(*(scan - odo).T)
+    if len(miss) == 0 or not np.median(miss) > 0:
+        return [None] * len(miss)
+    bound = DOUBT_SIGMAS * float(np.median(miss)) / _RAYLEIGH_MEDIAN
+    return [
+        (float(o[0]), float(o[1])) if m > bound else None for m, o in zip(miss, odo, strict=True)
+    ]

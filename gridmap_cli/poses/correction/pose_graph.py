@@ -6,6 +6,10 @@ are Gaussian; loop closures go through a Cauchy kernel so that one wrong closure
 graph with a bounded force instead of folding it. The graph is solved by Levenberg-Marquardt;
 the marginal covariance of each pose comes from gtsam's ``Marginals``.
 
+A *two-way* edge (:attr:`Edge.other`: a step whose scan match and odometry disagree far beyond
+the log's usual) measures one of two ends, a max-mixture (Olson and Agarwal, 2012); which one,
+the rest of the graph decides (:meth:`PoseGraph.optimise`).
+
 Why gtsam: one wheel, Pose2 factors, robust noise models, LM and marginals in one library that
 is well kept (Georgia Tech, BSD); the graphs here (hundreds to a few thousand nodes) solve in
 well under a second.
@@ -13,6 +17,7 @@ well under a second.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import gtsam
@@ -24,6 +29,12 @@ from gridmap_cli.geometry import compose, inverse, logmap, wrap_angle
 FloatArray = npt.NDArray[np.float64]
 #: The Cauchy kernel's scale in each stage of :meth:`PoseGraph.optimise`, times ``cauchy_k``.
 KERNEL_STAGES: tuple[float, ...] = (100.0, 10.0, 3.0, 1.0)
+#: How much likelier (in chi-square units, twice the log-likelihood) the rest of the graph must
+#: find a two-way edge's other end than the scan's before the edge takes it: the scan's end is
+#: the default, as the matcher's own measurement, and a tie keeps it.
+CHOICE_MARGIN = 1.0
+#: Choices at most, each followed by a solve of the tightest stage, while a choice changes.
+CHOICE_ROUNDS = 3
 
 
 @dataclass(frozen=True)
@@ -43,6 +54,33 @@ class Edge:
     #: of featureless corridor, where the measurement is the odometry's (:mod:`.degeneracy`)
     weak_sigma_m: float = 0.0
     weak_axis: tuple[float, float] = (1.0, 0.0)
+    #: a two-way edge's other end (x, y, node i's frame; the heading is the same): the
+    #: odometry's where the scan match is doubted (:func:`.degeneracy.second_ends`), the scan's
+    #: once the edge has taken the odometry's
+    other: tuple[float, float] | None = None
+    #: whether (``dx_m``, ``dy_m``) is the odometry's end, taken by :meth:`PoseGraph.optimise`
+    taken: bool = False
+
+    def swapped(self) -> Edge:
+        """The two-way edge holding its other end."""
+        assert self.other is not None
+        return dataclasses.replace(
+            self, dx_m=self.other[0], dy_m=self.other[1], other=(self.dx_m, self.dy_m),
+            taken=not self.taken,
+        )  # fmt: skip
+
+    def spanning(self) -> tuple[tuple[float, float, float], FloatArray]:
+        """A two-way edge as one Gaussian over both its ends: centred between them, with
+        half the gap more standard deviation along it (node j's frame, as
+        :meth:`covariance`)."""
+        assert self.other is not None
+        gap = np.array([self.other[0] - self.dx_m, self.other[1] - self.dy_m])
+        c, s = np.cos(self.dtheta_rad), np.sin(self.dtheta_rad)
+        along = np.array([c * gap[0] + s * gap[1], -s * gap[0] + c * gap[1]])
+        cov = self.covariance()
+        cov[:2, :2] += 0.25 * np.outer(along, along)
+        mid = (self.dx_m + 0.5 * gap[0], self.dy_m + 0.5 * gap[1], self.dtheta_rad)
+        return mid, cov
 
     def covariance(self) -> FloatArray:
         """The 3 x 3 covariance of (x, y, theta), node j's frame."""
@@ -66,12 +104,22 @@ class PoseGraph:
         default_factory=dict, init=False, repr=False, compare=False
     )
 
-    def _factors(self, cauchy_k: float | None = None) -> gtsam.NonlinearFactorGraph:
+    def _factors(
+        self, cauchy_k: float | None = None, spanning: bool = False
+    ) -> gtsam.NonlinearFactorGraph:
+        """The factor graph, closures under a Cauchy kernel of ``cauchy_k`` (default: the
+        graph's); ``spanning``: two-way edges as one Gaussian over both ends
+        (:meth:`Edge.spanning`), else at the end each holds."""
         graph = gtsam.NonlinearFactorGraph()
         prior = gtsam.noiseModel.Diagonal.Sigmas(np.array([1e-3, 1e-3, 1e-4]))
         graph.add(gtsam.PriorFactorPose2(0, gtsam.Pose2(*self.initial[0]), prior))
         kernel = gtsam.noiseModel.mEstimator.Cauchy.Create(cauchy_k or self.cauchy_k)
         for e in self.edges:
+            if spanning and e.other is not None:
+                mid, cov = e.spanning()
+                loose = gtsam.noiseModel.Gaussian.Covariance(cov)
+                graph.add(gtsam.BetweenFactorPose2(e.i, e.j, gtsam.Pose2(*mid), loose))
+                continue
             if e.closure:
                 noise = gtsam.noiseModel.Robust.Create(kernel, self._gaussian(e))
                 rel = gtsam.Pose2(e.dx_m, e.dy_m, e.dtheta_rad)
@@ -101,7 +149,10 @@ class PoseGraph:
         return noise
 
     def optimise(
-        self, start: FloatArray | None = None, scales: tuple[float, ...] = KERNEL_STAGES
+        self,
+        start: FloatArray | None = None,
+        scales: tuple[float, ...] = KERNEL_STAGES,
+        choose: bool = True,
     ) -> FloatArray:
         """The optimised poses (N, 3), from ``start`` (default: the initial poses).
 
@@ -110,16 +161,79 @@ class PoseGraph:
         would get almost no weight from a tight kernel and never pull; a wide one first lets
         the true closures (which agree with each other) win, and the tight one last takes the
         weight off those the rest of the graph disagrees with.
+
+        Two-way edges: with ``choose``, the stages hold each as one Gaussian over both its ends
+        (:meth:`Edge.spanning`), so the closures can put a correction at either; then each
+        edge takes the end the rest of that solution finds likelier (:meth:`_choose`), all at
+        once, and the tightest stage is solved again with the ends chosen; then the choice is
+        made again at that solution, and so on while one changes, at most
+        :data:`CHOICE_ROUNDS` times. The choice at the spanning solution alone is not enough:
+        there every other doubted step is loose too, and it takes odometry ends that the
+        solution with the ends held gives back. Two neighbouring edges, each the other's
+        rest, can swing back and forth; the last choice is kept. A plain max-mixture started
+        at the scan's ends never leaves them: a closure's pull spreads along the chain and
+        brings no single step near its other end.
+        Without ``choose`` every edge keeps the end it holds (a cheaper solve, where the
+        result only guides the search for more closures).
         """
         seed = self.initial if start is None else start
         values = _values(seed)
         params = gtsam.LevenbergMarquardtParams()
         params.setMaxIterations(100)
         params.setRelativeErrorTol(1e-6)
+        spanning = choose and any(e.other is not None for e in self.edges)
         for scale in scales:
-            factors = self._factors(self.cauchy_k * scale)
+            factors = self._factors(self.cauchy_k * scale, spanning)
             values = gtsam.LevenbergMarquardtOptimizer(factors, values, params).optimize()
+        for _ in range(CHOICE_ROUNDS if spanning else 0):
+            changed = self._choose(values, self.cauchy_k * scales[-1], spanning)
+            factors = self._factors(self.cauchy_k * scales[-1])
+            values = gtsam.LevenbergMarquardtOptimizer(factors, values, params).optimize()
+            spanning = False
+            if not changed:
+                break
         return _poses(values, len(seed))
+
+    def _choose(self, values: gtsam.Values, cauchy_k: float, spanning: bool) -> bool:
+        """Each two-way edge set to hold the end that the rest of the graph, solved at
+        ``values`` (two-way edges ``spanning`` both their ends, or at the ends they hold),
+        finds likelier; whether any changed.
+
+        The rest's belief about the edge's relative pose is the solution's with the edge's own
+        factor taken out again: on the linearised graph, information ``P^-1 - C_f^-1`` (``P``
+        the solution's covariance of the relative pose, ``C_f`` the factor's) and information
+        vector ``-C_f^-1 z_f`` (``z_f`` the factor's measurement, in the tangent at the
+        solution, where the posterior's mean is 0). An end ``a`` is as likely as the rest's
+        Gaussian widened by the edge's own noise ``C`` says: ``(a - mu)^T (L^-1 + C)^-1 (a - mu)``
+        with ``L`` that information, taken as ``(I + L C)^-1 L`` so that a rest that knows
+        nothing (no closure across the step: ``L = 0``) finds both ends alike and the scan's
+        is kept."""
+        two = [k for k, e in enumerate(self.edges) if e.other is not None]
+        edges = [self.edges[k] for k in two]
+        poses = _poses(values, values.size())
+        net = self._factors(cauchy_k, spanning).linearize(values).eliminateSequential()
+        changed = False
+        est, predicted = _predicted(poses, edges, _edge_covariances(net, edges, len(poses)))
+        for k, e, x, p in zip(two, edges, est, predicted, strict=True):
+            assert e.other is not None
+            held, other = (e.dx_m, e.dy_m, e.dtheta_rad), (*e.other, e.dtheta_rad)
+            scan, odo = (other, held) if e.taken else (held, other)
+            z_f, c_f = e.spanning() if spanning else (held, e.covariance())
+            own = np.linalg.inv(c_f)
+            rest = np.linalg.inv(p) - own
+            values_, vectors = np.linalg.eigh(0.5 * (rest + rest.T))
+            rest = (vectors * np.clip(values_, 0.0, None)) @ vectors.T
+            eta = -own @ _tangent(x, z_f)
+            widen = np.linalg.inv(np.eye(3) + rest @ e.covariance())
+            m, m_mu = widen @ rest, widen @ eta
+            m = 0.5 * (m + m.T)
+            a_s, a_o = _tangent(x, scan), _tangent(x, odo)
+            d_s = float(a_s @ m @ a_s - 2.0 * a_s @ m_mu)
+            d_o = float(a_o @ m @ a_o - 2.0 * a_o @ m_mu)
+            if (d_o + CHOICE_MARGIN < d_s) != e.taken:
+                self.edges[k] = e.swapped()
+                changed = True
+        return changed
 
     def marginals(self, poses: FloatArray) -> FloatArray:
         """Each node's marginal covariance at ``poses``, shape (N, 3, 3), in the node's own
@@ -139,16 +253,11 @@ class PoseGraph:
         weighs it. Without a loop the redundancy is 0: nothing checks the noise."""
         if not self.edges:
             return np.zeros((2, 2))
-        joint = self.edge_covariances(poses)
-        i = np.array([e.i for e in self.edges])
-        j = np.array([e.j for e in self.edges])
-        # each edge's estimate (node j in node i's frame) and its error against the measured
-        # relative pose, in the tangent space as the optimiser sees it
-        est = compose(
-            *inverse(poses[i, 0], poses[i, 1], poses[i, 2]), poses[j, 0], poses[j, 1], poses[j, 2]
-        )
+        est, predicted = _predicted(poses, self.edges, self.edge_covariances(poses))
+        # each edge's error against the measured relative pose, in the tangent space as the
+        # optimiser sees it
         measured = np.array([(e.dx_m, e.dy_m, e.dtheta_rad) for e in self.edges])
-        r = np.column_stack(logmap(*compose(*inverse(*measured.T), *est)))
+        r = np.column_stack(logmap(*compose(*inverse(*measured.T), *est.T)))
         # the edge's own information, looser along a corridor (:meth:`Edge.covariance`), as
         # the optimiser weighs it; x, y and theta do not mix in it
         info = np.linalg.inv(np.stack([e.covariance() for e in self.edges]))
@@ -157,15 +266,6 @@ class PoseGraph:
         # Cauchy: w = 1 / (1 + |r|^2 / k^2) on the whitened residual
         whitened = np.einsum("ei,eij,ej->e", r, info, r)
         weight[closure] = 1.0 / (1.0 + whitened[closure] / self.cauchy_k**2)
-        # the relative pose's Jacobian in the two nodes: [-Adjoint(est^-1), I]
-        ix, iy, ith = inverse(*est)
-        c, s = np.cos(ith), np.sin(ith)
-        jac = np.zeros((len(self.edges), 3, 6))
-        jac[:, 0, 0], jac[:, 0, 1], jac[:, 0, 2] = -c, s, -iy
-        jac[:, 1, 0], jac[:, 1, 1], jac[:, 1, 2] = -s, -c, ix
-        jac[:, 2, 2] = -1.0
-        jac[:, :, 3:] = np.eye(3)
-        predicted = jac @ joint @ np.transpose(jac, (0, 2, 1))
         t_info, t_r = info[:, :2, :2], r[:, :2]
         out = np.zeros((2, 2))
         out[0] = (
@@ -227,6 +327,36 @@ class PoseGraph:
             product = net.backSubstitute(net.backSubstituteTranspose(rhs))
             out[m] = [product.at(k) for k in range(len(poses))]
         return out
+
+
+def _predicted(
+    poses: FloatArray, edges: list[Edge], joint: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Each edge's relative pose at ``poses`` (node j in node i's frame), shape (E, 3), and its
+    covariance there (E, 3, 3), from ``joint``, the edges' two nodes' joint covariances
+    (:func:`_edge_covariances`)."""
+    i = np.array([e.i for e in edges])
+    j = np.array([e.j for e in edges])
+    est = np.column_stack(
+        compose(
+            *inverse(poses[i, 0], poses[i, 1], poses[i, 2]), poses[j, 0], poses[j, 1], poses[j, 2]
+        )
+    )
+    # the relative pose's Jacobian in the two nodes: [-Adjoint(est^-1), I]
+    ix, iy, ith = inverse(*est.T)
+    c, s = np.cos(ith), np.sin(ith)
+    jac = np.zeros((len(edges), 3, 6))
+    jac[:, 0, 0], jac[:, 0, 1], jac[:, 0, 2] = -c, s, -iy
+    jac[:, 1, 0], jac[:, 1, 1], jac[:, 1, 2] = -s, -c, ix
+    jac[:, 2, 2] = -1.0
+    jac[:, :, 3:] = np.eye(3)
+    return est, jac @ joint @ np.transpose(jac, (0, 2, 1))
+
+
+def _tangent(at: FloatArray, pose: tuple[float, float, float]) -> FloatArray:
+    """``pose`` (a relative pose) in the tangent space at ``at``: log(at^-1 pose)."""
+    x, y, th = compose(*inverse(*at), *pose)
+    return np.array([float(v) for v in logmap(x, y, th)])
 
 
 def _values(poses: FloatArray) -> gtsam.Values:

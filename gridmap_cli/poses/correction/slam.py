@@ -4,7 +4,8 @@
 2. Keyframes are the scans where the robot has moved ``keyframe_m`` or turned ``keyframe_rad``
    since the last one; consecutive keyframes are joined by the scan-matched relative pose, with a
    standard deviation growing with the distance between them (larger where a scan fell back to
-   odometry).
+   odometry); a step whose match and odometry disagree far beyond the log's usual keeps both
+   ends, and the graph chooses where it judges the closures (:func:`.degeneracy.second_ends`).
 3. Loop closures (:mod:`.loop_closure`) are sought among keyframes near each other in the current
    estimate but far along the path, verified by registration, and added with a robust kernel,
    shorter loops first: the graph (:mod:`.pose_graph`, gtsam) is solved after each doubling of
@@ -36,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gridmap_cli.geometry import wrap_angle
-from gridmap_cli.poses.correction.degeneracy import weak_stretch
+from gridmap_cli.poses.correction.degeneracy import second_ends, weak_stretch
 from gridmap_cli.poses.correction.free_space import FreeSpaceCheck, check_poses
 from gridmap_cli.poses.correction.loop_closure import (
     Closure,
@@ -228,10 +229,12 @@ def sequential_edges(
     nodes: npt.NDArray[np.intp],
     p: SlamParams,
     weak: FloatArray | None = None,
+    others: list[tuple[float, float] | None] | None = None,
 ) -> list[Edge]:
     """Edges between consecutive keyframes from the scan-matched poses ``local`` (S, 3); where
     scans between them were degenerate (``weak`` (S, 2), the scan matcher's weak axes), the
-    edge is looser along the corridor by ``degenerate_sigma_per_m`` per metre along it."""
+    edge is looser along the corridor by ``degenerate_sigma_per_m`` per metre along it; each
+    of ``others`` not None makes its step's edge two-way (:func:`.degeneracy.second_ends`)."""
     edges = []
     for a in range(len(nodes) - 1):
         s, t = int(nodes[a]), int(nodes[a + 1])
@@ -249,6 +252,7 @@ def sequential_edges(
                 scale * (p.sigma_theta_rad + p.sigma_theta_per_m * dist)
                 + p.fallback_sigma_theta_per_rad * turned,
                 weak_sigma_m=p.degenerate_sigma_per_m * weak_m, weak_axis=axis,
+                other=None if others is None else others[a],
             )
         )  # fmt: skip
     return edges
@@ -270,7 +274,9 @@ def optimise_with_closures(
     m = match.track
     local = np.column_stack([m.x_m, m.y_m, m.theta_rad])
     nodes = keyframes(local, params)
-    edges = sequential_edges(local, match.status, nodes, params, match.weak_axis)
+    odo = np.column_stack([match.odometry.x_m, match.odometry.y_m, match.odometry.theta_rad])
+    others = second_ends(local, odo, nodes, match.distance_scale)
+    edges = sequential_edges(local, match.status, nodes, params, match.weak_axis, others)
     graph = PoseGraph(local[nodes].copy(), edges)
     submaps = Submaps(scans.points, local, nodes, params.closure)
     estimate = graph.initial.copy()
@@ -320,11 +326,12 @@ def optimise_with_closures(
                 fresh.append((path[i], path[j]))
                 added += 1
             if added:
-                # the next, longer loops guessed from this solution; closures judged below
+                # the next, longer loops guessed from this solution; closures judged, and
+                # two-way edges' ends chosen, below
                 graph.edges = [e for e in graph.edges if not e.closure] + [
                     closure_edge(k, params) for k in accepted.values()
                 ]
-                estimate = graph.optimise(estimate)
+                estimate = graph.optimise(estimate, choose=False)
                 new += added
         if new == 0:
             break
