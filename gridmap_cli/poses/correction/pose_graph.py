@@ -221,8 +221,9 @@ class PoseGraph:
             z_f, c_f = e.spanning() if spanning else (held, e.covariance())
             own = np.linalg.inv(c_f)
             rest = np.linalg.inv(p) - own
-            values_, vectors = np.linalg.eigh(0.5 * (rest + rest.T))
-            rest = (vectors * np.clip(values_, 0.0, None)) @ vectors.T
+            # the rest's information: positive semi-definite, but for rounding where it is ~0
+            eigen, vectors = np.linalg.eigh(0.5 * (rest + rest.T))
+            rest = (vectors * np.clip(eigen, 0.0, None)) @ vectors.T
             eta = -own @ _tangent(x, z_f)
             widen = np.linalg.inv(np.eye(3) + rest @ e.covariance())
             m, m_mu = widen @ rest, widen @ eta
