@@ -45,6 +45,12 @@ def inverse(
     )
 
 
+def relative_poses(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``a^-1 b`` row by row: poses ``b`` (R, 3) in the frames of poses ``a`` (R, 3)."""
+    ix, iy, ith = inverse(a[:, 0], a[:, 1], a[:, 2])
+    return np.column_stack(compose(ix, iy, ith, b[:, 0], b[:, 1], b[:, 2]))
+
+
 def logmap(
     x_m: FloatArray, y_m: FloatArray, theta_rad: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:

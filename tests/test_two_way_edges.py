@@ -81,9 +81,19 @@ def test_only_steps_that_miss_the_odometry_far_beyond_the_usual_get_a_second_end
     assert scaled is not None and np.allclose(scaled, 1.02 * np.array(odo_step[:2]))
 
 
-def test_a_log_whose_scan_matches_are_its_odometry_gets_no_second_end() -> None:
+def test_a_log_whose_matches_mostly_are_its_odometry_has_no_yardstick_for_a_miss() -> None:
+    # most scans fell back to the odometry (a miss of 0); one step slid 0.3 m: with a median
+    # miss of 0 every miss would be "far beyond the usual", so none is doubted
     truth = _drive(30)
-    assert second_ends(truth, truth.copy(), np.arange(len(truth)), 1.0) == [None] * 30
+    matched = truth.copy()
+    matched[SLID + 1 :, 0] += 0.3
+    assert second_ends(matched, truth.copy(), np.arange(len(truth)), 1.0) == [None] * 30
+    # with a usual miss to measure against, the same slide is doubted
+    rng = np.random.default_rng(1)
+    odometry = truth.copy()
+    odometry[1:, :2] += np.cumsum(rng.normal(0.0, 0.003, (len(truth) - 1, 2)), axis=0)
+    ends = second_ends(matched, odometry, np.arange(len(truth)), 1.0)
+    assert ends[SLID] is not None
 
 
 def test_a_closure_takes_out_a_slide_at_the_doubted_step_where_plain_edges_cannot() -> None:

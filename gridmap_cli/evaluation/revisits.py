@@ -48,7 +48,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.geometry import compose, inverse, wrap_angle
+from gridmap_cli.geometry import relative_poses, wrap_angle
 from gridmap_cli.poses.sync import interpolate_pose
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RobotDescription
@@ -109,12 +109,6 @@ class RevisitScore:
             "rot_mean_deg": r(self.rot_mean_deg, 3),
             "held_out": self.held_out,
         }
-
-
-def relative_poses(a: F64, b: F64) -> F64:
-    """``a^-1 b`` row by row: (R, 3) poses ``b`` in the frames ``a`` (R, 3)."""
-    ix, iy, ith = inverse(a[:, 0], a[:, 1], a[:, 2])
-    return np.column_stack(compose(ix, iy, ith, b[:, 0], b[:, 1], b[:, 2]))
 
 
 def echo_displacement(error: F64, echo_mean_m: F64, echo_square_m2: F64) -> F64:

@@ -35,7 +35,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial import cKDTree
 
-from gridmap_cli.geometry import compose, inverse
+from gridmap_cli.geometry import relative_poses
 from gridmap_cli.poses.correction.planar import placed_points
 
 FloatArray = npt.NDArray[np.float64]
@@ -228,13 +228,10 @@ def second_ends(
     one wall) or the wheels slipped; which, only a loop closure can tell, so both ends are
     kept. Headings are the scan's: a scan's heading, from walls, is rarely what slides."""
     s, t = nodes[:-1], nodes[1:]
-    ends = []
-    for track in (matched, odometry):
-        x, y, th = inverse(track[s, 0], track[s, 1], track[s, 2])
-        ex, ey, _ = compose(x, y, th, track[t, 0], track[t, 1], track[t, 2])
-        ends.append(np.column_stack([ex, ey]))
-    scan, odo = ends[0], scale * ends[1]
+    scan = relative_poses(matched[s], matched[t])[:, :2]
+    odo = scale * relative_poses(odometry[s], odometry[t])[:, :2]
     miss = np.hypot(*(scan - odo).T)
+    # a log whose matches mostly are its odometry (scans that fell back) has no yardstick
     if len(miss) == 0 or not np.median(miss) > 0:
         return [None] * len(miss)
     bound = DOUBT_SIGMAS * float(np.median(miss)) / _RAYLEIGH_MEDIAN

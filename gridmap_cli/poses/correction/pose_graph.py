@@ -24,7 +24,7 @@ import gtsam
 import numpy as np
 import numpy.typing as npt
 
-from gridmap_cli.geometry import compose, inverse, logmap, wrap_angle
+from gridmap_cli.geometry import compose, inverse, logmap, relative_poses, wrap_angle
 
 FloatArray = npt.NDArray[np.float64]
 #: The Cauchy kernel's scale in each stage of :meth:`PoseGraph.optimise`, times ``cauchy_k``.
@@ -212,8 +212,8 @@ class PoseGraph:
         edges = [self.edges[k] for k in two]
         poses = _poses(values, values.size())
         net = self._factors(cauchy_k, spanning).linearize(values).eliminateSequential()
-        changed = False
         est, predicted = _predicted(poses, edges, _edge_covariances(net, edges, len(poses)))
+        changed = False
         for k, e, x, p in zip(two, edges, est, predicted, strict=True):
             assert e.other is not None
             held, other = (e.dx_m, e.dy_m, e.dtheta_rad), (*e.other, e.dtheta_rad)
@@ -338,11 +338,7 @@ def _predicted(
     (:func:`_edge_covariances`)."""
     i = np.array([e.i for e in edges])
     j = np.array([e.j for e in edges])
-    est = np.column_stack(
-        compose(
-            *inverse(poses[i, 0], poses[i, 1], poses[i, 2]), poses[j, 0], poses[j, 1], poses[j, 2]
-        )
-    )
+    est = relative_poses(poses[i], poses[j])
     # the relative pose's Jacobian in the two nodes: [-Adjoint(est^-1), I]
     ix, iy, ith = inverse(*est.T)
     c, s = np.cos(ith), np.sin(ith)
