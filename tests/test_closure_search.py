@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -182,14 +183,19 @@ def test_built_submaps_are_kept_within_their_byte_budget(monkeypatch: pytest.Mon
 
 def test_shorter_loops_are_tried_first_by_doubling_length() -> None:
     """Pairs grouped by the path between them (8-16 m, 16-32 m, 32-64 m, ... from the shortest
-    loop of 8 m), the shortest group first, each group in the order it was offered."""
+    loop of 8 m), keyed by the doubling, each group in the order it was offered."""
     from gridmap_cli.poses.correction.slam import by_gap
 
     path = np.arange(0.0, 200.0, 1.0)  # node k at k metres along the path
     pairs = [(100, 0), (30, 20), (50, 10), (60, 50), (99, 90), (41, 10), (150, 130)]
     tiers = by_gap(pairs, path, 8.0)
-    assert tiers == [[(30, 20), (60, 50), (99, 90)], [(41, 10), (150, 130)], [(50, 10)], [(100, 0)]]
-    assert by_gap([], path, 8.0) == []
+    assert tiers == {
+        0: [(30, 20), (60, 50), (99, 90)],
+        1: [(41, 10), (150, 130)],
+        2: [(50, 10)],
+        3: [(100, 0)],
+    }
+    assert by_gap([], path, 8.0) == {}
 
 
 def test_a_search_has_drifted_when_its_closures_turn_the_track_by_half_its_window() -> None:
@@ -223,3 +229,49 @@ def test_a_search_has_drifted_when_its_closures_turn_the_track_by_half_its_windo
     assert not drifted(track, nodes, [], params)
     wide = ClosureParams(coarse_window_rad=math.radians(30.0))
     assert not drifted(track, nodes, closures([9.0, -8.0, 0.5]), wide)
+
+
+def test_a_longer_loops_pairs_are_chosen_from_the_track_its_shorter_loops_corrected(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Within a round, each length of loop is offered the pairs that lie near each other in the
+    estimate solved after the shorter loops' closures, not in the round's first estimate: in a
+    drifted estimate the keyframes nearest a stretch are its neighbours'."""
+    from gridmap_cli.poses.correction import slam
+    from gridmap_cli.poses.correction.scan_match import log_scans, match_scans
+    from tests.test_scan_match import laser_robot, room_world
+    from tests.test_scan_match import run as simulate_run
+
+    # two laps of the room: loops of several lengths, each closed in its own group
+    lap = [[2, 1.5], [10, 1.5], [10, 6.5], [2, 6.5], [2, 1.5]]
+    log = simulate_run(room_world(), lap + lap[1:], drift=1.0)
+    scans = log_scans(log, laser_robot(), slam.SLAM_MATCH)
+    match = match_scans(scans, log.poses, slam.SLAM_MATCH)
+    offered: list[tuple[np.ndarray, set[tuple[int, int]]]] = []
+    verified: list[tuple[int, int, np.ndarray]] = []
+    real_candidates, real_verify, real_relative = slam.candidates, slam.verify, slam.relative
+    now: list[np.ndarray] = []
+
+    def spy_candidates(poses: np.ndarray, *args: Any, **kwargs: Any) -> list[tuple[int, int]]:
+        pairs = real_candidates(poses, *args, **kwargs)
+        offered.append((poses.copy(), set(pairs)))
+        return pairs
+
+    def spy_relative(poses: np.ndarray, i: int, j: int) -> tuple[float, float, float]:
+        now[:] = [poses]
+        return real_relative(poses, i, j)
+
+    def spy_verify(i: int, j: int, *args: Any, **kwargs: Any) -> Any:
+        verified.append((i, j, now[0].copy()))
+        return real_verify(i, j, *args, **kwargs)
+
+    monkeypatch.setattr(slam, "candidates", spy_candidates)
+    monkeypatch.setattr(slam, "relative", spy_relative)
+    monkeypatch.setattr(slam, "verify", spy_verify)
+    slam.optimise_with_closures(scans, match, slam.SlamParams())
+    # the estimate each pair was guessed from is the one its pairs were chosen from
+    for i, j, estimate in verified:
+        chosen = [pairs for poses, pairs in offered if np.array_equal(poses, estimate)]
+        assert chosen and (i, j) in chosen[-1]
+    # and the pairs were chosen again within a round, after a solve
+    assert len({poses.tobytes() for poses, _ in offered}) > slam.SlamParams().rounds

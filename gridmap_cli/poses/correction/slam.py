@@ -9,9 +9,9 @@
 3. Loop closures (:mod:`.loop_closure`) are sought among keyframes near each other in the current
    estimate but far along the path, verified by registration, and added with a robust kernel,
    shorter loops first: the graph (:mod:`.pose_graph`, gtsam) is solved after each doubling of
-   loop length, so a long loop is guessed from a track its shorter loops corrected. Closures
-   whose residual stays large are then dropped (the consistency check) and the search is
-   repeated from the better estimate, for up to ``rounds`` rounds.
+   loop length, so a long loop is offered and guessed from a track its shorter loops
+   corrected. Closures whose residual stays large are then dropped (the consistency check)
+   and the search is repeated from the better estimate, for up to ``rounds`` rounds.
 4. A track that fails its free-space check (:mod:`.free_space`: a loop closed wrongly or
    missed) tries the loops that only candidates under the inlier gate would close, judged on
    what their targets saw (:mod:`.overlap`), a loop at a time, keeping each that leaves fewer
@@ -300,10 +300,14 @@ def optimise_with_closures(
         fresh: list[tuple[float, float]] = []
         searched: list[tuple[float, float]] = []  # coarse searches that found nothing
         # shorter loops first, the graph solved after each length: a long loop's candidates
-        # are then guessed from a track its shorter loops have already corrected
-        for tier in by_gap(candidates(estimate, spots, c, targets=spots), path, c.min_path_m):
+        # are then chosen and guessed from a track its shorter loops have already corrected
+        # (chosen at the round's start, the pairs of a drifted stretch are its neighbours')
+        tiers = by_gap(candidates(estimate, spots, c, targets=spots), path, c.min_path_m)
+        length = -1
+        while any(t > length for t in tiers):
+            length = min(t for t in tiers if t > length)
             added = 0
-            for i, j in tier:
+            for i, j in tiers[length]:
                 if (i, j) in tried or near_ends(ends, path[i], path[j], c.decimate_m):
                     continue
                 tried.add((i, j))
@@ -333,6 +337,7 @@ def optimise_with_closures(
                 ]
                 estimate = graph.optimise(estimate, choose=False)
                 new += added
+                tiers = by_gap(candidates(estimate, spots, c, targets=spots), path, c.min_path_m)
         if new == 0:
             break
         estimate, drops = solved(graph, estimate, accepted, params)
@@ -349,14 +354,15 @@ def optimise_with_closures(
 
 def by_gap(
     pairs: list[tuple[int, int]], path: FloatArray, shortest_m: float
-) -> list[list[tuple[int, int]]]:
+) -> dict[int, list[tuple[int, int]]]:
     """``pairs`` (i, j) grouped by the path between them, each group twice the length of the
-    one before from ``shortest_m`` on, shortest first; each group in its given order."""
+    one before from ``shortest_m`` on: group k holds the gaps from ``shortest_m`` 2^k up to
+    twice that; each group in its given order."""
     tiers: dict[int, list[tuple[int, int]]] = {}
     for i, j in pairs:
         gap = max(float(path[i] - path[j]), shortest_m)
         tiers.setdefault(int(math.log2(gap / shortest_m)), []).append((i, j))
-    return [tiers[k] for k in sorted(tiers)]
+    return tiers
 
 
 def _bend_sigma(poses: FloatArray, edges: list[Edge]) -> float:
