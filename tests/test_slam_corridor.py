@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from gridmap_cli.poses.correction.pose_graph import largest_bend
 from gridmap_cli.poses.correction.scan_match import (
     DEGENERATE,
     FALLBACK,
@@ -20,7 +21,6 @@ from gridmap_cli.poses.correction.scan_match import (
 from gridmap_cli.poses.correction.slam import (
     SlamParams,
     SlamResult,
-    _bend_sigma,
     sequential_edges,
     slam_scans,
 )
@@ -124,10 +124,10 @@ def test_edges_along_a_corridor_are_loose_along_it_only() -> None:
     assert all(e.weak_sigma_m == 0.0 for e in iso)
     bent = local[nodes].copy()
     bent[2, 0] += 0.2  # node 2 moved along the corridor
-    assert _bend_sigma(bent, edges) < 0.5 * _bend_sigma(bent, iso)
+    assert largest_bend(bent, edges) < 0.5 * largest_bend(bent, iso)
     across = local[nodes].copy()
     across[2, 1] += 0.2  # ...and across it: as stiff as ever
-    assert _bend_sigma(across, edges) == pytest.approx(_bend_sigma(across, iso))
+    assert largest_bend(across, edges) == pytest.approx(largest_bend(across, iso))
 
 
 def test_a_fallback_in_a_turn_loosens_its_edge_by_the_odometry_turn() -> None:

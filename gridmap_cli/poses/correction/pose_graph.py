@@ -18,6 +18,7 @@ well under a second.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import gtsam
@@ -439,3 +440,22 @@ def edge_errors(poses: FloatArray, edges: list[Edge]) -> FloatArray:
     )
     dx, dy, dth = compose(mx, my, mth, ex, ey, eth)
     return np.column_stack([dx, dy, wrap_angle(dth)])
+
+
+def largest_bend(poses: FloatArray, edges: list[Edge]) -> float:
+    """The largest error of ``edges`` at ``poses`` in their own standard deviations: the
+    translation whitened by the edge's x, y covariance (looser along a corridor), the rotation
+    by its sigma."""
+    if not edges:
+        return 0.0
+    errors = edge_errors(poses, edges)
+    worst = 0.0
+    for e, (dx, dy, dth) in zip(edges, errors, strict=True):
+        shift = np.array([dx, dy])
+        cov = e.covariance()[:2, :2]
+        worst = max(
+            worst,
+            math.sqrt(float(shift @ np.linalg.solve(cov, shift))),
+            abs(float(dth)) / e.sigma_theta_rad,
+        )
+    return worst

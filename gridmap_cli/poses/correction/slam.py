@@ -53,8 +53,8 @@ from gridmap_cli.poses.correction.loop_closure import (
 from gridmap_cli.poses.correction.pose_graph import (
     Edge,
     PoseGraph,
-    edge_errors,
     edge_residuals,
+    largest_bend,
 )
 from gridmap_cli.poses.correction.repair import (
     PASSES,
@@ -365,25 +365,6 @@ def by_gap(
     return tiers
 
 
-def _bend_sigma(poses: FloatArray, edges: list[Edge]) -> float:
-    """The largest error of ``edges`` at ``poses`` in their own standard deviations: the
-    translation whitened by the edge's x, y covariance (looser along a corridor), the rotation
-    by its sigma."""
-    if not edges:
-        return 0.0
-    errors = edge_errors(poses, edges)
-    worst = 0.0
-    for e, (dx, dy, dth) in zip(edges, errors, strict=True):
-        shift = np.array([dx, dy])
-        cov = e.covariance()[:2, :2]
-        worst = max(
-            worst,
-            math.sqrt(float(shift @ np.linalg.solve(cov, shift))),
-            abs(float(dth)) / e.sigma_theta_rad,
-        )
-    return worst
-
-
 def slam_scans(
     scans: Scans,
     odometry: PoseTrack,
@@ -440,7 +421,7 @@ def close_loops(
     after = edge_residuals(poses, closure_edges)
     covariance = graph.marginals(poses) if params.covariance else None
     sequential = [e for e in graph.edges if not e.closure]
-    bend_sigma = _bend_sigma(poses, sequential)
+    bend_sigma = largest_bend(poses, sequential)
     return SlamResult(
         match=dataclasses.replace(match, track=track),
         scan_matched=match,
