@@ -301,7 +301,8 @@ def optimise_with_closures(
         searched: list[tuple[float, float]] = []  # coarse searches that found nothing
         # shorter loops first, the graph solved after each length: a long loop's candidates
         # are then chosen and guessed from a track its shorter loops have already corrected
-        # (chosen at the round's start, the pairs of a drifted stretch are its neighbours')
+        # (in the round's first estimate a drifted stretch's nearest anchors are often its
+        # neighbours', whose submaps barely overlap its own)
         tiers = by_gap(candidates(estimate, spots, c, targets=spots), path, c.min_path_m)
         length = -1
         while any(t > length for t in tiers):
