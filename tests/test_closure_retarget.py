@@ -8,6 +8,7 @@ import itertools
 import math
 
 import numpy as np
+import pytest
 
 from gridmap_cli.poses.correction.loop_closure import ClosureParams, Submaps, relative, verify
 
@@ -87,6 +88,64 @@ def test_a_place_the_first_pass_never_saw_is_not_closed() -> None:
     guess = relative(poses[nodes], i, wrong)
     submaps = Submaps(scans, poses, nodes, ClosureParams())
     assert verify(i, wrong, (guess[0] - 4.0, guess[1], guess[2]), submaps, 3.0) is None
+
+
+def _box(x: float, y: float, w: float, h: float, step_m: float = 0.05) -> np.ndarray:
+    """The outline points of a box ``w`` by ``h`` from its corner (x, y)."""
+    corners = [(x, y), (x + w, y), (x + w, y + h), (x, y + h), (x, y)]
+    return np.vstack([
+        np.column_stack([np.linspace(ax, bx, n), np.linspace(ay, by, n)])
+        for (ax, ay), (bx, by) in itertools.pairwise(corners)
+        for n in [max(2, int(math.hypot(bx - ax, by - ay) / step_m))]
+    ])  # fmt: skip
+
+
+def _box_left_in_the_lane(width_m: float) -> tuple[np.ndarray, list[np.ndarray], np.ndarray]:
+    """:func:`_out_and_back` with a box across the lane at x = 20 on the way back only: the
+    first pass saw that space empty."""
+    poses, scans, nodes = _out_and_back()
+    box = _box(20.0 - width_m / 2, 4.2, width_m, 0.4)
+    for k in range(164, len(poses)):
+        scans[k] = np.vstack([scans[k], _scan(box, poses[k])])
+    return poses, scans, nodes
+
+
+def test_a_closure_found_far_from_its_guess_is_refused_where_it_contradicts_the_targets_view(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import gridmap_cli.poses.correction.loop_closure as loop_closure
+
+    poses, scans, nodes = _box_left_in_the_lane(1.0)
+    truth = poses[nodes]
+    i = _node_at(poses, nodes, 20.0, back=True)
+    right = _node_at(poses, nodes, 20.0, back=False)
+    wrong = _node_at(poses, nodes, 16.0, back=False)
+    tx, ty, tth = relative(truth, i, wrong)
+    far = (tx - 4.0, ty + 0.3, tth + math.radians(2.0))
+    tx, ty, tth = relative(truth, i, right)
+    near = (tx + 0.3, ty + 0.2, tth)
+    submaps = Submaps(scans, poses, nodes, ClosureParams())
+    # found 4 m from its guess, the source's box lies in the space the target saw empty
+    assert verify(i, wrong, far, submaps, 3.0) is None
+    # the same closure found near its guess is kept: only a guess that far off asks it
+    assert verify(i, right, near, submaps, 3.0) is not None
+    # and it is that test that refused it
+    monkeypatch.setattr(loop_closure, "contradicts_target", lambda submaps, closure: False)
+    closure = verify(i, wrong, far, submaps, 3.0)
+    assert closure is not None and abs(closure.j - right) <= 1
+
+
+def test_a_far_closure_with_a_little_in_the_targets_free_space_is_kept() -> None:
+    # a box half as wide: its points pass the level (16 of 191 seen), but by less than chance
+    # over that many points does
+    poses, scans, nodes = _box_left_in_the_lane(0.5)
+    truth = poses[nodes]
+    i = _node_at(poses, nodes, 20.0, back=True)
+    wrong = _node_at(poses, nodes, 16.0, back=False)
+    tx, ty, tth = relative(truth, i, wrong)
+    closure = verify(i, wrong, (tx - 4.0, ty + 0.3, tth + math.radians(2.0)), Submaps(
+        scans, poses, nodes, ClosureParams()), 3.0)  # fmt: skip
+    assert closure is not None
 
 
 def test_the_new_target_is_one_that_built_the_grid_and_lies_far_back() -> None:

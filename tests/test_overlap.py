@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from gridmap_cli.poses.correction.overlap import holds_in_part, views
+from gridmap_cli.poses.correction.overlap import contradicts, holds_in_part, views
 
 
 def _scan(wall_x: float, fov: float = math.radians(90.0), beams: int = 181) -> np.ndarray:
@@ -87,3 +87,30 @@ def test_a_target_that_saw_none_of_the_source_holds_nothing() -> None:
     target = (np.zeros((1, 3)), [_scan(4.0)])
     behind = np.column_stack([np.full(50, -4.0), np.linspace(-3.0, 3.0, 50)])
     assert not holds_in_part(behind, np.zeros(50, dtype=bool), target, _noise(), 0.45, 0.15)
+
+
+def _wall_and_room(across: int) -> tuple[np.ndarray, np.ndarray]:
+    """100 points on the target's wall at x = 4 and ``across`` inside the room it saw empty."""
+    on_wall = np.column_stack([np.full(100, 4.0), np.linspace(-3.0, 3.0, 100)])
+    room = np.column_stack([np.full(across, 2.0), np.linspace(-1.5, 1.5, across)])
+    moved = np.vstack([on_wall, room])
+    return moved, np.arange(len(moved)) < len(on_wall)
+
+
+def test_a_source_contradicts_when_its_share_in_free_space_passes_the_level_beyond_chance() -> None:
+    target = (np.zeros((1, 3)), [_scan(4.0)])
+    # the level is the floor, one point in twenty: 30 of 130 is far past it
+    assert contradicts(*_wall_and_room(30), target, _noise(0.0), 0.15)
+    # 8 of 108 passes the level, but by less than chance over 108 points gives
+    moved, inlier = _wall_and_room(8)
+    assert 0.05 * len(moved) < 8
+    assert not holds_in_part(moved, inlier, target, _noise(0.0), 0.45, 0.15)
+    assert not contradicts(moved, inlier, target, _noise(0.0), 0.15)
+    # a log whose own near pairs disagree as much lets the 30 through
+    assert not contradicts(*_wall_and_room(30), target, _noise(0.3), 0.15)
+
+
+def test_a_source_the_target_never_saw_contradicts_nothing() -> None:
+    target = (np.zeros((1, 3)), [_scan(4.0)])
+    behind = np.column_stack([np.full(50, -4.0), np.linspace(-3.0, 3.0, 50)])
+    assert not contradicts(behind, np.zeros(50, dtype=bool), target, _noise(0.0), 0.15)

@@ -31,8 +31,7 @@ from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.heap import release_free_memory
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, SearchResult, search
 from gridmap_cli.poses.correction.free_space import near_noise
-from gridmap_cli.poses.correction.overlap import holds_in_part
-from gridmap_cli.poses.correction.planar import placed_points
+from gridmap_cli.poses.correction.overlap import contradicts_target
 from gridmap_cli.poses.correction.sheet_gicp import Sheet, align, nearest_m, sheet_of
 
 FloatArray = npt.NDArray[np.float64]
@@ -316,7 +315,9 @@ def verify(
     accepted closure (j's pose in i's frame; its ``j`` the keyframe the coarse search moved the
     target to, if it did) or None. ``coarse``: whether the correlative search may find a start
     where GICP from ``guess`` fails. ``partial``: where given, a candidate that passes every
-    test but the gate is appended there (:func:`holds_where_seen` judges it later)."""
+    test but the gate is appended there (:func:`.overlap.holds_where_seen` judges it later).
+    A closure found further than ``coarse_from_m`` from its guess is refused where its source
+    contradicts its target's view (:func:`.overlap.contradicts_target`)."""
     p = submaps.params
     target, source = submaps.get(j), submaps.get(i, wide=False)
     if len(source.points) < 50 or len(target.points) < 50:
@@ -364,6 +365,11 @@ def verify(
         assert partial is not None
         partial.append(closure)
         return None
+    # a place that looks like the true one passes the gate as well; found this far from the
+    # guess it is as likely, and what the source put in the target's free space tells them apart
+    far = math.hypot(pose[0] - guess[0], pose[1] - guess[1]) > p.coarse_from_m
+    if far and contradicts_target(submaps, closure):
+        return None
     return closure
 
 
@@ -394,20 +400,6 @@ def near_ends(ends: FloatArray, a: float, b: float, within_m: float) -> bool:
     if len(ends) == 0:
         return False
     return bool(((np.abs(ends[:, 0] - a) < within_m) & (np.abs(ends[:, 1] - b) < within_m)).any())
-
-
-def holds_where_seen(submaps: Submaps, closure: Closure) -> bool:
-    """Whether a closure under the gate holds on its target's view (:mod:`.overlap`)."""
-    p = submaps.params
-    i, j = closure.i, closure.j
-    x, y, th = inverse(
-        np.asarray(closure.dx_m), np.asarray(closure.dy_m), np.asarray(closure.dtheta_rad)
-    )
-    moved = placed_points(submaps.get(i, wide=False).points, (float(x), float(y), float(th)))
-    inlier = np.isfinite(nearest_m(submaps.get(j), moved, p.inlier_m))
-    return holds_in_part(
-        moved, inlier, submaps.scans(j), submaps.noise, p.min_inlier_fraction, p.inlier_m
-    )
 
 
 def _coarse(

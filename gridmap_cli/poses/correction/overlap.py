@@ -23,20 +23,41 @@ told two look-alike places apart, and judged this way in the ordinary search, cl
 off along a corridor got through. So the graph asks this only of the candidates on a track
 that fails its free-space check (:mod:`.slam`), and keeps what it closes only where the check
 then finds fewer contradictions.
+
+**A closure found far from its guess** (further than the coarse search's start,
+``coarse_from_m``) says the estimate is that far off; a place that looks like the true one (the
+same doors further along, a room like the first room) says so too, and passes the gate as well.
+What tells them apart is what the source put in the space the target's beams crossed: a wrong
+place puts a third to a half of the points the target saw in its free space, a true one about
+what the log's near pairs leave. So such a closure is refused when it contradicts its target's
+view (:func:`contradicts`): the free-space check's own test, a share past the level at that
+count, by more than chance over that many points would give at
+:data:`.free_space.SIGNIFICANCE` (a level passed by a point or two of a hundred is still the
+level, and the check's floor on it is a fixed share, whatever the count).
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import numpy.typing as npt
+from scipy.special import bdtrc
 
+from gridmap_cli.geometry import inverse
 from gridmap_cli.poses.correction.free_space import (
     DEPTH_M,
     MIN_RANGE_M,
+    SIGNIFICANCE,
     at_bearing,
     level_at,
     polar,
 )
+from gridmap_cli.poses.correction.planar import placed_points
+from gridmap_cli.poses.correction.sheet_gicp import nearest_m
+
+if TYPE_CHECKING:
+    from gridmap_cli.poses.correction.loop_closure import Closure, Submaps
 
 FloatArray = npt.NDArray[np.float64]
 Mask = npt.NDArray[np.bool_]
@@ -67,6 +88,16 @@ def views(
     return seen, free
 
 
+def _judged(
+    moved: FloatArray, inlier: Mask, target: tuple[FloatArray, list[FloatArray]], band_m: float
+) -> tuple[int, int]:
+    """How many of ``moved`` the target saw (the inliers included), and how many of those that
+    are not inliers lie in its free space (:func:`views`)."""
+    seen, free = views(moved, target[0], target[1], band_m)
+    seen |= inlier
+    return int(seen.sum()), int((free & ~inlier).sum())
+
+
 def holds_in_part(
     moved: FloatArray,
     inlier: Mask,
@@ -81,9 +112,57 @@ def holds_in_part(
     those within ``band_m`` of the target's; ``target``: the target submap's scans, poses (K, 3)
     in its node's frame and echoes; ``noise``: the log's near pairs
     (:func:`.free_space.near_noise`); ``gate``: the closure gate's inlier share."""
-    seen, free = views(moved, target[0], target[1], band_m)
-    seen |= inlier
-    count = int(seen.sum())
+    count, free = _judged(moved, inlier, target, band_m)
     if count == 0 or int(inlier.sum()) < gate * count:
         return False
-    return int((free & ~inlier).sum()) <= level_at(noise, count) * count
+    return free <= level_at(noise, count) * count
+
+
+def contradicts(
+    moved: FloatArray,
+    inlier: Mask,
+    target: tuple[FloatArray, list[FloatArray]],
+    noise: FloatArray,
+    band_m: float,
+) -> bool:
+    """Whether the points ``moved`` (as :func:`holds_in_part` takes them) that the target saw
+    lie in its free space past the level at their count, beyond chance (see the module)."""
+    count, free = _judged(moved, inlier, target, band_m)
+    level = level_at(noise, count)
+    if count == 0 or level >= 1.0:
+        return False
+    return bool(bdtrc(free - 1, count, level) < SIGNIFICANCE)
+
+
+def _placed(
+    submaps: Submaps, i: int, j: int, pose: tuple[float, float, float]
+) -> tuple[FloatArray, Mask]:
+    """Node ``i``'s source submap placed at ``pose`` in node ``j``'s frame, and which of its
+    points lie within the inlier band of ``j``'s submap."""
+    moved = placed_points(submaps.get(i, wide=False).points, pose)
+    return moved, np.isfinite(nearest_m(submaps.get(j), moved, submaps.params.inlier_m))
+
+
+def _inverted(closure: Closure) -> tuple[float, float, float]:
+    """Node ``closure.i``'s pose in ``closure.j``'s frame."""
+    x, y, th = inverse(
+        np.asarray(closure.dx_m), np.asarray(closure.dy_m), np.asarray(closure.dtheta_rad)
+    )
+    return float(x), float(y), float(th)
+
+
+def holds_where_seen(submaps: Submaps, closure: Closure) -> bool:
+    """Whether a closure under the gate holds on its target's view (see the module)."""
+    p, i, j = submaps.params, closure.i, closure.j
+    moved, inlier = _placed(submaps, i, j, _inverted(closure))
+    return holds_in_part(
+        moved, inlier, submaps.scans(j), submaps.noise, p.min_inlier_fraction, p.inlier_m
+    )
+
+
+def contradicts_target(submaps: Submaps, closure: Closure) -> bool:
+    """Whether a closure's source submap, placed by it in its target's frame, contradicts the
+    target's view (:func:`contradicts`; see the module)."""
+    i, j = closure.i, closure.j
+    moved, inlier = _placed(submaps, i, j, _inverted(closure))
+    return contradicts(moved, inlier, submaps.scans(j), submaps.noise, submaps.params.inlier_m)

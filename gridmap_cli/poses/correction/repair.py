@@ -43,10 +43,10 @@ from gridmap_cli.poses.correction.loop_closure import (
     ClosureParams,
     Submaps,
     by_loop,
-    holds_where_seen,
     path_length,
     relative,
 )
+from gridmap_cli.poses.correction.overlap import holds_where_seen
 from gridmap_cli.poses.correction.pose_graph import (
     KERNEL_STAGES,
     Edge,
