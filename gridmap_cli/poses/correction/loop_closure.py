@@ -365,8 +365,9 @@ def verify(
         assert partial is not None
         partial.append(closure)
         return None
-    # a place that looks like the true one passes the gate as well; found this far from the
-    # guess it is as likely, and what the source put in the target's free space tells them apart
+    # a place that looks like the true one passes the gate as well, and this far from the guess
+    # the estimate no longer says which of them the robot is at: what the source puts in the
+    # target's free space does
     far = math.hypot(pose[0] - guess[0], pose[1] - guess[1]) > p.coarse_from_m
     if far and contradicts_target(submaps, closure):
         return None
