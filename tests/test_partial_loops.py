@@ -122,7 +122,7 @@ def test_a_group_that_does_not_lower_the_contradictions_is_not_kept(
 
 
 def test_closures_are_grouped_by_the_loop_they_close() -> None:
-    from gridmap_cli.poses.correction.loop_closure import by_loop
+    from gridmap_cli.poses.correction.repair import by_loop
 
     path = np.arange(100, dtype=float)  # a metre of path per node
 

@@ -31,7 +31,8 @@ from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.heap import release_free_memory
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, SearchResult, search
 from gridmap_cli.poses.correction.free_space import near_noise
-from gridmap_cli.poses.correction.overlap import contradicts_target
+from gridmap_cli.poses.correction.overlap import contradicts, holds_in_part
+from gridmap_cli.poses.correction.planar import placed_points
 from gridmap_cli.poses.correction.sheet_gicp import Sheet, align, nearest_m, sheet_of
 
 FloatArray = npt.NDArray[np.float64]
@@ -315,9 +316,9 @@ def verify(
     accepted closure (j's pose in i's frame; its ``j`` the keyframe the coarse search moved the
     target to, if it did) or None. ``coarse``: whether the correlative search may find a start
     where GICP from ``guess`` fails. ``partial``: where given, a candidate that passes every
-    test but the gate is appended there (:func:`.overlap.holds_where_seen` judges it later).
+    test but the gate is appended there (:func:`holds_where_seen` judges it later).
     A closure found further than ``coarse_from_m`` from its guess is refused where its source
-    contradicts its target's view (:func:`.overlap.contradicts_target`)."""
+    contradicts its target's view (:func:`contradicts_target`)."""
     p = submaps.params
     target, source = submaps.get(j), submaps.get(i, wide=False)
     if len(source.points) < 50 or len(target.points) < 50:
@@ -374,33 +375,40 @@ def verify(
     return closure
 
 
-def by_loop(
-    closures: list[Closure], accepted: list[tuple[int, int]], path: FloatArray, within_m: float
-) -> list[list[Closure]]:
-    """``closures`` grouped by the loop they close: one joins a group when both its ends lie
-    within ``within_m`` along the path (``path`` at each node) of some member's; those with both
-    ends that near an ``accepted`` pair's are left out (their loop is closed)."""
-    closed = np.array([(path[i], path[j]) for i, j in accepted]).reshape(-1, 2)
-    groups: list[list[Closure]] = []
-    for k in sorted(closures, key=lambda k: (path[k.i], path[k.j])):
-        a, b = path[k.i], path[k.j]
-        if near_ends(closed, a, b, within_m):
-            continue
-        for group in groups:
-            if near_ends(np.array([(path[g.i], path[g.j]) for g in group]), a, b, within_m):
-                group.append(k)
-                break
-        else:
-            groups.append([k])
-    return groups
-
-
 def near_ends(ends: FloatArray, a: float, b: float, within_m: float) -> bool:
     """Whether some pair of path positions in ``ends`` (M, 2) lies within ``within_m`` of
     (``a``, ``b``) at both ends."""
     if len(ends) == 0:
         return False
     return bool(((np.abs(ends[:, 0] - a) < within_m) & (np.abs(ends[:, 1] - b) < within_m)).any())
+
+
+def _placed(submaps: Submaps, closure: Closure) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    """A closure's source submap placed by it in its target's frame, and which of its points
+    lie within the inlier band of the target's submap."""
+    x, y, th = inverse(
+        np.asarray(closure.dx_m), np.asarray(closure.dy_m), np.asarray(closure.dtheta_rad)
+    )
+    moved = placed_points(
+        submaps.get(closure.i, wide=False).points, (float(x), float(y), float(th))
+    )
+    return moved, np.isfinite(nearest_m(submaps.get(closure.j), moved, submaps.params.inlier_m))
+
+
+def holds_where_seen(submaps: Submaps, closure: Closure) -> bool:
+    """Whether a closure under the gate holds on its target's view (:mod:`.overlap`)."""
+    p = submaps.params
+    moved, inlier = _placed(submaps, closure)
+    scans = submaps.scans(closure.j)
+    return holds_in_part(moved, inlier, scans, submaps.noise, p.min_inlier_fraction, p.inlier_m)
+
+
+def contradicts_target(submaps: Submaps, closure: Closure) -> bool:
+    """Whether a closure's source submap, placed by it, contradicts its target's view beyond
+    chance (:func:`.overlap.contradicts`)."""
+    moved, inlier = _placed(submaps, closure)
+    scans = submaps.scans(closure.j)
+    return contradicts(moved, inlier, scans, submaps.noise, submaps.params.inlier_m)
 
 
 def _coarse(

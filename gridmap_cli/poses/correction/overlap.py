@@ -30,7 +30,8 @@ same doors further along, a room like the first room) says so too, and passes th
 What tells them apart is what the source put in the space the target's beams crossed: a wrong
 place puts a third to a half of the points the target saw in its free space, a true one about
 what the log's near pairs leave. So such a closure is refused when it contradicts its target's
-view (:func:`contradicts`): the free-space check's own test, a share past the level at that
+view (:func:`contradicts`, through :func:`.loop_closure.contradicts_target`): the free-space
+check's own test, a share past the level at that
 count, by more than chance over that many points would give at
 :data:`.free_space.SIGNIFICANCE` (a level passed by a point or two of a hundred is still the
 level, and the check's floor on it is a fixed share, whatever the count).
@@ -38,13 +39,10 @@ level, and the check's floor on it is a fixed share, whatever the count).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import numpy.typing as npt
 from scipy.special import bdtrc
 
-from gridmap_cli.geometry import inverse
 from gridmap_cli.poses.correction.free_space import (
     DEPTH_M,
     MIN_RANGE_M,
@@ -53,11 +51,6 @@ from gridmap_cli.poses.correction.free_space import (
     level_at,
     polar,
 )
-from gridmap_cli.poses.correction.planar import placed_points
-from gridmap_cli.poses.correction.sheet_gicp import nearest_m
-
-if TYPE_CHECKING:
-    from gridmap_cli.poses.correction.loop_closure import Closure, Submaps
 
 FloatArray = npt.NDArray[np.float64]
 Mask = npt.NDArray[np.bool_]
@@ -132,37 +125,3 @@ def contradicts(
     if count == 0 or level >= 1.0:
         return False
     return bool(bdtrc(free - 1, count, level) < SIGNIFICANCE)
-
-
-def _placed(
-    submaps: Submaps, i: int, j: int, pose: tuple[float, float, float]
-) -> tuple[FloatArray, Mask]:
-    """Node ``i``'s source submap placed at ``pose`` in node ``j``'s frame, and which of its
-    points lie within the inlier band of ``j``'s submap."""
-    moved = placed_points(submaps.get(i, wide=False).points, pose)
-    return moved, np.isfinite(nearest_m(submaps.get(j), moved, submaps.params.inlier_m))
-
-
-def _inverted(closure: Closure) -> tuple[float, float, float]:
-    """Node ``closure.i``'s pose in ``closure.j``'s frame."""
-    x, y, th = inverse(
-        np.asarray(closure.dx_m), np.asarray(closure.dy_m), np.asarray(closure.dtheta_rad)
-    )
-    return float(x), float(y), float(th)
-
-
-def holds_where_seen(submaps: Submaps, closure: Closure) -> bool:
-    """Whether a closure under the gate holds on its target's view (see the module)."""
-    p, i, j = submaps.params, closure.i, closure.j
-    moved, inlier = _placed(submaps, i, j, _inverted(closure))
-    return holds_in_part(
-        moved, inlier, submaps.scans(j), submaps.noise, p.min_inlier_fraction, p.inlier_m
-    )
-
-
-def contradicts_target(submaps: Submaps, closure: Closure) -> bool:
-    """Whether a closure's source submap, placed by it in its target's frame, contradicts the
-    target's view (:func:`contradicts`; see the module)."""
-    i, j = closure.i, closure.j
-    moved, inlier = _placed(submaps, i, j, _inverted(closure))
-    return contradicts(moved, inlier, submaps.scans(j), submaps.noise, submaps.params.inlier_m)

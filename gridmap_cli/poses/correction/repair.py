@@ -42,11 +42,11 @@ from gridmap_cli.poses.correction.loop_closure import (
     Closure,
     ClosureParams,
     Submaps,
-    by_loop,
+    holds_where_seen,
+    near_ends,
     path_length,
     relative,
 )
-from gridmap_cli.poses.correction.overlap import holds_where_seen
 from gridmap_cli.poses.correction.pose_graph import (
     KERNEL_STAGES,
     Edge,
@@ -228,6 +228,27 @@ def solved(
         e = closure_edges[worst]
         del accepted[(e.i, e.j)]
         dropped += 1
+
+
+def by_loop(
+    closures: list[Closure], accepted: list[tuple[int, int]], path: FloatArray, within_m: float
+) -> list[list[Closure]]:
+    """``closures`` grouped by the loop they close: one joins a group when both its ends lie
+    within ``within_m`` along the path (``path`` at each node) of some member's; those with both
+    ends that near an ``accepted`` pair's are left out (their loop is closed)."""
+    closed = np.array([(path[i], path[j]) for i, j in accepted]).reshape(-1, 2)
+    groups: list[list[Closure]] = []
+    for k in sorted(closures, key=lambda k: (path[k.i], path[k.j])):
+        a, b = path[k.i], path[k.j]
+        if near_ends(closed, a, b, within_m):
+            continue
+        for group in groups:
+            if near_ends(np.array([(path[g.i], path[g.j]) for g in group]), a, b, within_m):
+                group.append(k)
+                break
+        else:
+            groups.append([k])
+    return groups
 
 
 def closure_edge(c: Closure, p: GraphParams) -> Edge:
