@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import importlib.util
+import sys
+from collections.abc import Iterator
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 from click.testing import CliRunner
@@ -68,3 +72,20 @@ def simulated_laser_log(folder: Path) -> Path:
     )  # fmt: skip
     assert code == 0, stderr
     return log
+
+
+def bench_script(name: str, *imports: str) -> Iterator[ModuleType]:
+    """``bench/NAME.py`` loaded as module ``name`` for a fixture's span (``bench/`` is not a
+    package); on the way out it and ``imports``, the benches it imported, leave
+    ``sys.modules``."""
+    script = Path(__file__).resolve().parents[1] / "bench" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, script)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+        yield module
+    finally:
+        for loaded in (name, *imports):
+            sys.modules.pop(loaded, None)

@@ -2,26 +2,18 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType, SimpleNamespace
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "carmen_experiment.py"
+from tests.helpers import bench_script
 
 
 @pytest.fixture
 def carmen() -> Iterator[ModuleType]:
-    spec = importlib.util.spec_from_file_location("carmen_experiment", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["carmen_experiment"] = module
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop("carmen_experiment", None)
+    yield from bench_script("carmen_experiment")
 
 
 def runs(carmen: ModuleType, nll: dict[tuple[str, str, str], float], drift: dict[str, float]):

@@ -3,8 +3,6 @@ there)."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
@@ -12,19 +10,12 @@ from types import ModuleType
 import numpy as np
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "closure_trace.py"
+from tests.helpers import bench_script
 
 
 @pytest.fixture
 def bench() -> Iterator[ModuleType]:
-    spec = importlib.util.spec_from_file_location("closure_trace", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["closure_trace"] = module
-    spec.loader.exec_module(module)
-    yield module
-    for name in ("closure_trace", "real_logs", "slam_stress"):
-        sys.modules.pop(name, None)
+    yield from bench_script("closure_trace", "real_logs", "slam_stress")
 
 
 def _refused(bench: ModuleType, argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import importlib.util
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
@@ -16,19 +14,12 @@ from gridmap_cli.evaluation.evaluate import ProbabilityMap, Truth, evaluate_map
 from gridmap_cli.mapping.grid import GridSpec
 from gridmap_cli.poses.odometry_error import OdometryError
 from gridmap_cli.sim.world import World
-
-SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "experiment.py"
+from tests.helpers import bench_script
 
 
 @pytest.fixture
 def experiment() -> Iterator[ModuleType]:
-    spec = importlib.util.spec_from_file_location("experiment", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["experiment"] = module
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop("experiment", None)
+    yield from bench_script("experiment")
 
 
 def test_modes_default_to_their_name_and_take_the_calibration_file(

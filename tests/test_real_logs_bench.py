@@ -3,26 +3,18 @@ section of the results page, and a clean skip without the shared data."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "real_logs.py"
+from tests.helpers import bench_script
 
 
 @pytest.fixture
 def bench() -> Iterator[ModuleType]:
-    spec = importlib.util.spec_from_file_location("real_logs", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["real_logs"] = module
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop("real_logs", None)
+    yield from bench_script("real_logs")
 
 
 def _rows(bench: ModuleType) -> list[object]:

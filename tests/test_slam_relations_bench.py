@@ -3,8 +3,6 @@ bench/scan_match.py keeps when it rewrites the page."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
@@ -12,19 +10,12 @@ from types import ModuleType
 import pytest
 
 from gridmap_cli.evaluation.relations import RelationScore
-
-SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "slam_relations.py"
+from tests.helpers import bench_script
 
 
 @pytest.fixture
 def bench() -> Iterator[ModuleType]:
-    spec = importlib.util.spec_from_file_location("slam_relations", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["slam_relations"] = module
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop("slam_relations", None)
+    yield from bench_script("slam_relations")
 
 
 def _scores(bench: ModuleType, name: str, slam_m: float) -> object:
