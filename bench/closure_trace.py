@@ -38,6 +38,8 @@ from real_logs import CARMEN, jittered
 from slam_stress import DATA as BAGS
 from slam_stress import LOGS, VARIANTS, slam_tracks
 
+from gridmap_cli.poses.correction.loop_closure import Closure
+
 CARMEN_DATA = BAGS.parent / "carmen"
 #: the variants that keep every scan of the log, so a reference by scan index still applies
 SAME_SCANS = ("full", "beams-1/2", "interleave-2", "range-5.6")
@@ -52,7 +54,7 @@ class Accepted:
     scan_j: int
     offered: int
     from_guess_m: float
-    closure: Any
+    closure: Closure
 
 
 def traced(log: Any, robot: Any) -> tuple[Any, str | None, list[Accepted]]:

@@ -28,13 +28,13 @@ then finds fewer contradictions.
 ``coarse_from_m``) says the estimate is that far off; a place that looks like the true one (the
 same doors further along, a room like the first room) says so too, and passes the gate as well.
 What tells them apart is what the source put in the space the target's beams crossed: a wrong
-place puts a third to a half of the points the target saw in its free space, a true one about
-what the log's near pairs leave. So such a closure is refused when it contradicts its target's
-view (:func:`contradicts`, through :func:`.loop_closure.contradicts_target`): the free-space
-check's own test, a share past the level at that
-count, by more than chance over that many points would give at
-:data:`.free_space.SIGNIFICANCE` (a level passed by a point or two of a hundred is still the
-level, and the check's floor on it is a fixed share, whatever the count).
+place puts about twice the level's share of the points the target saw in its free space, or
+more; a true one mostly less than the level. So such a closure is refused when it contradicts
+its target's view (:func:`contradicts`, through :func:`.loop_closure.contradicts_target`): the
+free-space check's own test, a share past the level at that count by more than chance over that
+many points would give, at :data:`.free_space.SIGNIFICANCE` (a level passed by a point or two
+of a hundred is still the level, and the check's floor on it is a fixed share, whatever the
+count).
 """
 
 from __future__ import annotations
@@ -121,7 +121,7 @@ def contradicts(
     """Whether the points ``moved`` (as :func:`holds_in_part` takes them) that the target saw
     lie in its free space past the level at their count, beyond chance (see the module)."""
     count, free = _judged(moved, inlier, target, band_m)
-    level = level_at(noise, count)
-    if count == 0 or level >= 1.0:
+    level = level_at(noise, count)  # inf where nothing was seen or the log has no near pairs
+    if level >= 1.0:
         return False
     return bool(bdtrc(free - 1, count, level) < SIGNIFICANCE)
