@@ -267,8 +267,8 @@ def _save(stem: Path, log: RangeLog, robot: object, slam: object) -> None:
     """The scan end points on the slam track as an image (0.1 m pixels), and the arrays."""
     from PIL import Image
 
-    from gridmap_cli.poses.correction.planar import placed_points
     from gridmap_cli.poses.correction.scan_match import laser_scans
+    from gridmap_cli.poses.correction.sheet_gicp import placed_points
     from gridmap_cli.poses.correction.slam import SLAM_MATCH, SlamResult
     from gridmap_cli.poses.sync import sensors_for_log
 

@@ -19,7 +19,7 @@ from gridmap_cli.poses.correction.degeneracy import (
     weak_axis,
     weak_stretch,
 )
-from gridmap_cli.poses.correction.planar import placed_points
+from gridmap_cli.poses.correction.sheet_gicp import placed_points
 
 
 def corridor_hessian(along_robot_rad: float) -> np.ndarray:

@@ -36,7 +36,7 @@ import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from gridmap_cli.geometry import relative_poses
-from gridmap_cli.poses.correction.planar import placed_points
+from gridmap_cli.poses.correction.sheet_gicp import placed_points
 
 FloatArray = npt.NDArray[np.float64]
 

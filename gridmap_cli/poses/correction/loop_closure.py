@@ -32,8 +32,7 @@ from gridmap_cli.heap import release_free_memory
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, SearchResult, search
 from gridmap_cli.poses.correction.free_space import near_noise
 from gridmap_cli.poses.correction.overlap import contradicts, holds_in_part
-from gridmap_cli.poses.correction.planar import placed_points
-from gridmap_cli.poses.correction.sheet_gicp import Sheet, align, nearest_m, sheet_of
+from gridmap_cli.poses.correction.sheet_gicp import Sheet, align, nearest_m, placed_points, sheet_of
 
 FloatArray = npt.NDArray[np.float64]
 

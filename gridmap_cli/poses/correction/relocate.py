@@ -32,7 +32,7 @@ from scipy.spatial import cKDTree
 
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
-from gridmap_cli.poses.correction.planar import placed_points, planar_pose, pose_matrix
+from gridmap_cli.poses.correction.sheet_gicp import placed_points, planar_pose, pose_matrix
 
 FloatArray = npt.NDArray[np.float64]
 Pose = tuple[float, float, float]

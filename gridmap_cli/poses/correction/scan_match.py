@@ -45,13 +45,13 @@ from gridmap_cli.poses.correction.degeneracy import (
     unchosen_slide,
     weak_axis,
 )
-from gridmap_cli.poses.correction.planar import (
+from gridmap_cli.poses.correction.relocate import MOVED_M, odometry_gaps, relocate, typical_fit
+from gridmap_cli.poses.correction.sheet_gicp import (
     placed_points,
     planar_pose,
     planar_sheet,
     pose_matrix,
 )
-from gridmap_cli.poses.correction.relocate import MOVED_M, odometry_gaps, relocate, typical_fit
 from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription

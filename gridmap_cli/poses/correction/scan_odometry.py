@@ -30,18 +30,18 @@ from scipy.spatial import cKDTree
 from gridmap_cli.geometry import compose, inverse, wrap_angle
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid
 from gridmap_cli.poses.correction.degeneracy import keep_across, weak_axis
-from gridmap_cli.poses.correction.planar import (
-    placed_points,
-    planar_pose,
-    planar_sheet,
-    pose_matrix,
-)
 from gridmap_cli.poses.correction.relocate import TypicalFit, half_share, relocate
 from gridmap_cli.poses.correction.scan_match import (
     Progress,
     ScanMatchParams,
     Scans,
     laser_scans,
+)
+from gridmap_cli.poses.correction.sheet_gicp import (
+    placed_points,
+    planar_pose,
+    planar_sheet,
+    pose_matrix,
 )
 from gridmap_cli.poses.sync import sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
