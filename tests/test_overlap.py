@@ -6,7 +6,12 @@ import math
 
 import numpy as np
 
-from gridmap_cli.poses.correction.overlap import contradicts, holds_in_part, views
+from gridmap_cli.poses.correction.overlap import (
+    contradicts,
+    holds_in_part,
+    seen_and_holding,
+    views,
+)
 
 
 def _scan(wall_x: float, fov: float = math.radians(90.0), beams: int = 181) -> np.ndarray:
@@ -114,3 +119,27 @@ def test_a_source_the_target_never_saw_contradicts_nothing() -> None:
     target = (np.zeros((1, 3)), [_scan(4.0)])
     behind = np.column_stack([np.full(50, -4.0), np.linspace(-3.0, 3.0, 50)])
     assert not contradicts(behind, np.zeros(50, dtype=bool), target, _noise(0.0), 0.15)
+
+
+def test_a_scan_on_the_local_map_holds_on_what_it_saw_before_the_noise_is_known() -> None:
+    target = (np.zeros((1, 3)), [_scan(4.0)])
+    on_wall = np.column_stack([np.full(60, 4.0), np.linspace(-3.0, 3.0, 60)])
+    behind = np.column_stack([np.full(80, -4.0), np.linspace(-3.0, 3.0, 80)])
+    moved = np.vstack([on_wall, behind])
+    inlier = np.arange(len(moved)) < len(on_wall)
+    seen = seen_and_holding(moved, inlier, target, 0.5, 0.15, 20)
+    assert seen is not None
+    assert seen.tolist() == inlier.tolist()  # the wall is what it saw, not the rest
+    # too few points seen to judge: none
+    assert seen_and_holding(moved, inlier, target, 0.5, 0.15, 61) is None
+
+
+def test_a_scan_on_the_local_map_is_held_to_the_free_space_checks_floor() -> None:
+    target = (np.zeros((1, 3)), [_scan(4.0)])
+    # 4 of 104 in the room it saw empty: within one in twenty
+    moved, inlier = _wall_and_room(4)
+    assert seen_and_holding(moved, inlier, target, 0.5, 0.15, 20) is not None
+    # 8 of 108 passes it: a closure on a log this noisy could pass, a scan here does not
+    moved, inlier = _wall_and_room(8)
+    assert seen_and_holding(moved, inlier, target, 0.5, 0.15, 20) is None
+    assert holds_in_part(moved, inlier, target, _noise(0.08), 0.45, 0.15)

@@ -12,13 +12,14 @@ import numpy.typing as npt
 import pytest
 
 from gridmap_cli.mapping.grid import GridSpec
+from gridmap_cli.poses.correction.local_map import LocalMap
 from gridmap_cli.poses.correction.scan_match import (
     FALLBACK,
     FIRST,
+    PARTIAL,
     NoLaserError,
     ScanMatchParams,
     Scans,
-    _LocalMap,
     corrected_track,
     laser_scans,
     match_log,
@@ -173,13 +174,59 @@ def test_a_scan_the_matcher_could_not_place_joins_the_local_map_only_once_the_ro
     """A fallback scan's pose is the odometry's guess: turned in place, the local map still
     holds the place and the scan at a wrong heading would only add a rotated copy of it."""
     params = ScanMatchParams()
-    local = _LocalMap(params)
+    local = LocalMap(params)
     local.add(np.array([[1.0, 0.0], [0.0, 1.0]]), (0.0, 0.0, 0.0))
     turned = (0.0, 0.0, 2.0 * params.keyframe_rad)
     moved = (2.0 * params.keyframe_m, 0.0, 0.0)
     assert local.wants(turned) and local.wants(moved)
     assert not local.wants(turned, fallback=True)
     assert local.wants(moved, fallback=True)
+
+
+def corridor_with_niches() -> World:
+    """A 3 m wide corridor, 60 m long, with niches and pillars at random along both walls:
+    every stretch of it different, so that a scan is pinned in every direction."""
+    mask = np.zeros((int(6 / RES), int(60 / RES)), dtype=bool)
+    wall(mask, 0, 1.0, 60, 1.1)
+    wall(mask, 0, 4.0, 60, 4.1)
+    rng = np.random.default_rng(1)
+    x = 1.0
+    while x < 58:
+        width, depth = rng.uniform(0.3, 1.2), rng.uniform(0.2, 0.6)
+        if rng.random() < 0.5:
+            wall(mask, x, 1.1, x + width, 1.1 + depth)
+        else:
+            wall(mask, x, 4.0 - depth, x + width, 4.0)
+        x += width + rng.uniform(0.3, 1.0)
+    return world_from(mask)
+
+
+def test_a_scan_a_long_step_into_new_space_is_matched_on_what_the_local_map_saw() -> None:
+    """A fast robot or a sparse log: 4 m between two scans of a 6 m laser, the odometry's turn
+    10 degrees wrong on that step. Most of the new scan lies beyond what the local map saw, so
+    under the inlier gate whatever its pose; the part the map saw fits it, and puts nothing in
+    the space the map's beams crossed. It is matched on that part (partial), and the heading
+    the odometry lost is found again."""
+    world = corridor_with_niches()
+    reach = 6.0
+    xs = np.array([2.0, 2.5, 3.0, 3.5, 4.0, 8.0, 8.5])
+    bearing = np.linspace(-math.pi / 2, math.pi / 2, 181)
+    points = []
+    for x in xs:
+        r, _ = world.cast(x, 2.55, bearing, reach)
+        seen = r < reach
+        points.append(
+            np.column_stack([r[seen] * np.cos(bearing[seen]), r[seen] * np.sin(bearing[seen])])
+        )
+    stamps = np.arange(len(xs), dtype=np.int64) * 1_000_000_000
+    heading = np.where(np.arange(len(xs)) >= 5, math.radians(10.0), 0.0)
+    odometry = PoseTrack(stamps, xs.copy(), np.full(len(xs), 2.55), heading)
+    match = match_scans(Scans(stamps, points), odometry, ScanMatchParams())
+    assert match.status[5] == PARTIAL
+    assert match.inlier_fraction[5] < ScanMatchParams().min_inlier_fraction
+    assert np.abs(np.degrees(match.track.theta_rad[5:])).max() < 0.5
+    assert np.hypot(match.track.x_m[5:] - xs[5:], match.track.y_m[5:] - 2.55).max() < 0.1
+    assert match.summary()["partial"] == 1 and match.fallbacks == 0
 
 
 def test_log_without_a_laser_is_refused() -> None:

@@ -89,7 +89,8 @@ def summary_line(s: dict[str, Any]) -> str:
         sm = s["scan_match"]
         matched = (
             f"; {sm['scans']:,} scans matched in {sm['seconds']:.1f} s, {sm['fallbacks']:,} fell "
-            f"back to odometry, {sm['degenerate']:,} degenerate (odometry along the corridor)"
+            f"back to odometry, {sm['degenerate']:,} degenerate (odometry along the corridor), "
+            f"{sm['partial']:,} on the part the local map saw"
         )
     if "slam" in s:
         sl = s["slam"]

@@ -245,7 +245,8 @@ def _report(
     if "scan_match" in summary:
         sm = posed.summary["scan_match"]
         line += (
-            f" ({sm['fallbacks']:,} scans fell back to odometry, {sm['degenerate']:,} degenerate)"
+            f" ({sm['fallbacks']:,} scans fell back to odometry, {sm['degenerate']:,} degenerate, "
+            f"{sm['partial']:,} matched in part)"
         )
     if "slam" in summary:
         sl = posed.summary["slam"]

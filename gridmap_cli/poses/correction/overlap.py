@@ -45,6 +45,7 @@ from scipy.special import bdtrc
 
 from gridmap_cli.poses.correction.free_space import (
     DEPTH_M,
+    LEVEL_MIN,
     MIN_RANGE_M,
     SIGNIFICANCE,
     at_bearing,
@@ -109,6 +110,27 @@ def holds_in_part(
     if count == 0 or int(inlier.sum()) < gate * count:
         return False
     return free <= level_at(noise, count) * count
+
+
+def seen_and_holding(
+    moved: FloatArray,
+    inlier: Mask,
+    target: tuple[FloatArray, list[FloatArray]],
+    gate: float,
+    band_m: float,
+    min_seen: int,
+) -> Mask | None:
+    """Which of ``moved`` the target saw (inliers included), where they hold as
+    :func:`holds_in_part` judges a closure, but before the log's noise is known: at least
+    ``min_seen`` of them, and the free-space level at its floor, :data:`.free_space.LEVEL_MIN`,
+    the least any log's level is (what holds here would pass the closures' test too); None
+    where they do not hold."""
+    seen, free = views(moved, target[0], target[1], band_m)
+    seen |= inlier
+    count = int(seen.sum())
+    if count < min_seen or int(inlier.sum()) < gate * count:
+        return None
+    return seen if int((free & ~inlier).sum()) <= LEVEL_MIN * count else None
 
 
 def contradicts(

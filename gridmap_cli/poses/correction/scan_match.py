@@ -8,8 +8,9 @@ copies one voxel apart in z) so that GICP sees walls as planes, and x, y and yaw
 A match is judged before it is trusted (``docs/scan-matching.md``):
 
 - *poor*: too few points or inliers (within ``inlier_m`` of the local map), or a correction
-  larger than the odometry can be wrong by: the scan is relocated (:mod:`.relocate`) or, failing
-  that, the step keeps the odometry's increment (a *fallback*);
+  larger than the odometry can be wrong by: the scan is relocated (:mod:`.relocate`), or
+  matched on the part of it the local map saw (*partial*, :mod:`.local_map`: a step into new
+  space), or, failing both, the step keeps the odometry's increment (a *fallback*);
 - *degenerate*: the translation is constrained in one direction only (a featureless corridor):
   the correction is kept across the corridor and the odometry is kept along it, its distance
   scale corrected by what the fully constrained steps measured (:mod:`.degeneracy`);
@@ -26,15 +27,12 @@ import dataclasses
 import functools
 import math
 import time
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 import small_gicp
-from scipy.spatial import cKDTree
 
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
@@ -45,6 +43,7 @@ from gridmap_cli.poses.correction.degeneracy import (
     unchosen_slide,
     weak_axis,
 )
+from gridmap_cli.poses.correction.local_map import LocalMap, Tried, match_in_part
 from gridmap_cli.poses.correction.relocate import MOVED_M, odometry_gaps, relocate, typical_fit
 from gridmap_cli.poses.correction.sheet_gicp import (
     placed_points,
@@ -56,16 +55,16 @@ from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
 from gridmap_cli.robot import RangeSensor, RobotDescription
 
-if TYPE_CHECKING:
-    from gridmap_cli.poses.correction.correlative import LikelihoodGrid
-
 FloatArray = npt.NDArray[np.float64]
 #: A caller's progress callback: (stage, done, total), e.g. ("scan matching", 120, 4000).
 Progress = Callable[[str, int, int], object]
 
 #: Per-scan outcome codes of :attr:`ScanMatch.status`.
-MATCHED, FALLBACK, DEGENERATE, FIRST = 0, 1, 2, 3
-STATUS_NAMES = {MATCHED: "matched", FALLBACK: "fallback", DEGENERATE: "degenerate", FIRST: "first"}
+MATCHED, FALLBACK, DEGENERATE, FIRST, PARTIAL = 0, 1, 2, 3, 4
+STATUS_NAMES = {
+    MATCHED: "matched", FALLBACK: "fallback", DEGENERATE: "degenerate", FIRST: "first",
+    PARTIAL: "partial",
+}  # fmt: skip
 
 
 class NoLaserError(GridmapError):
@@ -180,6 +179,7 @@ class ScanMatch:
         return {
             "scans": len(self.track),
             "matched": int(np.count_nonzero(self.status == MATCHED)),
+            "partial": int(np.count_nonzero(self.status == PARTIAL)),
             "fallbacks": self.fallbacks,
             "degenerate": self.degenerate,
             "distance_scale": round(self.distance_scale, 4),
@@ -221,38 +221,6 @@ def laser_scans(log: RangeLog, sensors: tuple[RangeSensor, ...], params: ScanMat
     ends = np.searchsorted(stamps, laser_stamps, side="right")
     points = [np.column_stack([px[a:b], py[a:b]]) for a, b in zip(cuts, ends, strict=True)]
     return Scans(stamp_ns=laser_stamps.astype(np.int64), points=points)
-
-
-class _LocalMap:
-    """The last keyframe scans in the odometry frame, for GICP (3D sheet) and scoring (2D)."""
-
-    def __init__(self, params: ScanMatchParams) -> None:
-        self.params = params
-        self.frames: deque[FloatArray] = deque(maxlen=params.local_map_scans)
-        self.last_pose: tuple[float, float, float] | None = None
-        self.cloud: small_gicp.PointCloud | None = None
-        self.tree: small_gicp.KdTree | None = None
-        self.tree2d: cKDTree | None = None
-        self.grid: LikelihoodGrid | None = None  # built when a poor match first needs it
-
-    def wants(self, pose: tuple[float, float, float], fallback: bool = False) -> bool:
-        if self.last_pose is None:
-            return True
-        dx, dy = pose[0] - self.last_pose[0], pose[1] - self.last_pose[1]
-        turn = 0.0 if fallback else abs(float(wrap_angle(pose[2] - self.last_pose[2])))
-        return math.hypot(dx, dy) >= self.params.keyframe_m or turn >= self.params.keyframe_rad
-
-    def add(self, world_points: FloatArray, pose: tuple[float, float, float]) -> None:
-        self.frames.append(world_points)
-        self.last_pose = pose
-        flat = np.vstack(list(self.frames))
-        voxel = self.params.downsample_m
-        self.cloud, self.tree = small_gicp.preprocess_points(
-            planar_sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
-        )
-        # unbalanced: quicker to build, as quick to query, and the same nearest points
-        self.tree2d = cKDTree(flat, balanced_tree=False)
-        self.grid = None
 
 
 def match_scans(
@@ -308,7 +276,7 @@ def _match_pass(
     score = np.full(n, np.nan)
     weak = np.full((n, 2), np.nan)
     scale = DistanceScale(params.scale_min_m, params.scale_max_error, prior_scale)
-    local = _LocalMap(params)
+    local = LocalMap(params)
     # the odometry's increment from each scan to the next, all at once
     steps = compose(*inverse(ox[:-1], oy[:-1], oth[:-1]), ox[1:], oy[1:], oth[1:])
     for k in range(n):
@@ -352,7 +320,7 @@ def _match_pass(
                 mx, my, _ = compose(*inverse(*poses[k - 1]), *poses[k])
                 scale.add((float(mx), float(my)), (float(dx), float(dy)))
         if len(pts) and local.wants(tuple(poses[k]), status[k] == FALLBACK):
-            local.add(placed_points(pts, tuple(poses[k])), tuple(poses[k]))
+            local.add(pts, tuple(poses[k]))
         if progress is not None:
             progress("scan matching", k + 1, n)
     return poses, status, score, weak, scale
@@ -362,7 +330,7 @@ def _match_one(
     pts: FloatArray,
     guess: tuple[float, float, float],
     step_m: float,
-    local: _LocalMap,
+    local: LocalMap,
     params: ScanMatchParams,
     kept: tuple[float, float, float] | None = None,
     typical: Callable[[], float] | None = None,
@@ -389,6 +357,9 @@ def _match_one(
         return kept, FALLBACK, 0.0, None
     limit_m = params.max_correction_m + params.correction_per_m * step_m
     best: tuple[float, tuple[float, float, float], FloatArray] | None = None
+    # every registration within the bounds, with the share it needs: judged on what the local
+    # map saw when none reaches its share of the whole scan
+    tried: list[Tried] = []
     for offset in (0.0, *params.heading_starts_rad):
         start = (guess[0], guess[1], guess[2] + offset)
         result = small_gicp.align(
@@ -404,12 +375,21 @@ def _match_one(
         pose = planar_pose(np.asarray(result.T_target_source))
         moved = math.hypot(pose[0] - guess[0], pose[1] - guess[1])
         turned = abs(float(wrap_angle(pose[2] - guess[2])))
-        if moved > limit_m or turned > params.max_correction_rad:
+        # beyond the heading bound (within the lost scan's window) only as a match in part,
+        # and with the fit a relocation that turned as far needs
+        wide = turned > params.max_correction_rad
+        if moved > limit_m or (
+            wide and (typical is None or turned > min(window_rad, params.search_rad))
+        ):
             continue
         dist, _ = local.tree2d.query(
             placed_points(planar, pose), distance_upper_bound=params.inlier_m
         )
         fraction = int(np.count_nonzero(np.isfinite(dist))) / len(dist)
+        need = typical() if wide and typical is not None else params.min_inlier_fraction
+        tried.append((fraction, pose, np.asarray(result.H), need))
+        if wide:
+            continue
         if best is None or fraction > best[0]:
             best = (fraction, pose, np.asarray(result.H))
         if fraction >= params.min_inlier_fraction:
@@ -424,24 +404,29 @@ def _match_one(
         wide = found is not None and (
             abs(float(wrap_angle(found[1][2] - guess[2]))) > params.max_correction_rad
         )
+        if found is not None and (not wide or typical is not None):
+            need = typical() if wide and typical is not None else params.min_inlier_fraction
+            tried.append((*found, need))
         if (
             found is not None
             and (best is None or found[0] > best[0])
             and (not wide or (typical is not None and found[0] >= typical()))
         ):
             best = found
-    if best is None:
-        return kept, FALLBACK, 0.0, None
+    if best is None or best[0] < params.min_inlier_fraction:
+        poor = 0.0 if best is None else best[0]
+        best = match_in_part(tried, planar, local, params)
+        if best is None:
+            return kept, FALLBACK, poor, None
     fraction, pose, hessian = best
-    if fraction < params.min_inlier_fraction:
-        return kept, FALLBACK, fraction, None
+    matched = MATCHED if fraction >= params.min_inlier_fraction else PARTIAL
     axis = weak_axis(hessian, params.degenerate_ratio, pose[2])
     if axis is not None:
         return keep_across(kept, pose, axis), DEGENERATE, fraction, axis
     slid = unchosen_slide(
         hessian, planar, pose, kept, local.tree2d, params.inlier_m, step_m, came_from
     )
-    return pose if slid is None else keep_across(kept, pose, slid), MATCHED, fraction, None
+    return pose if slid is None else keep_across(kept, pose, slid), matched, fraction, None
 
 
 def match_log(
