@@ -35,6 +35,10 @@ free-space check's own test, a share past the level at that count by more than c
 many points would give, at :data:`.free_space.SIGNIFICANCE` (a level passed by a point or two
 of a hundred is still the level, and the check's floor on it is a fixed share, whatever the
 count).
+
+**A scan on the scan matcher's local map** that overlaps it only in part (a long step into new
+space) is judged the same way (:func:`seen_and_holding`, for :mod:`.local_map`), but before the
+log's near pairs are known: the level is the free-space check's floor, the least it ever is.
 """
 
 from __future__ import annotations
