@@ -53,14 +53,18 @@ def test_the_scans_are_placed_by_their_poses() -> None:
     assert free.tolist() == [False, True, False]
 
 
-def test_a_source_that_goes_on_where_the_target_never_looked_holds() -> None:
-    # the target saw a wall at x = 4 ahead of it; the source saw that wall too, and as much
-    # again to the robot's back, where the target never looked
-    target = (np.zeros((1, 3)), [_scan(4.0)])
+def _wall_and_behind() -> tuple[np.ndarray, np.ndarray]:
+    """The target saw a wall at x = 4 ahead of it; the source saw that wall too (60 points, the
+    inliers), and 80 more to the robot's back, where the target never looked."""
     on_wall = np.column_stack([np.full(60, 4.0), np.linspace(-3.0, 3.0, 60)])
     behind = np.column_stack([np.full(80, -4.0), np.linspace(-3.0, 3.0, 80)])
     moved = np.vstack([on_wall, behind])
-    inlier = np.arange(len(moved)) < len(on_wall)
+    return moved, np.arange(len(moved)) < len(on_wall)
+
+
+def test_a_source_that_goes_on_where_the_target_never_looked_holds() -> None:
+    target = (np.zeros((1, 3)), [_scan(4.0)])
+    moved, inlier = _wall_and_behind()
     assert inlier.mean() < 0.45  # under the gate over all of the source
     assert holds_in_part(moved, inlier, target, _noise(), 0.45, 0.15)
 
@@ -123,10 +127,7 @@ def test_a_source_the_target_never_saw_contradicts_nothing() -> None:
 
 def test_a_scan_on_the_local_map_holds_on_what_it_saw_before_the_noise_is_known() -> None:
     target = (np.zeros((1, 3)), [_scan(4.0)])
-    on_wall = np.column_stack([np.full(60, 4.0), np.linspace(-3.0, 3.0, 60)])
-    behind = np.column_stack([np.full(80, -4.0), np.linspace(-3.0, 3.0, 80)])
-    moved = np.vstack([on_wall, behind])
-    inlier = np.arange(len(moved)) < len(on_wall)
+    moved, inlier = _wall_and_behind()
     seen = seen_and_holding(moved, inlier, target, 0.5, 0.15, 20)
     assert seen is not None
     assert seen.tolist() == inlier.tolist()  # the wall is what it saw, not the rest
