@@ -39,9 +39,8 @@ from gridmap_cli.poses.correction.correlative import LikelihoodGrid
 from gridmap_cli.poses.correction.overlap import seen_and_holding
 from gridmap_cli.poses.correction.sheet_gicp import (
     placed_points,
-    planar_pose,
-    planar_sheet,
-    pose_matrix,
+    register,
+    sheet_cloud,
 )
 
 FloatArray = npt.NDArray[np.float64]
@@ -105,9 +104,7 @@ class LocalMap:
         self.last_pose = pose
         flat = np.vstack(list(self.frames))
         voxel = self.params.downsample_m
-        self.cloud, self.tree = small_gicp.preprocess_points(
-            planar_sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
-        )
+        self.cloud, self.tree = sheet_cloud(flat, voxel)
         # unbalanced: quicker to build, as quick to query, and the same nearest points
         self.tree2d = cKDTree(flat, balanced_tree=False)
         self.grid = None
@@ -134,14 +131,9 @@ def match_in_part(
         )
         if seen is None:
             continue
-        voxel = params.downsample_m
-        source, _ = small_gicp.preprocess_points(
-            planar_sheet(planar[seen], voxel), downsampling_resolution=voxel, num_neighbors=10
+        source, _ = sheet_cloud(planar[seen], params.downsample_m)
+        pose, hessian = register(
+            local.cloud, local.tree, source, pose, params.inlier_m, params.max_iterations
         )
-        result = small_gicp.align(
-            local.cloud, source, local.tree, init_T_target_source=pose_matrix(*pose),
-            registration_type="GICP", max_correspondence_distance=params.inlier_m,
-            max_iterations=params.max_iterations, num_threads=1,
-        )  # fmt: skip
-        return fraction, planar_pose(np.asarray(result.T_target_source)), np.asarray(result.H)
+        return fraction, pose, hessian
     return None

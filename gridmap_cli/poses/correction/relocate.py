@@ -32,7 +32,10 @@ from scipy.spatial import cKDTree
 
 from gridmap_cli.geometry import wrap_angle
 from gridmap_cli.poses.correction.correlative import LikelihoodGrid, search
-from gridmap_cli.poses.correction.sheet_gicp import placed_points, planar_pose, pose_matrix
+from gridmap_cli.poses.correction.sheet_gicp import (
+    placed_points,
+    register,
+)
 
 FloatArray = npt.NDArray[np.float64]
 Pose = tuple[float, float, float]
@@ -61,8 +64,9 @@ GAP_INTERVALS = 10.0
 MOVED_M = 0.01
 
 
-class LocalMap(Protocol):
-    """The scan matcher's local map: GICP's target and tree, the 2-D points' tree, and the
+class MapToSearch(Protocol):
+    """A local map as the search takes it (the scan matcher's, :class:`.local_map.LocalMap`, or scan
+    odometry's keyframes): GICP's target and tree, the 2-D points' tree, and the
     likelihood grid, None until built here."""
 
     cloud: small_gicp.PointCloud | None
@@ -151,7 +155,7 @@ class TypicalFit:
 
 
 def relocate(
-    local: LocalMap,
+    local: MapToSearch,
     source: small_gicp.PointCloud,
     planar: FloatArray,
     guess: Pose,
@@ -177,17 +181,14 @@ def relocate(
     found = search(local.grid, planar[near], guess, window_m, window_rad, step_rad, MIN_SCORE)
     if found is None:
         return None
-    result = small_gicp.align(
+    pose, hessian = register(
         local.cloud,
-        source,
         local.tree,
-        init_T_target_source=pose_matrix(found.x_m, found.y_m, found.theta_rad),
-        registration_type="GICP",
-        max_correspondence_distance=params.correspondence_m,
-        max_iterations=params.max_iterations,
-        num_threads=1,
+        source,
+        (found.x_m, found.y_m, found.theta_rad),
+        params.correspondence_m,
+        params.max_iterations,
     )
-    pose = planar_pose(np.asarray(result.T_target_source))
     # the window is what the odometry can have lost: GICP drifting out of it (a stale scan that
     # fits only turned further than a robot standing still can have turned) is no answer either
     if math.hypot(pose[0] - guess[0], pose[1] - guess[1]) > window_m + CELL_M:
@@ -195,4 +196,4 @@ def relocate(
     if abs(float(wrap_angle(pose[2] - guess[2]))) > window_rad + step_rad:
         return None
     dist, _ = local.tree2d.query(placed_points(planar, pose), distance_upper_bound=params.inlier_m)
-    return float(np.mean(np.isfinite(dist))), pose, np.asarray(result.H)
+    return float(np.mean(np.isfinite(dist))), pose, hessian

@@ -32,7 +32,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-import small_gicp
 
 from gridmap_cli.errors import GridmapError
 from gridmap_cli.geometry import compose, inverse, wrap_angle
@@ -47,9 +46,8 @@ from gridmap_cli.poses.correction.local_map import LocalMap, Tried, match_in_par
 from gridmap_cli.poses.correction.relocate import MOVED_M, odometry_gaps, relocate, typical_fit
 from gridmap_cli.poses.correction.sheet_gicp import (
     placed_points,
-    planar_pose,
-    planar_sheet,
-    pose_matrix,
+    register,
+    sheet_cloud,
 )
 from gridmap_cli.poses.sync import interpolate_pose, sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
@@ -348,9 +346,7 @@ def _match_one(
     if local.cloud is None or local.tree is None or local.tree2d is None:
         return kept, FALLBACK, 0.0, None
     voxel = params.downsample_m
-    source, _ = small_gicp.preprocess_points(
-        planar_sheet(pts, voxel), downsampling_resolution=voxel, num_neighbors=10
-    )
+    source, _ = sheet_cloud(pts, voxel)
     cloud = np.asarray(source.points())
     planar = cloud[np.abs(cloud[:, 2] - 0.5 * voxel) < 0.25 * voxel, :2]
     if len(planar) < params.min_points:
@@ -360,38 +356,32 @@ def _match_one(
     # every registration within the bounds, with the share it needs: judged on what the local
     # map saw when none reaches its share of the whole scan
     tried: list[Tried] = []
+    # the fit a registration turned beyond the heading bound needs; the same for every such one
+    wide_fit = None if typical is None else functools.cache(typical)
     for offset in (0.0, *params.heading_starts_rad):
         start = (guess[0], guess[1], guess[2] + offset)
-        result = small_gicp.align(
-            local.cloud,
-            source,
-            local.tree,
-            init_T_target_source=pose_matrix(*start),
-            registration_type="GICP",
-            max_correspondence_distance=params.correspondence_m,
-            max_iterations=params.max_iterations,
-            num_threads=1,
+        pose, hessian = register(
+            local.cloud, local.tree, source, start, params.correspondence_m, params.max_iterations
         )
-        pose = planar_pose(np.asarray(result.T_target_source))
         moved = math.hypot(pose[0] - guess[0], pose[1] - guess[1])
         turned = abs(float(wrap_angle(pose[2] - guess[2])))
         # beyond the heading bound (within the lost scan's window) only as a match in part,
         # and with the fit a relocation that turned as far needs
         wide = turned > params.max_correction_rad
         if moved > limit_m or (
-            wide and (typical is None or turned > min(window_rad, params.search_rad))
+            wide and (wide_fit is None or turned > min(window_rad, params.search_rad))
         ):
             continue
         dist, _ = local.tree2d.query(
             placed_points(planar, pose), distance_upper_bound=params.inlier_m
         )
         fraction = int(np.count_nonzero(np.isfinite(dist))) / len(dist)
-        need = typical() if wide and typical is not None else params.min_inlier_fraction
-        tried.append((fraction, pose, np.asarray(result.H), need))
+        need = wide_fit() if wide and wide_fit is not None else params.min_inlier_fraction
+        tried.append((fraction, pose, hessian, need))
         if wide:
             continue
         if best is None or fraction > best[0]:
-            best = (fraction, pose, np.asarray(result.H))
+            best = (fraction, pose, hessian)
         if fraction >= params.min_inlier_fraction:
             break
     if (best is None or best[0] < params.min_inlier_fraction) and params.search_rad > 0:
@@ -401,18 +391,13 @@ def _match_one(
         found = relocate(
             local, source, planar, guess, limit_m, min(window_rad, params.search_rad), params
         )
-        wide = found is not None and (
-            abs(float(wrap_angle(found[1][2] - guess[2]))) > params.max_correction_rad
-        )
-        if found is not None and (not wide or typical is not None):
-            need = typical() if wide and typical is not None else params.min_inlier_fraction
-            tried.append((*found, need))
-        if (
-            found is not None
-            and (best is None or found[0] > best[0])
-            and (not wide or (typical is not None and found[0] >= typical()))
-        ):
-            best = found
+        if found is not None:
+            wide = abs(float(wrap_angle(found[1][2] - guess[2]))) > params.max_correction_rad
+            need = wide_fit() if wide and wide_fit is not None else params.min_inlier_fraction
+            if not wide or wide_fit is not None:
+                tried.append((*found, need))
+                if (best is None or found[0] > best[0]) and (not wide or found[0] >= need):
+                    best = found
     if best is None or best[0] < params.min_inlier_fraction:
         poor = 0.0 if best is None else best[0]
         best = match_in_part(tried, planar, local, params)

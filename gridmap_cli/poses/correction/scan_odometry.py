@@ -39,9 +39,8 @@ from gridmap_cli.poses.correction.scan_match import (
 )
 from gridmap_cli.poses.correction.sheet_gicp import (
     placed_points,
-    planar_pose,
-    planar_sheet,
-    pose_matrix,
+    register,
+    sheet_cloud,
 )
 from gridmap_cli.poses.sync import sensors_for_log
 from gridmap_cli.records import PoseTrack, RangeLog
@@ -118,9 +117,7 @@ class _Keyframes:
         self.last = pose
         flat = np.vstack(list(self.frames))
         voxel = self.params.downsample_m
-        self.cloud, self.tree = small_gicp.preprocess_points(
-            planar_sheet(flat, voxel), downsampling_resolution=voxel, num_neighbors=10
-        )
+        self.cloud, self.tree = sheet_cloud(flat, voxel)
         self.tree2d = cKDTree(flat)
         self.grid = None
 
@@ -136,10 +133,7 @@ class _Keyframes:
         p = self.params
         if self.cloud is None or self.tree is None or self.tree2d is None:
             return None
-        source, _ = small_gicp.preprocess_points(
-            planar_sheet(points, p.downsample_m), downsampling_resolution=p.downsample_m,
-            num_neighbors=10,
-        )  # fmt: skip
+        source, _ = sheet_cloud(points, p.downsample_m)
         cloud = np.asarray(source.points())
         planar = cloud[np.abs(cloud[:, 2] - 0.5 * p.downsample_m) < 0.25 * p.downsample_m, :2]
         if len(planar) < p.min_points:
@@ -148,24 +142,16 @@ class _Keyframes:
         for i, start in enumerate(starts):
             if i >= 2 and best is not None and best[0] >= p.min_inlier_fraction:
                 break
-            result = small_gicp.align(
-                self.cloud,
-                source,
-                self.tree,
-                init_T_target_source=pose_matrix(*start),
-                registration_type="GICP",
-                max_correspondence_distance=p.correspondence_m,
-                max_iterations=p.max_iterations,
-                num_threads=1,
+            pose, hessian = register(
+                self.cloud, self.tree, source, start, p.correspondence_m, p.max_iterations
             )
-            pose = planar_pose(np.asarray(result.T_target_source))
             dist, _ = self.tree2d.query(
                 placed_points(planar, pose), distance_upper_bound=p.inlier_m
             )
             fraction = float(np.mean(np.isfinite(dist)))
             if fraction < p.min_inlier_fraction or (best is not None and fraction <= best[0]):
                 continue
-            axis = weak_axis(np.asarray(result.H), p.degenerate_ratio, pose[2])
+            axis = weak_axis(hessian, p.degenerate_ratio, pose[2])
             best = (fraction, pose if axis is None else keep_across(starts[0], pose, axis))
         if best is not None and best[0] < bar:
             # the correlative search around the prediction, as wide as the turned starts go

@@ -75,6 +75,40 @@ def planar_sheet(points: FloatArray, voxel_m: float) -> FloatArray:
     return sheet
 
 
+def sheet_cloud(
+    points: FloatArray, voxel_m: float
+) -> tuple[small_gicp.PointCloud, small_gicp.KdTree]:
+    """Planar points (K, 2) as small_gicp's sheet (:func:`planar_sheet`) downsampled to
+    ``voxel_m``, each copy's covariance from its 10 nearest, and the sheet's kd-tree."""
+    cloud, tree = small_gicp.preprocess_points(
+        planar_sheet(points, voxel_m), downsampling_resolution=voxel_m, num_neighbors=10
+    )
+    return cloud, tree
+
+
+def register(
+    target: small_gicp.PointCloud,
+    tree: small_gicp.KdTree,
+    source: small_gicp.PointCloud,
+    start: Pose,
+    max_distance_m: float,
+    max_iterations: int,
+) -> tuple[Pose, FloatArray]:
+    """small_gicp's GICP (one thread) of the sheet ``source`` onto ``target`` from the planar
+    pose ``start``: the planar pose found and GICP's Hessian (6, 6)."""
+    result = small_gicp.align(
+        target,
+        source,
+        tree,
+        init_T_target_source=pose_matrix(*start),
+        registration_type="GICP",
+        max_correspondence_distance=max_distance_m,
+        max_iterations=max_iterations,
+        num_threads=1,
+    )
+    return planar_pose(np.asarray(result.T_target_source)), np.asarray(result.H)
+
+
 #: The nearest copies a copy's covariance is taken from (itself included), as the closure search
 #: has small_gicp take them.
 NEIGHBOURS = 10
@@ -174,19 +208,11 @@ def align(
         )  # fmt: skip
         xy = np.ascontiguousarray(hessian.reshape(3, 3)[1:3, 1:3])
         return Registration((float(pose[0]), float(pose[1]), float(pose[2])), xy)
-    result = small_gicp.align(
-        target.cloud,
-        source.cloud,
-        target.tree,
-        init_T_target_source=pose_matrix(*start),
-        registration_type="GICP",
-        max_correspondence_distance=max_distance_m,
-        max_iterations=max_iterations,
-        num_threads=1,
+    assert target.cloud is not None and target.tree is not None and source.cloud is not None
+    found, hessian = register(
+        target.cloud, target.tree, source.cloud, start, max_distance_m, max_iterations
     )
-    m = np.asarray(result.T_target_source)
-    found = (float(m[0, 3]), float(m[1, 3]), math.atan2(float(m[1, 0]), float(m[0, 0])))
-    return Registration(found, np.ascontiguousarray(np.asarray(result.H)[3:5, 3:5]))
+    return Registration(found, np.ascontiguousarray(hessian[3:5, 3:5]))
 
 
 def nearest_m(sheet: Sheet, queries: FloatArray, radius_m: float) -> FloatArray:
