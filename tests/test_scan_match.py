@@ -16,6 +16,7 @@ from gridmap_cli.poses.correction.local_map import LocalMap
 from gridmap_cli.poses.correction.scan_match import (
     FALLBACK,
     FIRST,
+    MATCHED,
     PARTIAL,
     NoLaserError,
     ScanMatchParams,
@@ -227,6 +228,27 @@ def test_a_scan_a_long_step_into_new_space_is_matched_on_what_the_local_map_saw(
     assert np.abs(np.degrees(match.track.theta_rad[5:])).max() < 0.5
     assert np.hypot(match.track.x_m[5:] - xs[5:], match.track.y_m[5:] - 2.55).max() < 0.1
     assert match.summary()["partial"] == 1 and match.fallbacks == 0
+
+
+def test_far_correspondences_do_not_pull_a_match_off_a_guess_that_fits_better() -> None:
+    """A row of boxes 0.7 m inside the room, new since the local map was made: GICP from the
+    guess pairs them with the wall behind them (within its 1 m) and lands turned and shifted,
+    fitting worse than the guess did. Registered again from the guess with only the near
+    correspondences, the scan stays where the corner it saw again puts it."""
+    across = np.column_stack([np.full(121, 4.0), np.linspace(-2.5, 2.5, 121)])
+    along = np.column_stack([np.linspace(0.5, 3.9, 80), np.full(80, 2.5)])
+    corner = np.vstack([across, along])
+    boxes = np.column_stack([np.linspace(1.0, 2.0, 40), np.full(40, 1.8)])
+    stamps = np.array([0, 1_000_000_000], dtype=np.int64)
+    odometry = PoseTrack(stamps, np.zeros(2), np.zeros(2), np.zeros(2))
+    scans = Scans(stamps, [corner, np.vstack([corner, boxes])])
+    coarse = match_scans(scans, odometry, ScanMatchParams(fine_correspondence_m=0.0))
+    assert abs(math.degrees(coarse.track.theta_rad[1])) > 1.0  # pulled off by the boxes
+    match = match_scans(scans, odometry, ScanMatchParams())
+    assert match.status[1] == MATCHED
+    assert match.inlier_fraction[1] > coarse.inlier_fraction[1]
+    assert abs(math.degrees(match.track.theta_rad[1])) < 0.1
+    assert math.hypot(match.track.x_m[1], match.track.y_m[1]) < 0.01
 
 
 def test_log_without_a_laser_is_refused() -> None:

@@ -78,13 +78,17 @@ class ScanMatchParams:
     ``keyframe_m``/``keyframe_rad``: a scan joins the local map when the robot has moved this far
     or turned this much since the last one that did (a fallback only when it moved: turned in
     place, its guessed heading can be far off); ``local_map_scans`` keyframes are kept.
-    ``correspondence_m``: GICP's maximum correspondence distance. ``inlier_m``: a matched point
-    within this of the local map counts as an inlier; ``min_inlier_fraction`` of them are needed
-    and at least ``min_points`` points. ``max_correction_m``/``max_correction_rad`` plus
-    ``correction_per_m`` times the step length bound how far a match may move the odometry's
-    guess. ``degenerate_ratio``: smallest over largest eigenvalue of the translation block of
-    the match's Hessian below which the match is degenerate. ``heading_starts_rad``: extra
-    starting headings (offsets from the guess) tried when the first match is poor.
+    ``correspondence_m``: GICP's maximum correspondence distance. ``fine_correspondence_m``:
+    where the match leaves fewer of the scan's points within ``inlier_m`` of the local map than
+    the odometry's guess did, GICP runs again from the guess with correspondences only this
+    near, and the better fit is kept (0: never).
+    ``inlier_m``: a matched point within this of the local map counts as an inlier;
+    ``min_inlier_fraction`` of them are needed and at least ``min_points`` points.
+    ``max_correction_m``/``max_correction_rad`` plus ``correction_per_m`` times the step length
+    bound how far a match may move the odometry's guess. ``degenerate_ratio``: smallest over
+    largest eigenvalue of the translation block of the match's Hessian below which the match is
+    degenerate. ``heading_starts_rad``: extra starting headings (offsets from the guess) tried
+    when the first match is poor.
     ``search_rad``: when no start holds, a correlative search finds GICP a start
     (:mod:`.relocate`), over this much heading either side of the guess at most (0: none).
     ``scale_min_m``/``scale_max_error``: the odometry's distance scale is learned from the
@@ -100,6 +104,7 @@ class ScanMatchParams:
     keyframe_rad: float = math.radians(10.0)
     local_map_scans: int = 20
     correspondence_m: float = 1.0
+    fine_correspondence_m: float = 0.3
     max_iterations: int = 30
     inlier_m: float = 0.15
     min_inlier_fraction: float = 0.5
@@ -372,10 +377,7 @@ def _match_one(
             wide and (wide_fit is None or turned > min(window_rad, params.search_rad))
         ):
             continue
-        dist, _ = local.tree2d.query(
-            placed_points(planar, pose), distance_upper_bound=params.inlier_m
-        )
-        fraction = int(np.count_nonzero(np.isfinite(dist))) / len(dist)
+        fraction = _share(planar, pose, local, params)
         need = wide_fit() if wide and wide_fit is not None else params.min_inlier_fraction
         tried.append((fraction, pose, hessian, need))
         if wide:
@@ -384,6 +386,22 @@ def _match_one(
             best = (fraction, pose, hessian)
         if fraction >= params.min_inlier_fraction:
             break
+    fit = 0.0 if best is None else best[0]
+    if params.fine_correspondence_m > 0 and fit < _share(planar, guess, local, params):
+        # GICP's far correspondences (the part of the scan the local map lacks, paired with
+        # whatever lies within reach) pulled it off a pose that fits better: again from the
+        # guess, with only the near ones
+        pose, hessian = register(
+            local.cloud, local.tree, source, guess, params.fine_correspondence_m,
+            params.max_iterations,
+        )  # fmt: skip
+        moved = math.hypot(pose[0] - guess[0], pose[1] - guess[1])
+        turned = abs(float(wrap_angle(pose[2] - guess[2])))
+        if moved <= limit_m and turned <= params.max_correction_rad:
+            fraction = _share(planar, pose, local, params)
+            tried.append((fraction, pose, hessian, params.min_inlier_fraction))
+            if best is None or fraction > best[0]:
+                best = (fraction, pose, hessian)
     if (best is None or best[0] < params.min_inlier_fraction) and params.search_rad > 0:
         # no start held: the odometry may be off by more than the retries and the heading
         # bound allow (:mod:`.relocate`); beyond the bound only with the fit most of the
@@ -412,6 +430,15 @@ def _match_one(
         hessian, planar, pose, kept, local.tree2d, params.inlier_m, step_m, came_from
     )
     return pose if slid is None else keep_across(kept, pose, slid), matched, fraction, None
+
+
+def _share(
+    planar: FloatArray, pose: tuple[float, float, float], local: LocalMap, params: ScanMatchParams
+) -> float:
+    """The share of the scan's points (K, 2) within ``inlier_m`` of the local map at ``pose``."""
+    assert local.tree2d is not None
+    dist, _ = local.tree2d.query(placed_points(planar, pose), distance_upper_bound=params.inlier_m)
+    return int(np.count_nonzero(np.isfinite(dist))) / len(dist)
 
 
 def match_log(
