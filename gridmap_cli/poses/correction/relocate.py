@@ -195,5 +195,11 @@ def relocate(
         return None
     if abs(float(wrap_angle(pose[2] - guess[2]))) > window_rad + step_rad:
         return None
-    dist, _ = local.tree2d.query(placed_points(planar, pose), distance_upper_bound=params.inlier_m)
-    return float(np.mean(np.isfinite(dist))), pose, hessian
+    return inlier_share(local.tree2d, planar, pose, params.inlier_m), pose, hessian
+
+
+def inlier_share(tree: cKDTree, planar: FloatArray, pose: Pose, inlier_m: float) -> float:
+    """The share of a scan's points (K, 2, robot frame) within ``inlier_m`` of the map points
+    in ``tree`` when the scan is at ``pose``: the scan matcher's fit."""
+    dist, _ = tree.query(placed_points(planar, pose), distance_upper_bound=inlier_m)
+    return int(np.count_nonzero(np.isfinite(dist))) / len(dist)

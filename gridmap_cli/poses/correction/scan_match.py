@@ -43,9 +43,14 @@ from gridmap_cli.poses.correction.degeneracy import (
     weak_axis,
 )
 from gridmap_cli.poses.correction.local_map import LocalMap, Tried, match_in_part
-from gridmap_cli.poses.correction.relocate import MOVED_M, odometry_gaps, relocate, typical_fit
+from gridmap_cli.poses.correction.relocate import (
+    MOVED_M,
+    inlier_share,
+    odometry_gaps,
+    relocate,
+    typical_fit,
+)
 from gridmap_cli.poses.correction.sheet_gicp import (
-    placed_points,
     register,
     sheet_cloud,
 )
@@ -377,7 +382,7 @@ def _match_one(
             wide and (wide_fit is None or turned > min(window_rad, params.search_rad))
         ):
             continue
-        fraction = _share(planar, pose, local, params)
+        fraction = inlier_share(local.tree2d, planar, pose, params.inlier_m)
         need = wide_fit() if wide and wide_fit is not None else params.min_inlier_fraction
         tried.append((fraction, pose, hessian, need))
         if wide:
@@ -387,7 +392,9 @@ def _match_one(
         if fraction >= params.min_inlier_fraction:
             break
     fit = 0.0 if best is None else best[0]
-    if params.fine_correspondence_m > 0 and fit < _share(planar, guess, local, params):
+    if params.fine_correspondence_m > 0 and (
+        fit < inlier_share(local.tree2d, planar, guess, params.inlier_m)
+    ):
         # GICP's far correspondences (the part of the scan the local map lacks, paired with
         # whatever lies within reach) pulled it off a pose that fits better: again from the
         # guess, with only the near ones
@@ -398,7 +405,7 @@ def _match_one(
         moved = math.hypot(pose[0] - guess[0], pose[1] - guess[1])
         turned = abs(float(wrap_angle(pose[2] - guess[2])))
         if moved <= limit_m and turned <= params.max_correction_rad:
-            fraction = _share(planar, pose, local, params)
+            fraction = inlier_share(local.tree2d, planar, pose, params.inlier_m)
             tried.append((fraction, pose, hessian, params.min_inlier_fraction))
             if best is None or fraction > best[0]:
                 best = (fraction, pose, hessian)
@@ -430,15 +437,6 @@ def _match_one(
         hessian, planar, pose, kept, local.tree2d, params.inlier_m, step_m, came_from
     )
     return pose if slid is None else keep_across(kept, pose, slid), matched, fraction, None
-
-
-def _share(
-    planar: FloatArray, pose: tuple[float, float, float], local: LocalMap, params: ScanMatchParams
-) -> float:
-    """The share of the scan's points (K, 2) within ``inlier_m`` of the local map at ``pose``."""
-    assert local.tree2d is not None
-    dist, _ = local.tree2d.query(placed_points(planar, pose), distance_upper_bound=params.inlier_m)
-    return int(np.count_nonzero(np.isfinite(dist))) / len(dist)
 
 
 def match_log(
