@@ -8,6 +8,11 @@ passing track moves:
 
 - :func:`partial_loops` tries the loops that closures under the inlier gate would close
   (:mod:`.overlap`), keeping each that leaves fewer revisits contradicting;
+- :func:`doubted_loops` takes out, a loop at a time, the accepted closures that do not hold on
+  their target's view, keeping each loop out that leaves fewer revisits contradicting: a
+  look-alike found near a guess the drift carried off passes the gate and the far closures'
+  test beyond chance, but puts more of what its target saw in the target's free space than
+  the log's own revisits do;
 - where the track still fails, or fails the check's wide look, the closure search runs again
   with its bounds on the drift :data:`WIDER_SEARCH` times as wide (:func:`wider`): the scan
   matcher may have drifted further before the robot came back than the bounds allow (a campus,
@@ -191,6 +196,50 @@ def partial_loops(
         )
         if better:
             accepted.update(trial)
+            estimate, now = moved, check
+    graph.edges = [e for e in graph.edges if not e.closure] + [
+        closure_edge(k, params) for k in accepted.values()
+    ]
+    return estimate, now
+
+
+def doubted_loops(
+    scans: Scans,
+    match: ScanMatch,
+    nodes: npt.NDArray[np.intp],
+    graph: PoseGraph,
+    estimate: FloatArray,
+    accepted: dict[tuple[int, int], Closure],
+    submaps: Submaps,
+    params: GraphParams,
+    now: FreeSpaceCheck | None = None,
+) -> tuple[FloatArray, FreeSpaceCheck]:
+    """On a track that fails its free-space check only (its check ``now``, taken here where
+    None): the ``accepted`` closures that do not hold on their target's view
+    (:func:`.overlap.holds_in_part`), grouped by loop and taken out a loop at a time, the
+    largest first, while the track fails. A loop stays out where the track without it has a
+    smaller share of its revisits contradicting at no fewer than half its revisits (a track
+    that opens its loops avoids the check by not coming back, not by agreeing). ``accepted`` is
+    updated; the estimate is returned, with its track's check."""
+    if now is None:
+        now = check_poses(carried(match, nodes, estimate), scans.points)
+    if not now.fails:
+        return estimate, now
+    doubted = [k for k in accepted.values() if not holds_where_seen(submaps, k)]
+    groups = by_loop(doubted, [], path_length(estimate), params.closure.coarse_link_m)
+    for group in sorted(groups, key=len, reverse=True):
+        if not now.fails:
+            break
+        out = {(k.i, k.j) for k in group}
+        trial = {key: k for key, k in accepted.items() if key not in out}
+        graph.edges = [e for e in graph.edges if not e.closure] + [
+            closure_edge(k, params) for k in trial.values()
+        ]
+        moved = graph.optimise(estimate, KERNEL_STAGES)
+        check = check_poses(carried(match, nodes, moved), scans.points)
+        if check.share < now.share and 2 * check.revisits >= now.revisits:
+            for key in out:
+                del accepted[key]
             estimate, now = moved, check
     graph.edges = [e for e in graph.edges if not e.closure] + [
         closure_edge(k, params) for k in accepted.values()

@@ -62,6 +62,7 @@ from gridmap_cli.poses.correction.repair import (
     agreeing,
     carried,
     closure_edge,
+    doubted_loops,
     drifted,
     partial_loops,
     solved,
@@ -268,8 +269,8 @@ def optimise_with_closures(
     scans: Scans, match: ScanMatch, params: SlamParams, progress: Progress | None = None
 ) -> _Optimised:
     """Keyframes, their optimised poses, the graph, accepted closures, the counts of candidates
-    tried, rejected by verification and dropped by the consistency check, and the free-space
-    check of the track where it was taken (:func:`.repair.partial_loops`). ``progress`` is called
+    tried, rejected by verification and dropped by the consistency check or as doubted
+    (:func:`.repair.doubted_loops`), and the free-space check of the track. ``progress`` is called
     after each round with ``("loop closures", rounds done, rounds)``."""
     m = match.track
     local = np.column_stack([m.x_m, m.y_m, m.theta_rad])
@@ -348,6 +349,11 @@ def optimise_with_closures(
         estimate, check = partial_loops(
             scans, match, nodes, graph, estimate, accepted, partial, submaps, params
         )
+    held = len(accepted)
+    estimate, check = doubted_loops(
+        scans, match, nodes, graph, estimate, accepted, submaps, params, check
+    )
+    dropped += held - len(accepted)
     if progress is not None:
         progress("loop closures", params.rounds, params.rounds)
     return nodes, estimate, graph, list(accepted.values()), len(tried), rejected, dropped, check
