@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Iterable
 from typing import Protocol
 
 import numpy as np
@@ -183,9 +184,7 @@ def partial_loops(
             break
         trial = dict(accepted)
         trial.update({(k.i, k.j): k for k in group})
-        graph.edges = [e for e in graph.edges if not e.closure] + [
-            closure_edge(k, params) for k in trial.values()
-        ]
+        with_closures(graph, trial.values(), params)
         moved = graph.optimise(estimate, KERNEL_STAGES)
         res = edge_residuals(moved, [e for e in graph.edges if e.closure])
         check = check_poses(carried(match, nodes, moved), scans.points)
@@ -197,9 +196,7 @@ def partial_loops(
         if better:
             accepted.update(trial)
             estimate, now = moved, check
-    graph.edges = [e for e in graph.edges if not e.closure] + [
-        closure_edge(k, params) for k in accepted.values()
-    ]
+    with_closures(graph, accepted.values(), params)
     return estimate, now
 
 
@@ -232,18 +229,14 @@ def doubted_loops(
             break
         out = {(k.i, k.j) for k in group}
         trial = {key: k for key, k in accepted.items() if key not in out}
-        graph.edges = [e for e in graph.edges if not e.closure] + [
-            closure_edge(k, params) for k in trial.values()
-        ]
+        with_closures(graph, trial.values(), params)
         moved = graph.optimise(estimate, KERNEL_STAGES)
         check = check_poses(carried(match, nodes, moved), scans.points)
         if check.share < now.share and 2 * check.revisits >= now.revisits:
             for key in out:
                 del accepted[key]
             estimate, now = moved, check
-    graph.edges = [e for e in graph.edges if not e.closure] + [
-        closure_edge(k, params) for k in accepted.values()
-    ]
+    with_closures(graph, accepted.values(), params)
     return estimate, now
 
 
@@ -259,9 +252,7 @@ def solved(
     dropped = 0
     stages = KERNEL_STAGES
     while True:
-        graph.edges = [e for e in graph.edges if not e.closure] + [
-            closure_edge(k, params) for k in accepted.values()
-        ]
+        with_closures(graph, accepted.values(), params)
         estimate = graph.optimise(estimate, stages)
         # once a closure is dropped, the estimate is already the tight kernel's optimum
         # with that one closure more: none of the rest is far from it for the wide kernels
@@ -298,6 +289,11 @@ def by_loop(
         else:
             groups.append([k])
     return groups
+
+
+def with_closures(graph: PoseGraph, closures: Iterable[Closure], p: GraphParams) -> None:
+    """``graph``'s closure edges made those of ``closures``, its other edges kept."""
+    graph.edges = [e for e in graph.edges if not e.closure] + [closure_edge(k, p) for k in closures]
 
 
 def closure_edge(c: Closure, p: GraphParams) -> Edge:

@@ -68,6 +68,7 @@ from gridmap_cli.poses.correction.repair import (
     solved,
     standing,
     wider,
+    with_closures,
 )
 from gridmap_cli.poses.correction.scan_match import (
     FALLBACK,
@@ -334,9 +335,7 @@ def optimise_with_closures(
             if added:
                 # the next, longer loops guessed from this solution; closures judged, and
                 # two-way edges' ends chosen, below
-                graph.edges = [e for e in graph.edges if not e.closure] + [
-                    closure_edge(k, params) for k in accepted.values()
-                ]
+                with_closures(graph, accepted.values(), params)
                 estimate = graph.optimise(estimate, choose=False)
                 new += added
                 tiers = by_gap(candidates(estimate, spots, c, targets=spots), path, c.min_path_m)
