@@ -211,9 +211,7 @@ def _doubted(
     monkeypatch.setattr(repair, "carried", lambda match, nodes, poses: None)
     monkeypatch.setattr(repair, "holds_where_seen", holds)
     params = dataclasses.replace(slam.SlamParams(), reject_m=10.0, reject_rad=1.0)
-    graph.edges = [e for e in graph.edges if not e.closure] + [
-        repair.closure_edge(k, params) for k in accepted.values()
-    ]
+    repair.with_closures(graph, accepted.values(), params)
     before = graph.optimise(estimate, repair.KERNEL_STAGES)
     after, _ = repair.doubted_loops(
         SimpleNamespace(points=[]),  # type: ignore[arg-type]
